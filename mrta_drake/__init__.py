@@ -1,0 +1,1 @@
+"""mrta-drake: test multi-robot task allocation with planning and control in a Drake hospital."""

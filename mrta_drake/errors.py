@@ -1,0 +1,14 @@
+"""The one error type for bad user input (scenario YAML, task files, maps, CLI flags)."""
+
+
+class InputError(ValueError):
+    """Bad user input; the message is one line naming the file, the field and the value.
+
+    The CLI prints ``str(error)`` and exits with status 2; it never shows a traceback.
+    """
+
+    def __init__(self, file: str | None, field: str | None, message: str):
+        self.file = file
+        self.field = field
+        where = ": ".join(part for part in (str(file) if file else None, field) if part)
+        super().__init__(f"{where}: {message}" if where else message)

@@ -1,0 +1,226 @@
+"""Every payload that travels on a port between mrta-drake blocks, in one place.
+
+Numeric per-robot signals travel as plain vector ports; everything else as abstract ports
+(``Value[object]``) holding one of the frozen dataclasses below. A block that is swapped for
+another must read and write the same payloads.
+
+Vector layouts (N robots in scenario order, M humans; world frame, metres, radians, seconds):
+
+- robot state, ``4N``: ``[x, y, theta, v]`` per robot: position of the robot centre, heading
+  (yaw about +z, 0 = east), forward speed (m/s).
+- robot commands, ``2N``: ``[v, omega]`` per robot: commanded forward speed (m/s) and yaw
+  rate (rad/s). The robot block applies its own acceleration and speed limits.
+- plant positions, ``3N`` (robots) or ``3M`` (humans): ``[x, y, theta]`` per body, the
+  generalized positions of the bodies' planar joints in the ``MultibodyPlant``.
+
+Arrays inside payloads are read-only numpy arrays; never modify a payload, make a new one.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+ROBOT_STATE_SIZE = 4  # x, y, theta, v
+ROBOT_COMMAND_SIZE = 2  # v, omega
+PLANAR_POSITION_SIZE = 3  # x, y, theta
+
+
+def frozen_array(values, dtype=float, shape=None) -> np.ndarray:
+    """A read-only copy of ``values`` as a numpy array (reshaped to ``shape`` if given)."""
+    array = np.array(values, dtype=dtype)
+    if shape is not None:
+        array = array.reshape(shape)
+    array.flags.writeable = False
+    return array
+
+
+# --- Allocation: allocator -> waypoint generators -------------------------------------------
+
+PICKUP = "pickup"
+DROPOFF = "dropoff"
+VISIT = "visit"
+
+
+@dataclass(frozen=True)
+class Stop:
+    """One visit a robot must make: go to ``location`` and do ``action`` there.
+
+    ``key`` identifies the stop across re-plans (e.g. ``"t3/pickup"``): a waypoint generator
+    never repeats a stop whose key it has completed. ``planned_time`` is the allocator's
+    predicted completion time (s, simulation time; ``nan`` if the allocator makes none).
+    """
+
+    key: str
+    location: int
+    action: str = VISIT
+    task: int | None = None
+    planned_time: float = float("nan")
+
+
+@dataclass(frozen=True)
+class RobotPlan:
+    """The ordered stops one robot is to make, first stop first. A new plan replaces the old
+    one; stops already completed (by ``key``) are skipped."""
+
+    robot: str
+    stops: tuple[Stop, ...] = ()
+
+
+@dataclass(frozen=True)
+class FleetPlan:
+    """The allocator's output: one plan per robot, in scenario robot order. ``revision``
+    increases whenever any plan changes."""
+
+    plans: tuple[RobotPlan, ...]
+    revision: int = 0
+
+
+# --- Progress: waypoint generators -> allocator, results ------------------------------------
+
+
+@dataclass(frozen=True)
+class Visit:
+    """A completed stop: the robot reached ``location`` and finished ``key`` at ``time`` (s)."""
+
+    key: str
+    location: int
+    time: float
+    task: int | None = None
+    action: str = VISIT
+
+
+@dataclass(frozen=True)
+class RobotProgress:
+    """What one robot has done so far: every completed visit, oldest first; the location it
+    last completed (or its start location); the stop it is driving to now."""
+
+    robot: str
+    visits: tuple[Visit, ...] = ()
+    last_location: int | None = None
+    current_stop: Stop | None = None
+
+
+# --- Waypoints: waypoint generator -> planner, controller -----------------------------------
+
+
+@dataclass(frozen=True)
+class WaypointTarget:
+    """Where one robot is to drive now (world frame, m).
+
+    ``current`` is the waypoint being driven to and ``next`` the one after it (or ``None``);
+    the planner plans through both. ``stop_at_current`` says the robot must come to rest at
+    ``current`` (a queue slot or room point) rather than pass through it. An inactive robot
+    (``active`` False) has nothing to do and should stand still.
+    """
+
+    robot: str
+    active: bool = False
+    current: tuple[float, float] | None = None
+    next: tuple[float, float] | None = None
+    stop_at_current: bool = True
+
+
+# --- Rooms: waypoint generators <-> room queues ---------------------------------------------
+
+
+@dataclass(frozen=True)
+class QueueRequest:
+    """One robot's standing request to the room queues.
+
+    ``room`` is the location the robot wants to be queued for (and later hold), or ``None``.
+    ``release`` names a room the robot is done with; only the room's holder can release it.
+    A robot that stops naming a room it is queued for (but does not hold) leaves that queue.
+    """
+
+    robot: str
+    room: int | None = None
+    release: int | None = None
+
+
+@dataclass(frozen=True)
+class RoomQueue:
+    """The robots waiting for one room, in order; ``holder`` (if any) has the room."""
+
+    room: int
+    holder: str | None = None
+    waiting: tuple[str, ...] = ()
+
+    def slot_of(self, robot: str) -> int | None:
+        """0-based place of ``robot`` among the waiting robots, or None."""
+        return self.waiting.index(robot) if robot in self.waiting else None
+
+
+@dataclass(frozen=True)
+class QueueState:
+    """All rooms' queues, keyed by room id."""
+
+    rooms: tuple[RoomQueue, ...] = ()
+
+    def room(self, room: int) -> RoomQueue | None:
+        for queue in self.rooms:
+            if queue.room == room:
+                return queue
+        return None
+
+
+# --- Paths: planner -> controller ------------------------------------------------------------
+
+PATH_OK = "ok"
+PATH_IDLE = "idle"
+PATH_FAILED = "failed"
+
+
+@dataclass(frozen=True)
+class RobotPath:
+    """A planned path for one robot: ``points`` (k, 2) in the world frame from near the
+    robot's position to its target, m. ``status`` is ``ok``, ``idle`` (nothing to do) or
+    ``failed`` (no path; the robot waits and the planner retries). ``stop_at_end`` says the
+    robot must come to rest at the last point."""
+
+    robot: str
+    status: str = PATH_IDLE
+    points: np.ndarray = field(default_factory=lambda: frozen_array(np.zeros((0, 2))))
+    stop_at_end: bool = True
+    planned_at: float = 0.0
+
+
+@dataclass(frozen=True)
+class FleetPaths:
+    """One path per robot, in scenario robot order, plus the planner's failure count."""
+
+    paths: tuple[RobotPath, ...]
+    failures: int = 0
+
+
+# --- Humans: humans -> controllers, results --------------------------------------------------
+
+
+@dataclass(frozen=True)
+class HumanStates:
+    """Positions (M, 2) and velocities (M, 2) of all humans, world frame, m and m/s, and
+    their body radii (M,), m."""
+
+    names: tuple[str, ...] = ()
+    positions: np.ndarray = field(default_factory=lambda: frozen_array(np.zeros((0, 2))))
+    velocities: np.ndarray = field(default_factory=lambda: frozen_array(np.zeros((0, 2))))
+    radii: np.ndarray = field(default_factory=lambda: frozen_array(np.zeros(0)))
+
+
+# --- Control telemetry: controller -> results -----------------------------------------------
+
+
+@dataclass(frozen=True)
+class ControllerTelemetry:
+    """One control tick's account. Barrier values are the smallest h = |p - p_o|^2 - d^2
+    per obstacle kind (m^2; inf when none). ``clusters`` lists robot index tuples, each
+    led by its first member."""
+
+    time: float = 0.0
+    min_barrier_wall: float = float("inf")
+    min_barrier_human: float = float("inf")
+    min_barrier_robot: float = float("inf")
+    max_slack: float = 0.0
+    control_deviation: float = 0.0  # max over robots of |u - u_nominal|
+    clusters: tuple[tuple[int, ...], ...] = ()
+    solve_time: float = 0.0  # s of CPU time spent in solvers this tick
+    failures: int = 0  # solver failures this tick (robots braked)

@@ -1,0 +1,1 @@
+"""The blocks of the mrta-drake diagram, one LeafSystem per module."""
