@@ -1,0 +1,91 @@
+"""Kinematic differential-drive robots: the fast default robot block."""
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, LeafSystem
+
+from mrta_drake.payloads import PLANAR_POSITION_SIZE, ROBOT_COMMAND_SIZE, ROBOT_STATE_SIZE
+
+
+@dataclass(frozen=True)
+class UnicycleParams:
+    """Limits of every robot. Defaults: the original stack's controller limits (it drove
+    TurtleBot3 Waffles in Gazebo at up to 1.5 m/s)."""
+
+    max_speed: float = 1.5  # |v| <= max_speed, m/s
+    max_reverse_speed: float = 0.3  # v >= -max_reverse_speed, m/s
+    max_acceleration: float = 1.0  # |dv/dt|, m/s^2
+    max_yaw_rate: float = 2.0  # |omega|, rad/s
+
+
+class UnicycleRobots(LeafSystem):
+    """N kinematic unicycles, stepped at a fixed rate.
+
+    Each step (dt = 1 / rate_hz) the commanded speed is reached as far as the acceleration
+    limit allows, the commanded yaw rate is clipped, and the pose advances exactly along the
+    circular arc driven at the step's mean speed and that yaw rate (a straight line when the
+    yaw rate is zero).
+
+    Input ``commands`` (2N): [v, omega] per robot, m/s and rad/s.
+    Output ``state`` (4N): [x, y, theta, v] per robot, world frame, m, rad, m/s.
+    Output ``plant_positions`` (3N): [x, y, theta] per robot, the planar joints' positions.
+    """
+
+    def __init__(self, names, starts, params: UnicycleParams = UnicycleParams(),
+                 rate_hz: float = 20.0):
+        super().__init__()
+        starts = np.asarray(starts, dtype=float).reshape(len(names), 3)
+        self._n = len(names)
+        self._params = params
+        self._dt = 1.0 / rate_hz
+        self.names = tuple(names)
+        initial = np.zeros((self._n, ROBOT_STATE_SIZE))
+        initial[:, :3] = starts
+        state = self.DeclareDiscreteState(initial.ravel())
+        self.DeclareVectorInputPort("commands", ROBOT_COMMAND_SIZE * self._n)
+        self.DeclareStateOutputPort("state", state)
+        self.DeclareVectorOutputPort(
+            "plant_positions", PLANAR_POSITION_SIZE * self._n, self._calc_plant_positions,
+            prerequisites_of_calc={self.xd_ticket()})
+        self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._step)
+
+    @property
+    def num_robots(self) -> int:
+        return self._n
+
+    def set_initial_states(self, context, states) -> None:
+        """Overwrite the robots' [x, y, theta, v] rows (N, 4) in ``context``."""
+        context.SetDiscreteState(np.asarray(states, dtype=float).ravel())
+
+    def _step(self, context, discrete_state) -> None:
+        p, dt = self._params, self._dt
+        x = context.get_discrete_state_vector().value().reshape(self._n, ROBOT_STATE_SIZE)
+        if self.get_input_port(0).HasValue(context):
+            u = self.get_input_port(0).Eval(context).reshape(self._n, ROBOT_COMMAND_SIZE)
+        else:
+            u = np.zeros((self._n, ROBOT_COMMAND_SIZE))
+        discrete_state.set_value(unicycle_step(x, u, p, dt).ravel())
+
+    def _calc_plant_positions(self, context, output: BasicVector) -> None:
+        x = context.get_discrete_state_vector().value().reshape(self._n, ROBOT_STATE_SIZE)
+        output.SetFromVector(x[:, :3].ravel())
+
+
+def unicycle_step(states: np.ndarray, commands: np.ndarray, params: UnicycleParams,
+                  dt: float) -> np.ndarray:
+    """Advance unicycle ``states`` (N, 4) [x, y, theta, v] by ``dt`` s under ``commands``
+    (N, 2) [v, omega], applying ``params``' limits. Returns the new (N, 4) states."""
+    x, y, theta, v = states.T
+    v_cmd = np.clip(commands[:, 0], -params.max_reverse_speed, params.max_speed)
+    omega = np.clip(commands[:, 1], -params.max_yaw_rate, params.max_yaw_rate)
+    dv_max = params.max_acceleration * dt
+    v_new = v + np.clip(v_cmd - v, -dv_max, dv_max)
+    distance = 0.5 * (v + v_new) * dt
+    turn = omega * dt
+    # Chord of the arc: length 2 R sin(turn / 2) = distance * sinc(turn / 2), along the mean
+    # heading; exact for a circular arc and well conditioned as turn -> 0.
+    chord = distance * np.sinc(turn / (2.0 * np.pi))
+    mid = theta + 0.5 * turn
+    new_theta = np.mod(theta + turn + np.pi, 2.0 * np.pi) - np.pi
+    return np.stack([x + chord * np.cos(mid), y + chord * np.sin(mid), new_theta, v_new], axis=1)
