@@ -1,0 +1,123 @@
+"""Which implementations exist for each block, and how to make one from a scenario.
+
+A scenario picks an implementation per block slot (``blocks.controller.kind``) and gives its
+parameters (``blocks.controller.params``, checked against the implementation's own frozen
+``Params`` dataclass). Researchers add their own with ``register_block``; the new system
+must have the slot's ports (docs/architecture.md lists them):
+
+=========== ===================================== ============================================
+slot        inputs                                outputs
+=========== ===================================== ============================================
+allocator   progress_<robot> (RobotProgress)      plan (FleetPlan)
+waypoints   plan, robot_state, queue_state        target, queue_request, progress (per robot)
+queues      request_<robot> (QueueRequest)        queue_state (QueueState)
+planner     robot_state, target_<robot>           paths (FleetPaths)
+controller  robot_state, paths, humans            commands (2N), telemetry
+robots      commands (2N)                         state (4N), plant_positions (3N)
+humans      robot_state (4N)                      human_states (HumanStates), plant_positions
+=========== ===================================== ============================================
+"""
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from mrta_drake.errors import InputError
+from mrta_drake.scenario_schema import BlockConfig, Scenario
+from mrta_drake.typed_yaml import load_typed
+
+
+@dataclass(frozen=True, eq=False)
+class BuildContext:
+    """What a block factory may use: the scenario, the world geometry, derived data."""
+
+    scenario: Scenario
+    floor_plan: object  # FloorPlan
+    rates: object  # RatesConfig
+
+    @property
+    def robot_names(self) -> list[str]:
+        return [r.name for r in self.scenario.robots]
+
+    @property
+    def robot_starts(self) -> np.ndarray:
+        """(N, 3) [x, y, theta] start poses."""
+        return np.array([(list(r.start) + [0.0])[:3] for r in self.scenario.robots])
+
+    @property
+    def obstacles(self):
+        return self.floor_plan.obstacles
+
+
+@dataclass(frozen=True)
+class BlockType:
+    """An implementation of a block slot: its parameter dataclass and a factory
+    ``make(context, params) -> LeafSystem`` (for ``waypoints``: one system per robot,
+    ``make(context, params, robot_index)``)."""
+
+    params: type
+    make: Callable
+
+
+_REGISTRY: dict[str, dict[str, Callable[[], BlockType]]] = {
+    "allocator": {}, "waypoints": {}, "queues": {}, "planner": {}, "controller": {},
+    "robots": {}, "humans": {},
+}
+
+
+def register_block(slot: str, kind: str, block_type: "BlockType | Callable[[], BlockType]"):
+    """Make ``kind`` available for ``slot`` in scenarios. ``block_type`` may be a function
+    returning the BlockType, so heavy imports happen only when the kind is used."""
+    if slot not in _REGISTRY:
+        raise ValueError(f"unknown block slot {slot!r}; slots: {', '.join(_REGISTRY)}")
+    _REGISTRY[slot][kind] = block_type if callable(block_type) and not isinstance(
+        block_type, BlockType) else (lambda: block_type)
+
+
+def block_kinds(slot: str) -> list[str]:
+    return sorted(_REGISTRY[slot])
+
+
+def resolve_block(scenario: Scenario, slot: str) -> tuple[BlockType, object]:
+    """The chosen implementation of ``slot`` and its parameters, checked."""
+    config: BlockConfig = getattr(scenario.blocks, slot)
+    kinds = _REGISTRY[slot]
+    if config.kind not in kinds:
+        raise InputError(scenario.source, f"blocks.{slot}.kind",
+                         f"unknown kind {config.kind!r} (known: {', '.join(sorted(kinds))})")
+    block_type = kinds[config.kind]()
+    params = load_typed(config.params, block_type.params, scenario.source,
+                        f"blocks.{slot}.params")
+    return block_type, params
+
+
+def check_blocks(scenario: Scenario) -> None:
+    """Resolve every block slot once, so bad kinds or parameters fail at load time."""
+    for slot in _REGISTRY:
+        resolve_block(scenario, slot)
+
+
+# --- The built-in implementations ------------------------------------------------------------
+
+
+def _kinematic_robots() -> BlockType:
+    from mrta_drake.systems.unicycle_robots import UnicycleParams, UnicycleRobots
+
+    return BlockType(UnicycleParams, lambda ctx, params: UnicycleRobots(
+        ctx.robot_names, ctx.robot_starts, params, ctx.rates.robots))
+
+
+@dataclass(frozen=True)
+class NoParams:
+    """For implementations without parameters."""
+
+
+register_block("robots", "kinematic", _kinematic_robots)
+
+
+def replace_block(scenario: Scenario, slot: str, kind: str, **params) -> Scenario:
+    """A copy of ``scenario`` using implementation ``kind`` for ``slot`` with ``params``."""
+    blocks = dataclasses.replace(scenario.blocks, **{slot: BlockConfig(kind, dict(params))})
+    return dataclasses.replace(scenario, blocks=blocks)

@@ -1,0 +1,182 @@
+"""The building, robots and people in a ``MultibodyPlant`` + ``SceneGraph``.
+
+The floor plan's ``Obstacles`` become welded collision and visual geometry. Each robot and
+each human is a body on a ``PlanarJoint`` (x, y, yaw) to the world, robots first, in scenario
+order, so the plant's generalized positions are the robots' ``plant_positions`` followed by
+the humans'. The kinematic blocks do not step the plant: a
+``MultibodyPositionToGeometryPose`` poses its geometry for queries and Meshcat.
+"""
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.geometry import Box as BoxShape
+from pydrake.geometry import Cylinder as CylinderShape
+from pydrake.geometry import SceneGraph
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.plant import CoulombFriction, MultibodyPlant
+from pydrake.multibody.tree import ModelInstanceIndex, PlanarJoint, SpatialInertia
+from pydrake.systems.primitives import Multiplexer
+from pydrake.systems.rendering import MultibodyPositionToGeometryPose
+
+from mrta_drake.errors import InputError
+from mrta_drake.floor_plan import FloorPlan, load_floor_plan
+from mrta_drake.ros_map import load_ros_map
+from mrta_drake.scenario_schema import Scenario
+
+WALL_COLOR = np.array([0.82, 0.82, 0.80, 1.0])
+FURNITURE_COLOR = np.array([0.55, 0.42, 0.30, 1.0])
+HUMAN_COLOR = np.array([0.95, 0.65, 0.25, 1.0])
+ROBOT_HEIGHT = 0.2  # m
+HUMAN_HEIGHT = 1.7  # m
+# Distinct robot colours (Tableau 10), cycled.
+ROBOT_COLORS = np.array([
+    [0.12, 0.47, 0.71], [0.84, 0.15, 0.16], [0.17, 0.63, 0.17], [0.58, 0.40, 0.74],
+    [0.55, 0.34, 0.29], [0.89, 0.47, 0.76], [0.50, 0.50, 0.50], [0.74, 0.74, 0.13],
+    [0.09, 0.75, 0.81], [1.00, 0.50, 0.05],
+])
+
+
+@dataclass(frozen=True)
+class Body:
+    """A moving body in the plant: a robot or a human, a cylinder of ``radius`` m."""
+
+    name: str
+    radius: float
+
+
+@dataclass(frozen=True, eq=False)
+class World:
+    """What ``build_world`` made: the plant and scene graph (already in the builder), the
+    floor plan they came from, and the model instances of the robots and humans."""
+
+    plant: MultibodyPlant
+    scene_graph: SceneGraph
+    floor_plan: FloorPlan
+    robots: tuple[ModelInstanceIndex, ...]
+    humans: tuple[ModelInstanceIndex, ...]
+
+    @property
+    def obstacles(self):
+        return self.floor_plan.obstacles
+
+
+def load_floor_plan_of(scenario: Scenario) -> FloorPlan:
+    """The scenario's floor plan, from our format or a ROS map."""
+    if scenario.world.kind == "ros_map":
+        return load_ros_map(scenario.world.floor_plan)
+    return load_floor_plan(scenario.world.floor_plan)
+
+
+def resolve_locations(scenario: Scenario, floor_plan: FloorPlan) -> Scenario:
+    """Fill location points left out of the scenario from the floor plan's named places."""
+    locations = []
+    for i, location in enumerate(scenario.locations):
+        if not location.point:
+            if location.name not in floor_plan.places:
+                raise InputError(scenario.source, f"locations[{i}].point",
+                                 f"missing, and the floor plan has no place named "
+                                 f"{location.name!r}")
+            location = dataclasses.replace(location,
+                                           point=list(floor_plan.places[location.name]))
+        locations.append(location)
+    return dataclasses.replace(scenario, locations=locations)
+
+
+def check_robot_starts(scenario: Scenario, floor_plan: FloorPlan) -> None:
+    """Every robot must start clear of walls and furniture."""
+    if not scenario.robots:
+        return
+    starts = np.array([r.start[:2] for r in scenario.robots], dtype=float)
+    clearance = floor_plan.obstacles.signed_distance(starts)
+    x_min, x_max, y_min, y_max = floor_plan.bounds
+    for i, (robot, gap) in enumerate(zip(scenario.robots, clearance, strict=True)):
+        x, y = robot.start[:2]
+        if not (x_min <= x <= x_max and y_min <= y <= y_max):
+            raise InputError(scenario.source, f"robots[{i}].start",
+                             f"{robot.name} at {[x, y]} is outside the floor plan")
+        if gap < robot.radius:
+            raise InputError(scenario.source, f"robots[{i}].start",
+                             f"{robot.name} at {[x, y]} is inside a wall or furniture "
+                             f"(clearance {gap:.2f} m < radius {robot.radius} m)")
+
+
+def build_world(builder, floor_plan: FloorPlan, robots=(), humans=()) -> World:
+    """Add a scene graph to ``builder`` and make a plant registered with it: the floor
+    plan's obstacles as welded geometry, then one planar body per robot and per human
+    (``Body`` lists). The plant is finalized but not added to the diagram: the kinematic
+    blocks never step it, and ``add_plant_posing`` poses its geometry from their outputs."""
+    scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())
+    plant = MultibodyPlant(0.0)
+    plant.set_name("plant")
+    plant.RegisterAsSourceForSceneGraph(scene_graph)
+    _add_obstacles(plant, floor_plan)
+    robot_models = tuple(
+        _add_body(plant, body, ROBOT_HEIGHT, np.append(ROBOT_COLORS[k % len(ROBOT_COLORS)], 1),
+                  heading_marker=True)
+        for k, body in enumerate(robots))
+    human_models = tuple(
+        _add_body(plant, body, HUMAN_HEIGHT, HUMAN_COLOR, heading_marker=False)
+        for body in humans)
+    plant.Finalize()
+    return World(plant, scene_graph, floor_plan, robot_models, human_models)
+
+
+def _add_obstacles(plant: MultibodyPlant, floor_plan: FloorPlan) -> None:
+    world = plant.world_body()
+    friction = CoulombFriction(0.5, 0.5)
+    tall = floor_plan.wall_height - 1e-6
+    for k, box in enumerate(floor_plan.obstacles.boxes):
+        pose = RigidTransform(RotationMatrix.MakeZRotation(box.yaw),
+                              [box.center[0], box.center[1], 0.5 * box.height])
+        shape = BoxShape(box.size[0], box.size[1], box.height)
+        color = WALL_COLOR if box.height >= tall else FURNITURE_COLOR
+        name = f"{box.name}_{k}"
+        plant.RegisterCollisionGeometry(world, pose, shape, name, friction)
+        plant.RegisterVisualGeometry(world, pose, shape, name, color)
+    for k, cyl in enumerate(floor_plan.obstacles.cylinders):
+        pose = RigidTransform([cyl.center[0], cyl.center[1], 0.5 * cyl.height])
+        shape = CylinderShape(cyl.radius, cyl.height)
+        name = f"{cyl.name}_{k}"
+        plant.RegisterCollisionGeometry(world, pose, shape, name, friction)
+        plant.RegisterVisualGeometry(world, pose, shape, name, FURNITURE_COLOR)
+
+
+def _add_body(plant: MultibodyPlant, body: Body, height: float, color,
+              heading_marker: bool) -> ModelInstanceIndex:
+    model = plant.AddModelInstance(body.name)
+    mass = 20.0 if heading_marker else 70.0
+    inertia = SpatialInertia.SolidCylinderWithMass(mass, body.radius, height, [0, 0, 1])
+    link = plant.AddRigidBody("base", model, inertia)
+    plant.AddJoint(PlanarJoint(f"{body.name}_planar", plant.world_frame(), link.body_frame(),
+                               [0.0, 0.0, 0.0]))
+    shape = CylinderShape(body.radius, height)
+    pose = RigidTransform([0, 0, 0.5 * height])
+    plant.RegisterCollisionGeometry(link, pose, shape, "body", CoulombFriction(0.5, 0.5))
+    plant.RegisterVisualGeometry(link, pose, shape, "body", color)
+    if heading_marker:
+        # A bright wedge on top, pointing along the body's +x (its heading).
+        marker = BoxShape(body.radius, 0.25 * body.radius, 0.02)
+        plant.RegisterVisualGeometry(
+            link, RigidTransform([0.5 * body.radius, 0, height + 0.01]), marker, "heading",
+            [1.0, 1.0, 1.0, 1.0])
+    return model
+
+
+
+def add_plant_posing(builder, world: World, robot_positions, human_positions=None) -> None:
+    """Pose the plant's geometry in the scene graph from the robots' (and humans')
+    ``plant_positions`` output ports (3 per body, robots first)."""
+    to_pose = builder.AddNamedSystem("plant_posing", MultibodyPositionToGeometryPose(
+        world.plant))
+    builder.Connect(to_pose.get_output_port(),
+                    world.scene_graph.get_source_pose_port(world.plant.get_source_id()))
+    if human_positions is None:
+        builder.Connect(robot_positions, to_pose.get_input_port())
+        return
+    mux = builder.AddNamedSystem("plant_positions", Multiplexer(
+        [3 * len(world.robots), 3 * len(world.humans)]))
+    builder.Connect(robot_positions, mux.get_input_port(0))
+    builder.Connect(human_positions, mux.get_input_port(1))
+    builder.Connect(mux.get_output_port(), to_pose.get_input_port())
