@@ -3,39 +3,41 @@
 The public API: ``load_scenario`` reads a scenario file, ``build_diagram`` wires its blocks
 into a Drake diagram (``add_stack`` onto your own builder), ``simulate`` runs it; the block
 classes are the default implementations of each slot, to use, subclass or replace.
+Names are imported on first use, so ``import mrta_drake.errors`` stays light.
 """
 
-from mrta_drake.allocation import GreedyAllocator, SmtAllocator
-from mrta_drake.blocks import register_block
-from mrta_drake.diagram import add_stack, build_diagram
-from mrta_drake.scenario import load_scenario
-from mrta_drake.simulate import SimulationResult, simulate
-from mrta_drake.systems.cluster_cbf_controller import ClusterCbfController
-from mrta_drake.systems.fixed_sequence_allocator import FixedSequenceAllocator
-from mrta_drake.systems.go_to_goal_controller import GoToGoalController
-from mrta_drake.systems.planner_service import PlannerService
-from mrta_drake.systems.room_queues import RoomQueues
-from mrta_drake.systems.social_force_humans import SocialForceHumans
-from mrta_drake.systems.task_allocator import TaskAllocator
-from mrta_drake.systems.unicycle_robots import UnicycleRobots
-from mrta_drake.systems.waypoint_generator import WaypointGenerator
+import importlib
 
-__all__ = [
-    "ClusterCbfController",
-    "FixedSequenceAllocator",
-    "GoToGoalController",
-    "GreedyAllocator",
-    "PlannerService",
-    "RoomQueues",
-    "SimulationResult",
-    "SmtAllocator",
-    "SocialForceHumans",
-    "TaskAllocator",
-    "UnicycleRobots",
-    "WaypointGenerator",
-    "add_stack",
-    "build_diagram",
-    "load_scenario",
-    "register_block",
-    "simulate",
-]
+_PUBLIC = {
+    "load_scenario": "mrta_drake.scenario",
+    "build_diagram": "mrta_drake.diagram",
+    "add_stack": "mrta_drake.diagram",
+    "simulate": "mrta_drake.simulate",
+    "SimulationResult": "mrta_drake.simulate",
+    "register_block": "mrta_drake.blocks",
+    "SmtAllocator": "mrta_drake.allocation",
+    "GreedyAllocator": "mrta_drake.allocation",
+    "TaskAllocator": "mrta_drake.systems.task_allocator",
+    "FixedSequenceAllocator": "mrta_drake.systems.fixed_sequence_allocator",
+    "WaypointGenerator": "mrta_drake.systems.waypoint_generator",
+    "RoomQueues": "mrta_drake.systems.room_queues",
+    "PlannerService": "mrta_drake.systems.planner_service",
+    "ClusterCbfController": "mrta_drake.systems.cluster_cbf_controller",
+    "GoToGoalController": "mrta_drake.systems.go_to_goal_controller",
+    "UnicycleRobots": "mrta_drake.systems.unicycle_robots",
+    "SocialForceHumans": "mrta_drake.systems.social_force_humans",
+}
+
+__all__ = sorted(_PUBLIC)
+
+
+def __getattr__(name: str):
+    if name not in _PUBLIC:
+        raise AttributeError(f"module 'mrta_drake' has no attribute {name!r}")
+    value = getattr(importlib.import_module(_PUBLIC[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return __all__
