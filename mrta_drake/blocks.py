@@ -21,6 +21,7 @@ humans      robot_state (4N)                      human_states (HumanStates), pl
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -49,6 +50,27 @@ class BuildContext:
     @property
     def obstacles(self):
         return self.floor_plan.obstacles
+
+    @cached_property
+    def roadways(self):
+        from mrta_drake.roadways import Roadways
+
+        return Roadways(self.scenario.roadways, self.scenario.locations, self.scenario.source)
+
+    @cached_property
+    def start_locations(self) -> list[int | None]:
+        """Each robot's start location: as given, else the location whose point is within
+        1 m of its start position, else None."""
+        result = []
+        for robot in self.scenario.robots:
+            found = robot.start_location
+            if found is None:
+                for location in self.scenario.locations:
+                    if np.hypot(*np.subtract(location.point, robot.start[:2])) <= 1.0:
+                        found = location.id
+                        break
+            result.append(found)
+        return result
 
 
 @dataclass(frozen=True)
@@ -114,7 +136,45 @@ class NoParams:
     """For implementations without parameters."""
 
 
+def _fixed_allocator() -> BlockType:
+    from mrta_drake.systems.fixed_sequence_allocator import FixedSequenceAllocator
+
+    return BlockType(NoParams, lambda ctx, params: FixedSequenceAllocator(ctx.scenario.robots))
+
+
+def _roadway_waypoints() -> BlockType:
+    from mrta_drake.systems.waypoint_generator import WaypointGenerator, WaypointParams
+
+    def make(ctx: BuildContext, params: WaypointParams, index: int):
+        if ctx.scenario.blocks.waypoints.params.get("service_time") is not None:
+            raise InputError(ctx.scenario.source, "blocks.waypoints.params.service_time",
+                             "set tasks.service_time instead (the allocator uses it too)")
+        params = dataclasses.replace(params, service_time=ctx.scenario.tasks.service_time)
+        return WaypointGenerator(ctx.robot_names[index], index, len(ctx.robot_names),
+                                 ctx.roadways, ctx.start_locations[index], params,
+                                 ctx.rates.waypoints)
+
+    return BlockType(WaypointParams, make)
+
+
+def _fifo_queues() -> BlockType:
+    from mrta_drake.systems.room_queues import RoomQueues
+
+    def make(ctx: BuildContext, params):
+        # A robot that starts on a location holds it until it leaves (first one per room).
+        holders = {}
+        for name, location in zip(ctx.robot_names, ctx.start_locations, strict=True):
+            if location is not None:
+                holders.setdefault(location, name)
+        return RoomQueues(ctx.robot_names, ctx.roadways.location_ids, ctx.rates.queues, holders)
+
+    return BlockType(NoParams, make)
+
+
 register_block("robots", "kinematic", _kinematic_robots)
+register_block("allocator", "fixed", _fixed_allocator)
+register_block("waypoints", "roadway", _roadway_waypoints)
+register_block("queues", "fifo", _fifo_queues)
 
 
 def replace_block(scenario: Scenario, slot: str, kind: str, **params) -> Scenario:

@@ -1,0 +1,91 @@
+"""First-come first-served queues for all rooms: one holder per room at a time."""
+
+from collections.abc import Mapping, Sequence
+
+from pydrake.common.value import Value
+from pydrake.systems.framework import LeafSystem
+
+from mrta_drake.payloads import QueueRequest, QueueState, RoomQueue
+
+
+class RoomQueues(LeafSystem):
+    """Grants each room to one robot at a time, in request order.
+
+    Inputs: ``request_<robot>`` (abstract ``QueueRequest``), one per robot, in robot order.
+    Output: ``queue_state`` (abstract ``QueueState``), one ``RoomQueue`` per room in ``rooms``
+    order, from the state (no direct feedthrough).
+
+    ``rate_hz`` times a second an unrestricted update applies all requests, in this order:
+
+    1. Release: a robot naming room r in ``release`` gives r up if, and only if, it holds r.
+       Anything else (not the holder, not a known room) changes nothing.
+    2. Leave: a waiting robot whose ``room`` no longer names the room it waits for leaves
+       that queue. A holder keeps its room until it releases it, whatever ``room`` says.
+    3. Join: a robot naming room r that neither holds r nor waits for it joins r's tail.
+       A room not in ``rooms`` is ignored.
+    4. Grant: a room without a holder goes to the head of its waiting robots.
+
+    Robots that join in the same update join in robot order, which makes ties deterministic.
+    Queues are unbounded: which physical slot a waiting robot uses is the waypoint
+    generator's business (robots beyond the last slot wait behind it). ``holders`` optionally
+    names robots that hold rooms at the start (e.g. robots that start inside them).
+    """
+
+    def __init__(
+        self,
+        robots: Sequence[str],
+        rooms: Sequence[int],
+        rate_hz: float = 10.0,
+        holders: Mapping[int, str] | None = None,
+    ):
+        super().__init__()
+        holders = dict(holders or {})
+        for room, robot in holders.items():
+            if room not in rooms or robot not in robots:
+                raise ValueError(f"initial holder {robot!r} of room {room}: unknown robot or room")
+        self._robots = tuple(robots)
+        self._rooms = tuple(rooms)
+        initial = QueueState(tuple(RoomQueue(room, holders.get(room)) for room in self._rooms))
+        self._state_index = self.DeclareAbstractState(Value[object](initial))
+        self._requests = [
+            self.DeclareAbstractInputPort(f"request_{robot}", Value[object](QueueRequest(robot)))
+            for robot in self._robots
+        ]
+        self.DeclareAbstractOutputPort(
+            "queue_state",
+            lambda: Value[object](initial),
+            self._calc_queue_state,
+            prerequisites_of_calc={self.abstract_state_ticket(self._state_index)},
+        )
+        self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate_hz, 0.0, self._update)
+
+    def get_request_input_port(self, robot: str):
+        return self._requests[self._robots.index(robot)]
+
+    def _calc_queue_state(self, context, output):
+        output.set_value(context.get_abstract_state(self._state_index).get_value())
+
+    def _update(self, context, state):
+        old = context.get_abstract_state(self._state_index).get_value()
+        requests = [port.Eval(context) for port in self._requests]
+        holder = {q.room: q.holder for q in old.rooms}
+        waiting = {q.room: list(q.waiting) for q in old.rooms}
+        for robot, request in zip(self._robots, requests, strict=True):
+            if request.release is not None and holder.get(request.release) == robot:
+                holder[request.release] = None
+        for robot, request in zip(self._robots, requests, strict=True):
+            for room, queue in waiting.items():
+                if room != request.room and robot in queue:
+                    queue.remove(robot)
+        for robot, request in zip(self._robots, requests, strict=True):
+            room = request.room
+            if room in waiting and holder[room] != robot and robot not in waiting[room]:
+                waiting[room].append(robot)
+        for room, queue in waiting.items():
+            if holder[room] is None and queue:
+                holder[room] = queue.pop(0)
+        state.get_mutable_abstract_state(self._state_index).set_value(
+            QueueState(
+                tuple(RoomQueue(room, holder[room], tuple(waiting[room])) for room in self._rooms)
+            )
+        )
