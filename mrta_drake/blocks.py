@@ -171,7 +171,15 @@ def _fifo_queues() -> BlockType:
     return BlockType(NoParams, make)
 
 
+def _grid_astar_planner() -> BlockType:
+    from mrta_drake.systems.planner_service import PlannerService, PlannerServiceParams
+
+    return BlockType(PlannerServiceParams, lambda ctx, params: PlannerService.from_obstacles(
+        ctx.obstacles, ctx.floor_plan.bounds, ctx.robot_names, params, ctx.rates.planner))
+
+
 register_block("robots", "kinematic", _kinematic_robots)
+register_block("planner", "grid_astar", _grid_astar_planner)
 register_block("allocator", "fixed", _fixed_allocator)
 register_block("waypoints", "roadway", _roadway_waypoints)
 register_block("queues", "fifo", _fifo_queues)
