@@ -185,7 +185,10 @@ def load_typed(data, schema, file: str, path: str = ""):
         mutable = yaml_load_typed(schema=_thawed(schema), data=text)
     except Exception as error:  # Drake names the key only; check_shape caught the usual cases.
         raise InputError(file, path or None, str(error).splitlines()[0]) from None
-    return _freeze(mutable, schema, data)
+    try:
+        return _freeze(mutable, schema, data)
+    except (ValueError, TypeError) as error:  # a dataclass's own __post_init__ checks
+        raise InputError(file, path or None, str(error).splitlines()[0]) from None
 
 
 def read_yaml(path: str, what: str = "file"):
