@@ -178,7 +178,24 @@ def _grid_astar_planner() -> BlockType:
         ctx.obstacles, ctx.floor_plan.bounds, ctx.robot_names, params, ctx.rates.planner))
 
 
+def _social_force_humans() -> BlockType:
+    from mrta_drake.humans import generate_people
+    from mrta_drake.systems.social_force_humans import SocialForceHumans
+
+    def make(ctx: BuildContext, params):
+        robots = ctx.scenario.robots
+        keep_clear = [(r.start[0], r.start[1], r.radius + 0.3) for r in robots]
+        people = generate_people(ctx.scenario.humans, ctx.scenario.seed, ctx.obstacles,
+                                 places=ctx.floor_plan.places, keep_clear=keep_clear,
+                                 file=ctx.scenario.source)
+        return SocialForceHumans(people, ctx.scenario.humans, ctx.obstacles, len(robots),
+                                 [r.radius for r in robots], ctx.rates.humans)
+
+    return BlockType(NoParams, make)
+
+
 register_block("robots", "kinematic", _kinematic_robots)
+register_block("humans", "social_force", _social_force_humans)
 register_block("planner", "grid_astar", _grid_astar_planner)
 register_block("allocator", "fixed", _fixed_allocator)
 register_block("waypoints", "roadway", _roadway_waypoints)

@@ -1,0 +1,365 @@
+"""All humans of a run in one discrete system: the Helbing-Molnar social force model."""
+
+from collections.abc import Sequence
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import BasicVector, LeafSystem
+
+from mrta_drake.humans import Person
+from mrta_drake.obstacles import Obstacles
+from mrta_drake.payloads import (
+    PLANAR_POSITION_SIZE,
+    ROBOT_STATE_SIZE,
+    HumanStates,
+    frozen_array,
+)
+from mrta_drake.scenario_schema import HumansConfig
+
+ELLIPSE_TIME = 2.0  # s: the elliptical potential stretches along the other's next 2 s of walk
+FIELD_OF_VIEW = np.deg2rad(100.0)  # half angle of the field of view
+OUT_OF_VIEW_WEIGHT = 0.5  # weight of repulsion from someone behind (c in Helbing-Molnar)
+KEEP_RIGHT = 1.0  # sidestep to the right per unit of repulsion against the walking direction
+GRADIENT_CAP = 2.0  # cap on |grad b|, which diverges on the ellipse's degenerate axis
+STOPPED_SPEED = 0.05  # m/s: below it the heading is held
+ENTRY_GAP = 0.1  # m: surface gap to everyone else a waiting person needs to enter
+ROBOT_STANDOFF = 0.05  # m: a person's own step never takes it closer to a robot's surface
+PROJECTION_ITERATIONS = 3
+TAKEN_REACH = 1.0  # m: a target covered by someone else's body counts as reached this close
+PARKING_GAP = 1.0  # m: distance of the parking row from the world's bounds
+
+
+class SocialForceHumans(LeafSystem):
+    """Moves M people with the social force model at a fixed rate (20 Hz by default).
+
+    Each update (period ``1/rate`` s, first at t = 0), for every person present:
+
+    1. Waypoint: within ``waypoint_tolerance`` of its target (or within ``TAKEN_REACH`` of a
+       target covered by a robot's or another person's body), the person targets the next
+       waypoint of its loop (wrapping around).
+    2. Acceleration, m/s^2: relaxation to the desired velocity (``desired_speed`` toward the
+       target) with ``relaxation_time``; repulsion from other people and from robots (robots
+       count as pedestrians, moving with ``v (cos theta, sin theta)``) with the elliptical
+       potential ``V0 exp(-b'/sigma)``, ``V0 = repulsion_strength``, ``sigma =
+       repulsion_range``, ``b'`` the ellipse's semi-minor axis minus both body radii (so
+       bodies, not centres, keep apart), stretched along the other's next ``ELLIPSE_TIME`` s
+       of motion and weighted ``OUT_OF_VIEW_WEIGHT`` when the other is outside the
+       ``FIELD_OF_VIEW``; repulsion from the nearest obstacle
+       ``U0 exp(-d/R)`` (``U0 = wall_strength``, ``R = wall_range``, ``d`` the centre's
+       distance to the obstacle) from ``Obstacles.closest_points``.
+       A person's sidestep to the right, ``KEEP_RIGHT`` times the repulsion opposing its
+       walking direction, breaks the symmetry of head-on encounters (which would deadlock);
+       ``|grad b|`` is capped at ``GRADIENT_CAP`` where the ellipse degenerates.
+    3. Semi-implicit Euler step, speed capped at ``max_speed``.
+    4. Hard constraints on the step: overlapping people are pushed apart; nobody steps
+       closer to a robot's surface than min(``ROBOT_STANDOFF``, the gap before the step), so
+       only a robot's own motion causes contact (robots are never pushed, and the people are
+       not shoved out of a robot that drove into them: contacts stay visible to the
+       metrics); everyone is pushed out to clearance ``radius`` from obstacles, and a step
+       that would still lose clearance below ``radius`` (or break a robot gap) is cancelled
+       and the person stops, so nobody ever enters a wall.
+
+    A person with ``entry_time`` > 0 waits until that time and until nobody is within
+    ``ENTRY_GAP`` of its start. The number of people never changes: a waiting person is
+    reported (and posed) at its parking spot outside the world, standing still, where it
+    interacts with nobody; the ``active`` port tells who is present.
+
+    Discrete state groups (world frame, m, m/s, rad): 0 positions ``2M``, 1 velocities
+    ``2M``, 2 target waypoint indices ``M``, 3 headings ``M`` (from the velocity, held while
+    slower than ``STOPPED_SPEED``), 4 presence flags ``M`` (1 present, 0 waiting).
+
+    Input ports:
+        robot_state: vector ``4N``, ``[x, y, theta, v]`` per robot; unconnected = no robots.
+    Output ports:
+        human_states: abstract ``HumanStates`` of all M people, in people order.
+        plant_positions: vector ``3M``, ``[x, y, heading]`` per person. Parking spots form a
+            row running west from ``parking`` (default: 1 m south-west of the obstacles' and
+            people's bounds), 3 radii apart.
+        active: vector ``M``, 1.0 for a person present, 0.0 for one still waiting.
+    """
+
+    def __init__(
+        self,
+        people: Sequence[Person],
+        params: HumansConfig,
+        obstacles: Obstacles,
+        num_robots: int = 0,
+        robot_radii: Sequence[float] = (),
+        rate: float = 20.0,
+        parking: tuple[float, float] | None = None,
+    ):
+        super().__init__()
+        self._people = tuple(people)
+        self._params = params
+        self._obstacles = obstacles
+        self._num_robots = int(num_robots)
+        self._robot_radii = np.asarray(robot_radii, dtype=float).reshape(-1)
+        if len(self._robot_radii) != self._num_robots:
+            raise ValueError(f"robot_radii has {len(self._robot_radii)} entries, "
+                             f"expected num_robots = {self._num_robots}")
+        if not rate > 0:
+            raise ValueError(f"rate must be > 0, got {rate}")
+        self._dt = 1.0 / rate
+        m = len(self._people)
+        if any(not p.waypoints for p in self._people):
+            raise ValueError("every person needs at least one waypoint")
+
+        self._names = tuple(p.name for p in self._people)
+        self._radii = np.full(m, float(params.radius))
+        self._speeds = np.array([p.desired_speed for p in self._people], dtype=float)
+        self._entry = np.array([p.entry_time for p in self._people], dtype=float)
+        self._starts = np.array([p.start for p in self._people], dtype=float).reshape(m, 2)
+        self._counts = np.array([len(p.waypoints) for p in self._people], dtype=int)
+        self._waypoints = np.zeros((m, max(self._counts, default=1), 2))
+        for i, p in enumerate(self._people):
+            self._waypoints[i, : len(p.waypoints)] = p.waypoints
+        self._parking = self._parking_spots(parking)
+
+        first = self._waypoints[:, 0] - self._starts
+        present = self._entry <= 0.0
+        self._positions = self.DeclareDiscreteState(self._starts.reshape(-1))
+        self._velocities = self.DeclareDiscreteState(2 * m)
+        self._targets = self.DeclareDiscreteState(m)
+        self._headings = self.DeclareDiscreteState(np.arctan2(first[:, 1], first[:, 0]))
+        self._present = self.DeclareDiscreteState(present.astype(float))
+        self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
+
+        self._robot_state = self.DeclareVectorInputPort(
+            "robot_state", ROBOT_STATE_SIZE * self._num_robots)
+        state = {self.xd_ticket()}
+        self.DeclareAbstractOutputPort(
+            "human_states", lambda: AbstractValue.Make(HumanStates()), self._calc_human_states,
+            prerequisites_of_calc=state)
+        self.DeclareVectorOutputPort(
+            "plant_positions", BasicVector(PLANAR_POSITION_SIZE * m),
+            self._calc_plant_positions, prerequisites_of_calc=state)
+        self.DeclareVectorOutputPort(
+            "active", BasicVector(m), self._calc_active, prerequisites_of_calc=state)
+
+    @property
+    def people(self) -> tuple[Person, ...]:
+        return self._people
+
+    @property
+    def human_names(self) -> tuple[str, ...]:
+        return self._names
+
+    @property
+    def human_radii(self) -> np.ndarray:
+        """(M,) body radii, m."""
+        return self._radii.copy()
+
+    def _parking_spots(self, parking) -> np.ndarray:
+        """(M, 2) places for waiting people: a row running west from ``parking``."""
+        if parking is None:
+            xy = [p.start for p in self._people] + [w for p in self._people for w in p.waypoints]
+            if len(self._obstacles):
+                x0, _, y0, _ = self._obstacles.bounds()
+                xy.append((x0, y0))
+            corner = np.min(xy, axis=0) if xy else np.zeros(2)
+            parking = corner - PARKING_GAP
+        spots = np.zeros((len(self._people), 2))
+        spots[:, 0] = parking[0] - 3.0 * self._radii * np.arange(len(self._people))
+        spots[:, 1] = parking[1]
+        return spots
+
+    # --- outputs -----------------------------------------------------------------------------
+
+    def _read(self, context):
+        m = len(self._people)
+        return (context.get_discrete_state(self._positions).value().reshape(m, 2),
+                context.get_discrete_state(self._velocities).value().reshape(m, 2),
+                context.get_discrete_state(self._headings).value(),
+                context.get_discrete_state(self._present).value() > 0.5)
+
+    def _placed(self, context):
+        """Positions (M, 2) with waiting people at their parking spots, velocities (M, 2)
+        zero for them, headings (M,) and the presence mask (M,)."""
+        p, v, heading, present = self._read(context)
+        return (np.where(present[:, None], p, self._parking),
+                np.where(present[:, None], v, 0.0), heading, present)
+
+    def _calc_human_states(self, context, output):
+        p, v, _, _ = self._placed(context)
+        output.set_value(HumanStates(names=self._names, positions=frozen_array(p),
+                                     velocities=frozen_array(v), radii=frozen_array(self._radii)))
+
+    def _calc_plant_positions(self, context, output):
+        p, _, heading, _ = self._placed(context)
+        output.SetFromVector(np.column_stack([p, heading]).reshape(-1))
+
+    def _calc_active(self, context, output):
+        output.SetFromVector(self._read(context)[3].astype(float))
+
+    # --- update ------------------------------------------------------------------------------
+
+    def _robots(self, context):
+        """Robot positions (N, 2), velocities (N, 2), radii (N,); empty when unconnected."""
+        if self._num_robots == 0 or not self._robot_state.HasValue(context):
+            return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0)
+        x = self._robot_state.Eval(context).reshape(self._num_robots, ROBOT_STATE_SIZE)
+        velocity = x[:, 3:4] * np.column_stack([np.cos(x[:, 2]), np.sin(x[:, 2])])
+        return x[:, :2], velocity, self._robot_radii
+
+    def _update(self, context, discrete_state):
+        prm = self._params
+        dt = self._dt
+        p, v, heading, present = (a.copy() for a in self._read(context))
+        targets = context.get_discrete_state(self._targets).value().astype(int)
+        robot_p, robot_v, robot_r = self._robots(context)
+        self._enter(context.get_time(), p, v, present, robot_p, robot_r)
+
+        a = np.flatnonzero(present)
+        pa, va, radii = p[a], v[a], self._radii[a]
+        count = self._counts[a]
+        goal = self._waypoints[a, targets[a]]
+        reached = np.linalg.norm(goal - pa, axis=1) < prm.waypoint_tolerance
+        reached |= self._taken(goal, pa, radii, robot_p, robot_r)
+        targets[a] = np.where(reached, (targets[a] + 1) % count, targets[a])
+        to_goal = self._waypoints[a, targets[a]] - pa
+        distance = np.linalg.norm(to_goal, axis=1)
+        walking = (distance > 1e-9) & ~((count == 1) & (distance < prm.waypoint_tolerance))
+        direction = np.where(walking[:, None], to_goal / np.maximum(distance, 1e-9)[:, None], 0)
+
+        accel = (self._speeds[a, None] * direction - va) / prm.relaxation_time
+        accel += self._repulsion(pa, direction, radii, pa, va, radii, same=True)
+        accel += self._repulsion(pa, direction, radii, robot_p, robot_v, robot_r, same=False)
+        closest, clearance = self._obstacles.closest_points(pa)
+        accel += (prm.wall_strength / prm.wall_range
+                  * np.exp(-np.maximum(clearance, 0.0) / prm.wall_range)[:, None]
+                  * _outward(pa, closest, clearance))
+
+        va_new = _cap_speed(va + dt * accel, prm.max_speed)
+        free_step = pa + dt * va_new
+        pa_new, blocked = self._project(free_step, pa, clearance, radii, robot_p, robot_r)
+        va_new = _cap_speed(va_new + (pa_new - free_step) / dt, prm.max_speed)
+        va_new[blocked] = 0.0
+
+        p[a], v[a] = pa_new, va_new
+        speed = np.linalg.norm(va_new, axis=1)
+        heading[a] = np.where(speed > STOPPED_SPEED,
+                              np.arctan2(va_new[:, 1], va_new[:, 0]), heading[a])
+        discrete_state.get_mutable_vector(self._positions).SetFromVector(p.reshape(-1))
+        discrete_state.get_mutable_vector(self._velocities).SetFromVector(v.reshape(-1))
+        discrete_state.get_mutable_vector(self._targets).SetFromVector(targets.astype(float))
+        discrete_state.get_mutable_vector(self._headings).SetFromVector(heading)
+        discrete_state.get_mutable_vector(self._present).SetFromVector(present.astype(float))
+
+    @staticmethod
+    def _taken(goal, p, radii, robot_p, robot_r) -> np.ndarray:
+        """True for people within ``TAKEN_REACH`` of a target that someone else's body (a
+        robot's or another person's) covers, so they cannot get closer."""
+        others = np.concatenate([p, robot_p])
+        reach = np.concatenate([radii, robot_r])[None, :] + radii[:, None]
+        covered = np.linalg.norm(goal[:, None, :] - others[None, :, :], axis=2) < reach
+        covered[np.arange(len(p)), np.arange(len(p))] = False
+        return covered.any(axis=1) & (np.linalg.norm(goal - p, axis=1) < TAKEN_REACH)
+
+    def _enter(self, time, p, v, present, robot_p, robot_r) -> None:
+        """Lets waiting people whose entry time has come enter, in people order, when their
+        start is clear of everyone present and of the robots (modifies the arrays)."""
+        for i in np.flatnonzero(~present & (self._entry <= time + 1e-9)):
+            others = np.concatenate([p[present], robot_p])
+            others_r = np.concatenate([self._radii[present], robot_r])
+            gaps = np.linalg.norm(others - self._starts[i], axis=1) - others_r - self._radii[i]
+            if np.all(gaps >= ENTRY_GAP):
+                present[i] = True
+                p[i], v[i] = self._starts[i], 0.0
+
+    def _repulsion(self, p, direction, radii, q, q_velocity, q_radii, same: bool) -> np.ndarray:
+        """Sum over others (q) of the elliptical-potential force on each person (p), m/s^2."""
+        if len(p) == 0 or len(q) == 0:
+            return np.zeros_like(p)
+        prm = self._params
+        speed = np.linalg.norm(q_velocity, axis=1)
+        heading = q_velocity / np.maximum(speed, 1e-12)[:, None]
+        step = (speed * ELLIPSE_TIME)[None, :, None] * heading[None, :, :]
+        r1 = p[:, None, :] - q[None, :, :]  # from the other to the person
+        r2 = r1 - step  # from the other's position ELLIPSE_TIME s ahead
+        n1 = np.linalg.norm(r1, axis=2)
+        n2 = np.linalg.norm(r2, axis=2)
+        s = speed * ELLIPSE_TIME
+        b = 0.5 * np.sqrt(np.maximum((n1 + n2) ** 2 - s[None, :] ** 2, 0.0))
+        unit_sum = r1 / np.maximum(n1, 1e-12)[..., None] + r2 / np.maximum(n2, 1e-12)[..., None]
+        grad = ((n1 + n2) / (4.0 * np.maximum(b, 1e-9)))[..., None] * unit_sum
+        grad_norm = np.linalg.norm(grad, axis=2)
+        grad *= np.minimum(1.0, GRADIENT_CAP / np.maximum(grad_norm, 1e-12))[..., None]
+        surface_b = np.maximum(b - radii[:, None] - q_radii[None, :], 0.0)
+        magnitude = prm.repulsion_strength / prm.repulsion_range * np.exp(
+            -surface_b / prm.repulsion_range)
+        force = magnitude[..., None] * grad
+        force_norm = np.linalg.norm(force, axis=2)
+        # The other is in view when -force (pointing at it) is within FIELD_OF_VIEW of
+        # the person's desired direction.
+        in_view = -np.einsum("ik,ijk->ij", direction, force) >= force_norm * np.cos(
+            FIELD_OF_VIEW)
+        force *= np.where(in_view, 1.0, OUT_OF_VIEW_WEIGHT)[..., None]
+        # Keeping right breaks the symmetry of head-on encounters, which would deadlock.
+        against = np.maximum(-np.einsum("ik,ijk->ij", direction, force), 0.0)
+        right = np.column_stack([direction[:, 1], -direction[:, 0]])
+        force += KEEP_RIGHT * against[..., None] * right[:, None, :]
+        force[n1 < 1e-9] = 0.0
+        if same:
+            force[np.arange(len(p)), np.arange(len(p))] = 0.0
+        return force.sum(axis=1)
+
+    def _project(self, new, old, old_clearance, radii, robot_p, robot_r):
+        """Hard constraints on the step ``old`` -> ``new`` (positions (a, 2)): overlapping
+        people are pushed apart; nobody steps closer to a robot (surface to surface) than
+        min(``ROBOT_STANDOFF``, its gap before the step), so only a robot's own motion can
+        cause contact; everyone ends at clearance >= radius from obstacles. Returns the new
+        positions and the mask of people blocked, who would still break a robot floor or lose
+        clearance below min(radius, old clearance), and so stay at ``old``."""
+        new = new.copy()
+        floor = np.minimum(ROBOT_STANDOFF, _gaps(old, radii, robot_p, robot_r))
+        for _ in range(PROJECTION_ITERATIONS):
+            shift = _apart(new, radii) + _away(new, radii, robot_p, robot_r, floor)
+            new += shift
+            closest, clearance = self._obstacles.closest_points(new)
+            depth = np.maximum(radii - clearance, 0.0)
+            new += depth[:, None] * _outward(new, closest, clearance)
+            if not shift.any() and not depth.any():
+                break
+        if depth.any():
+            clearance = self._obstacles.signed_distance(new)
+        blocked = clearance < np.minimum(radii, old_clearance) - 1e-9
+        blocked |= (_gaps(new, radii, robot_p, robot_r) < floor - 1e-9).any(axis=1)
+        new[blocked] = old[blocked]
+        return new, blocked
+
+
+def _gaps(p, radii, q, q_radii) -> np.ndarray:
+    """Surface distances (a, b) between circles at p (a, 2) and q (b, 2)."""
+    centre = np.linalg.norm(p[:, None, :] - q[None, :, :], axis=2)
+    return centre - radii[:, None] - q_radii[None, :]
+
+
+def _apart(p, radii) -> np.ndarray:
+    """Shifts (a, 2) that move each overlapping pair of people half the overlap apart."""
+    offset = p[:, None, :] - p[None, :, :]
+    dist = np.linalg.norm(offset, axis=2)
+    overlap = radii[:, None] + radii[None, :] - dist
+    np.fill_diagonal(overlap, 0.0)
+    push = np.where((overlap > 0) & (dist > 1e-9), 0.5 * overlap / np.maximum(dist, 1e-9), 0.0)
+    return np.einsum("ij,ijk->ik", push, offset)
+
+
+def _away(p, radii, q, q_radii, floor) -> np.ndarray:
+    """Shifts (a, 2) that move people straight away from robots q until each gap >= floor."""
+    offset = p[:, None, :] - q[None, :, :]
+    dist = np.linalg.norm(offset, axis=2)
+    deficit = np.maximum(floor - (dist - radii[:, None] - q_radii[None, :]), 0.0)
+    push = np.where(dist > 1e-9, deficit / np.maximum(dist, 1e-9), 0.0)
+    return np.einsum("ij,ijk->ik", push, offset)
+
+
+def _outward(p, closest, clearance) -> np.ndarray:
+    """Unit vectors (n, 2) pointing from the obstacle out to each point (zero if undefined)."""
+    offset = np.where((clearance < 0)[:, None], closest - p, p - closest)
+    norm = np.linalg.norm(offset, axis=1)
+    return np.where((norm > 1e-12)[:, None], offset / np.maximum(norm, 1e-12)[:, None], 0.0)
+
+
+def _cap_speed(v, max_speed: float) -> np.ndarray:
+    speed = np.linalg.norm(v, axis=1)
+    return v * np.minimum(1.0, max_speed / np.maximum(speed, 1e-12))[:, None]
