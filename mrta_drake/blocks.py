@@ -194,7 +194,30 @@ def _social_force_humans() -> BlockType:
     return BlockType(NoParams, make)
 
 
+def _priorities(ctx: BuildContext) -> list[int]:
+    """Robots' leader priorities (smaller leads); default: their place in the scenario."""
+    return [k if r.priority is None else r.priority for k, r in enumerate(ctx.scenario.robots)]
+
+
+def _cluster_cbf_controller() -> BlockType:
+    from mrta_drake.control.cbf_qp import CbfParams
+    from mrta_drake.systems.cluster_cbf_controller import ClusterCbfController
+
+    return BlockType(CbfParams, lambda ctx, params: ClusterCbfController(
+        ctx.robot_names, ctx.obstacles, params, _priorities(ctx), ctx.rates.controller))
+
+
+def _go_to_goal_controller() -> BlockType:
+    from mrta_drake.control.cbf_qp import CbfParams
+    from mrta_drake.systems.go_to_goal_controller import GoToGoalController
+
+    return BlockType(CbfParams, lambda ctx, params: GoToGoalController(
+        ctx.robot_names, ctx.obstacles, params, ctx.rates.controller))
+
+
 register_block("robots", "kinematic", _kinematic_robots)
+register_block("controller", "cluster_cbf", _cluster_cbf_controller)
+register_block("controller", "go_to_goal", _go_to_goal_controller)
 register_block("humans", "social_force", _social_force_humans)
 register_block("planner", "grid_astar", _grid_astar_planner)
 register_block("allocator", "fixed", _fixed_allocator)
