@@ -60,12 +60,13 @@ def check_shape(value, schema, file: str, path: str = "") -> None:
                 raise InputError(file, _join(path, key),
                                  f"unknown field (known: {', '.join(sorted(known))})")
             check_shape(item, hints[key], file, _join(path, key))
-    elif origin is list:
+    elif origin is list or schema is list:
         if not isinstance(value, list):
             raise InputError(file, path, f"expected a list, got {_short(value)}")
-        (item_type,) = typing.get_args(schema)
-        for i, item in enumerate(value):
-            check_shape(item, item_type, file, _join(path, i))
+        if origin is list:
+            (item_type,) = typing.get_args(schema)
+            for i, item in enumerate(value):
+                check_shape(item, item_type, file, _join(path, i))
     elif origin is dict or schema is dict:
         if not isinstance(value, dict):
             raise InputError(file, path, f"expected a mapping, got {_short(value)}")
