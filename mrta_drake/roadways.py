@@ -25,7 +25,8 @@ from mrta_drake.scenario_schema import LocationConfig, RoadwaysConfig
 class Place:
     """A location's geometry, validated: ``point`` (2,), ``queue`` (n, 2) head slot first with
     n >= 1, ``entry`` (k, 2) from the head slot to the point (intermediate points only), and
-    the roadway nodes robots leave by and approach from."""
+    the roadway nodes robots leave by and approach from; ``parking`` (2,) or None: where a
+    robot with nothing left to do waits off the point."""
 
     id: int
     point: np.ndarray
@@ -33,6 +34,7 @@ class Place:
     entry: np.ndarray
     exit_node: str
     approach_node: str
+    parking: np.ndarray | None = None
 
     @property
     def tail(self) -> np.ndarray:
@@ -128,6 +130,8 @@ class Roadways:
             entry=frozen_array(entry, shape=(len(entry), 2)),
             exit_node=location.exit_node,
             approach_node=location.approach_node,
+            parking=(_xy(location.parking, file, f"{field}.parking")
+                     if location.parking else None),
         )
 
     def _check_reachable(self, locations: Sequence[LocationConfig]) -> None:

@@ -90,8 +90,10 @@ def test_location_points_are_clear(plan, navigation):
     locations, _ = navigation
     grid = plan.occupancy(0.05)
     for loc in locations:
-        points = np.array([loc.point, *loc.queue, *loc.entry])
+        points = np.array([loc.point, *loc.queue, *loc.entry, loc.parking])
         assert grid.is_free(points).all(), loc.name
+        # Parking leaves the point free for the next robot.
+        assert np.hypot(*np.subtract(loc.parking, loc.point)) > 1.5, loc.name
         assert plan.obstacles.signed_distance(points).min() >= POINT_CLEARANCE, loc.name
 
 

@@ -24,6 +24,7 @@ DRIVE = "drive"  # along a roadway leg to the tail slot of the stop's queue
 QUEUE = "queue"  # requesting the stop's room, waiting at a queue slot
 ENTER = "enter"  # holding the room, driving through the queue slots and entry to its point
 SERVE = "serve"  # at the point: once holding the room, stand there for the service time
+PARK = "park"  # no stop to do: move off the last location's point to its parking spot
 
 
 @dataclass(frozen=True)
@@ -99,11 +100,14 @@ class WaypointGenerator(LeafSystem):
     update: a new plan with the same first stop location changes nothing (only the stop);
     one with another location re-routes from the next roadway node ahead on the leg, from
     the exit node of the queue it waited in, or out of the room it entered. A completed stop
-    is never redone. Without stops the target is inactive: the robot stands where it is.
+    is never redone. Without stops the robot parks: at a location that has a parking spot it
+    drives there (park), off the point; elsewhere the target is inactive and it stands still.
+    A parked robot given a stop starts it as if standing on the location's point.
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
     current stop is elsewhere and it is more than ``release_distance`` from the room's
-    point, or at once when it has no stop left. It keeps naming that room in ``release``
+    point, or, with no stop left, once it is more than ``reach_tolerance`` from the point
+    (at once where there is no parking spot). It keeps naming that room in ``release``
     until the queues no longer show it as the holder.
     """
 
@@ -153,6 +157,10 @@ class WaypointGenerator(LeafSystem):
 
     def _calc_target(self, context, output):
         s = self._drive(context)
+        if s.phase == PARK:
+            parking = _point(self._roadways.place(s.last_location).parking)
+            output.set_value(WaypointTarget(self._robot, True, parking, None, True))
+            return
         if s.stop is None:
             output.set_value(WaypointTarget(self._robot))
             return
@@ -200,7 +208,11 @@ class WaypointGenerator(LeafSystem):
 
     def _follow_plan(self, s: _Drive, stop: Stop | None, xy) -> _Drive:
         if stop is None:
-            return replace(s, phase=IDLE, stop=None, route=(), index=0, since=None)
+            place = None if s.last_location is None else self._roadways.place(s.last_location)
+            parks = place is not None and place.parking is not None and (
+                s.phase == PARK or _distance(xy, place.point) <= self._params.reach_tolerance)
+            return replace(s, phase=PARK if parks else IDLE, stop=None, route=(), index=0,
+                           since=None)
         if s.stop is None:
             return self._start(s, stop, xy)
         if stop.location == s.stop.location:
@@ -217,7 +229,9 @@ class WaypointGenerator(LeafSystem):
     def _start(self, s: _Drive, stop: Stop, xy) -> _Drive:
         """Begin ``stop`` from standing (at the start, or after finishing a stop)."""
         roadways, tolerance = self._roadways, self._params.reach_tolerance
-        if _distance(xy, roadways.place(stop.location).point) <= tolerance:
+        parked = s.phase == PARK
+        if (_distance(xy, roadways.place(stop.location).point) <= tolerance
+                or (parked and s.last_location == stop.location)):
             return replace(s, phase=SERVE, stop=stop, route=(), index=0, since=None)
         last = s.last_location
         if last is None:  # e.g. a robot placed on a location's point without start_location
@@ -229,7 +243,7 @@ class WaypointGenerator(LeafSystem):
         if (
             last is not None
             and last != stop.location
-            and _distance(xy, roadways.place(last).point) <= tolerance
+            and (parked or _distance(xy, roadways.place(last).point) <= tolerance)
         ):
             route = roadways.leg(last, stop.location)
         else:
@@ -302,7 +316,10 @@ class WaypointGenerator(LeafSystem):
             if queue.holder != self._robot:
                 continue
             if s.stop is None:
-                return queue.room
+                point = self._roadways.place(queue.room).point
+                if s.phase != PARK or _distance(xy, point) > self._params.reach_tolerance:
+                    return queue.room
+                continue
             point = self._roadways.place(queue.room).point
             if (
                 s.stop.location != queue.room
