@@ -11,7 +11,7 @@ edges: each corridor has one lane per direction).
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import networkx as nx
 import numpy as np
@@ -25,8 +25,8 @@ from mrta_drake.scenario_schema import LocationConfig, RoadwaysConfig
 class Place:
     """A location's geometry, validated: ``point`` (2,), ``queue`` (n, 2) head slot first with
     n >= 1, ``entry`` (k, 2) from the head slot to the point (intermediate points only), and
-    the roadway nodes robots leave by and approach from; ``parking`` (2,) or None: where a
-    robot with nothing left to do waits off the point."""
+    the roadway nodes robots leave by and approach from; ``parking`` (p, 2): spots where a
+    robot with nothing left to do waits off the point (p may be 0)."""
 
     id: int
     point: np.ndarray
@@ -34,7 +34,7 @@ class Place:
     entry: np.ndarray
     exit_node: str
     approach_node: str
-    parking: np.ndarray | None = None
+    parking: np.ndarray = field(default_factory=lambda: frozen_array(np.zeros((0, 2))))
 
     @property
     def tail(self) -> np.ndarray:
@@ -130,8 +130,9 @@ class Roadways:
             entry=frozen_array(entry, shape=(len(entry), 2)),
             exit_node=location.exit_node,
             approach_node=location.approach_node,
-            parking=(_xy(location.parking, file, f"{field}.parking")
-                     if location.parking else None),
+            parking=frozen_array(
+                [_xy(p, file, f"{field}.parking[{k}]") for k, p in enumerate(location.parking)],
+                shape=(len(location.parking), 2)),
         )
 
     def _check_reachable(self, locations: Sequence[LocationConfig]) -> None:

@@ -40,8 +40,8 @@ class LocationConfig:
     head (nearest the door) first. ``entry``: the path from the head slot through the door to
     ``point`` (intermediate points only). ``exit_node``: the roadway node robots join when
     leaving; ``approach_node``: the roadway node from which robots drive to the queue's tail.
-    ``parking``: optional [x, y] off the point where a robot that has nothing more to do waits,
-    leaving the point (and the room) free for the next robot. ``point`` may be omitted when the floor plan names a place with this location's ``name``.
+    ``parking``: optional spots [x, y] off the point where a robot that has nothing more to do
+    waits, leaving the point (and the room) free for the next robot. ``point`` may be omitted when the floor plan names a place with this location's ``name``.
     """
 
     id: int = -1
@@ -51,7 +51,7 @@ class LocationConfig:
     entry: list[list[float]] = field(default_factory=list)
     exit_node: str = ""
     approach_node: str = ""
-    parking: list[float] = field(default_factory=list)
+    parking: list[list[float]] = field(default_factory=list)
 
 
 @dataclass(frozen=True)

@@ -90,10 +90,14 @@ def test_location_points_are_clear(plan, navigation):
     locations, _ = navigation
     grid = plan.occupancy(0.05)
     for loc in locations:
-        points = np.array([loc.point, *loc.queue, *loc.entry, loc.parking])
+        points = np.array([loc.point, *loc.queue, *loc.entry, *loc.parking])
         assert grid.is_free(points).all(), loc.name
-        # Parking leaves the point free for the next robot.
-        assert np.hypot(*np.subtract(loc.parking, loc.point)) > 1.5, loc.name
+        assert plan.obstacles.signed_distance(points).min() >= POINT_CLEARANCE, loc.name
+        # Parking leaves the point free for the next robot, and room for two robots.
+        spots = np.array(loc.parking)
+        assert len(spots) == 2, loc.name
+        assert (np.linalg.norm(spots - loc.point, axis=1) > 1.5).all(), loc.name
+        assert np.linalg.norm(spots[0] - spots[1]) > 1.0, loc.name
         assert plan.obstacles.signed_distance(points).min() >= POINT_CLEARANCE, loc.name
 
 

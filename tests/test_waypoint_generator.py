@@ -17,10 +17,11 @@ from mrta_drake.systems.waypoint_generator import WaypointGenerator, WaypointPar
 A, B, C = 0, 1, 2
 
 
-def loop_world() -> Roadways:
+def loop_world(parking: bool = False) -> Roadways:
     """As in test_roadways: an eastbound lane at y = 0 and a westbound one at y = 1.5 joined
     at x = 0 and 30; rooms A, B, C at x = 5, 15, 25, point at y = 5, door at y = 2.5, three
-    queue slots east of the door on the westbound lane."""
+    queue slots east of the door on the westbound lane; with ``parking``, a parking spot 2 m
+    east of each point."""
     xs = (0, 10, 20, 30)
     nodes = {f"S{x}": [x, 0.0] for x in xs} | {f"N{x}": [x, 1.5] for x in xs}
     edges = [["S0", "S10"], ["S10", "S20"], ["S20", "S30"], ["S30", "N30"],
@@ -29,6 +30,7 @@ def loop_world() -> Roadways:
         LocationConfig(
             id=i, point=[x, 5.0], queue=[[x + 1.0, 1.5], [x + 2.0, 1.5], [x + 3.0, 1.5]],
             entry=[[x, 2.5]], exit_node=f"N{x - 5}", approach_node=f"N{x + 5}",
+            parking=[[x + 2.0, 5.0], [x + 2.0, 6.5]] if parking else [],
         )
         for i, x in enumerate((5, 15, 25))
     ]
@@ -86,8 +88,8 @@ class ScriptedPlan(LeafSystem):
 class World:
     """Robots ``r0, r1, ...`` starting on the points of ``starts`` (location ids)."""
 
-    def __init__(self, starts, plan_source, start_known=True, params=None):
-        self.roadways = roadways = loop_world()
+    def __init__(self, starts, plan_source, start_known=True, params=None, parking=False):
+        self.roadways = roadways = loop_world(parking)
         self.robots = [f"r{i}" for i in range(len(starts))]
         builder = DiagramBuilder()
         plan = builder.AddSystem(plan_source)
@@ -254,3 +256,19 @@ def test_a_stop_where_the_robot_stands_is_served_in_place():
     # It then leaves A by its door, on A's leg to B.
     currents = [targets[0].current for t, _, _, targets in world.log if t > visits[0].time]
     assert currents[0] == (5.0, 2.5)
+
+
+def test_a_robot_done_at_a_room_parks_off_the_point_and_frees_the_room():
+    world = World([C, C], fixed([B], [A, B]), parking=True)
+    world.run(until=90.0)
+    r0, r1 = world.progress(0), world.progress(1)
+    assert [v.location for v in r0.visits] == [B]
+    assert [v.location for v in r1.visits] == [A, B]
+    _, final, positions, targets = world.log[-1]
+    # Both wait on B's parking spots, off its point: r0 on the first, r1 on the second.
+    np.testing.assert_allclose(positions, world.roadways.place(B).parking, atol=1e-6)
+    assert [t.current for t in targets] == [(17.0, 5.0), (17.0, 6.5)]
+    # r0 released B once it had left the point, before r1 came for it; r1 released it too.
+    handover = [t for t, q, _, _ in world.log if q.room(B).holder == "r1"]
+    assert handover and handover[0] < r1.visits[1].time
+    assert final.room(B).holder is None

@@ -24,7 +24,7 @@ DRIVE = "drive"  # along a roadway leg to the tail slot of the stop's queue
 QUEUE = "queue"  # requesting the stop's room, waiting at a queue slot
 ENTER = "enter"  # holding the room, driving through the queue slots and entry to its point
 SERVE = "serve"  # at the point: once holding the room, stand there for the service time
-PARK = "park"  # no stop to do: move off the last location's point to its parking spot
+PARK = "park"  # no stop to do: wait on a free parking spot of the last location
 
 
 @dataclass(frozen=True)
@@ -36,6 +36,7 @@ class WaypointParams:
     service_time: float = 1.0  # standing at the point, holding the room, to finish a stop
     request_distance: float = 3.0  # ask for a place in the queue this close to its tail slot
     release_distance: float = 5.0  # give a room back this far from its point
+    parking_clearance: float = 0.8  # a parking spot is taken with another robot this close
 
 
 @dataclass(frozen=True)
@@ -100,8 +101,9 @@ class WaypointGenerator(LeafSystem):
     update: a new plan with the same first stop location changes nothing (only the stop);
     one with another location re-routes from the next roadway node ahead on the leg, from
     the exit node of the queue it waited in, or out of the room it entered. A completed stop
-    is never redone. Without stops the robot parks: at a location that has a parking spot it
-    drives there (park), off the point; elsewhere the target is inactive and it stands still.
+    is never redone. Without stops the robot parks: at a location with parking spots it
+    drives to the first one no other robot is within ``parking_clearance`` of (park), off
+    the point; elsewhere the target is inactive and it stands still.
     A parked robot given a stop starts it as if standing on the location's point.
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
@@ -158,7 +160,7 @@ class WaypointGenerator(LeafSystem):
     def _calc_target(self, context, output):
         s = self._drive(context)
         if s.phase == PARK:
-            parking = _point(self._roadways.place(s.last_location).parking)
+            parking = _point(self._roadways.place(s.last_location).parking[s.index])
             output.set_value(WaypointTarget(self._robot, True, parking, None, True))
             return
         if s.stop is None:
@@ -190,12 +192,13 @@ class WaypointGenerator(LeafSystem):
     def _update(self, context, state):
         s = self._drive(context)
         t = context.get_time()
-        k = ROBOT_STATE_SIZE * self._index
-        xy = _point(self._robot_state.Eval(context)[k:k + 2])
+        states = self._robot_state.Eval(context).reshape(-1, ROBOT_STATE_SIZE)
+        xy = _point(states[self._index])
+        others = np.delete(states[:, :2], self._index, axis=0)
         queues = self._queue_state.Eval(context)
         done = {visit.key for visit in s.visits}
         remaining = [stop for stop in self._stops(context) if stop.key not in done]
-        s = self._follow_plan(s, remaining[0] if remaining else None, xy)
+        s = self._follow_plan(s, remaining[0] if remaining else None, xy, others)
         s = self._advance(s, xy, t, queues, remaining)
         s = replace(s, release=self._release(s, xy, queues))
         state.get_mutable_abstract_state(self._state_index).set_value(s)
@@ -206,13 +209,16 @@ class WaypointGenerator(LeafSystem):
             return plans[self._index].stops
         return next((plan.stops for plan in plans if plan.robot == self._robot), ())
 
-    def _follow_plan(self, s: _Drive, stop: Stop | None, xy) -> _Drive:
+    def _follow_plan(self, s: _Drive, stop: Stop | None, xy, others) -> _Drive:
         if stop is None:
+            if s.phase == PARK:
+                return s
             place = None if s.last_location is None else self._roadways.place(s.last_location)
-            parks = place is not None and place.parking is not None and (
-                s.phase == PARK or _distance(xy, place.point) <= self._params.reach_tolerance)
-            return replace(s, phase=PARK if parks else IDLE, stop=None, route=(), index=0,
-                           since=None)
+            if (place is None or not len(place.parking)
+                    or _distance(xy, place.point) > self._params.reach_tolerance):
+                return replace(s, phase=IDLE, stop=None, route=(), index=0, since=None)
+            return replace(s, phase=PARK, stop=None, route=(), since=None,
+                           index=self._free_parking(place, others))
         if s.stop is None:
             return self._start(s, stop, xy)
         if stop.location == s.stop.location:
@@ -225,6 +231,15 @@ class WaypointGenerator(LeafSystem):
         else:
             route = _points(self._roadways.leg(old.id, stop.location))
         return replace(s, phase=DRIVE, stop=stop, route=route, index=0, since=None)
+
+    def _free_parking(self, place, others: np.ndarray) -> int:
+        """Index of the first of ``place``'s parking spots with no other robot near it (the
+        last spot if all are taken)."""
+        for k, spot in enumerate(place.parking):
+            if not len(others) or np.min(np.linalg.norm(others - spot, axis=1)) > \
+                    self._params.parking_clearance:
+                return k
+        return len(place.parking) - 1
 
     def _start(self, s: _Drive, stop: Stop, xy) -> _Drive:
         """Begin ``stop`` from standing (at the start, or after finishing a stop)."""
