@@ -15,8 +15,14 @@ from mrta_drake.blocks import BuildContext, resolve_block
 from mrta_drake.scenario_schema import Scenario
 from mrta_drake.systems.meshcat_overlay import MeshcatOverlay
 from mrta_drake.systems.run_recorder import RunRecorder
-from mrta_drake.world import Body, World, add_plant_posing, build_world, load_floor_plan_of, \
-    resolve_locations
+from mrta_drake.world import (
+    Body,
+    World,
+    add_plant_posing,
+    build_world,
+    load_floor_plan_of,
+    resolve_locations,
+)
 
 
 @dataclass(eq=False)

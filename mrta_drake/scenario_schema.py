@@ -41,7 +41,8 @@ class LocationConfig:
     ``point`` (intermediate points only). ``exit_node``: the roadway node robots join when
     leaving; ``approach_node``: the roadway node from which robots drive to the queue's tail.
     ``parking``: optional spots [x, y] off the point where a robot that has nothing more to do
-    waits, leaving the point (and the room) free for the next robot. ``point`` may be omitted when the floor plan names a place with this location's ``name``.
+    waits, leaving the point (and the room) free for the next robot. ``point`` may be omitted
+    when the floor plan names a place with this location's ``name``.
     """
 
     id: int = -1

@@ -7,10 +7,10 @@ from pydrake.systems.primitives import ConstantVectorSource
 from mrta_drake.systems.unicycle_robots import UnicycleParams, UnicycleRobots, unicycle_step
 
 
-def _run(starts, commands, duration, params=UnicycleParams()):
+def _run(starts, commands, duration, params=None):
     builder = DiagramBuilder()
     robots = builder.AddSystem(UnicycleRobots([f"r{i}" for i in range(len(starts))], starts,
-                                              params))
+                                              params or UnicycleParams()))
     source = builder.AddSystem(ConstantVectorSource(np.ravel(commands)))
     builder.Connect(source.get_output_port(), robots.GetInputPort("commands"))
     diagram = builder.Build()
