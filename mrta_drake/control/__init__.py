@@ -1,0 +1,22 @@
+"""Control of dynamic unicycles: nominal path following (``nominal``), robot clusters and
+their leaders (``clusters``), and second-order CBF safety filters solved as QPs (``cbf_qp``).
+Plain numpy/Drake-solver code without the systems framework; the controller blocks in
+``mrta_drake.systems`` call it every tick."""
+
+from mrta_drake.control.cbf_qp import CbfParams, CbfQp, QpSolution, WallRays, safety_rows
+from mrta_drake.control.clusters import LEADER_RULES, LeaderRule, form_clusters
+from mrta_drake.control.nominal import NominalParams, nominal_control, slow_down
+
+__all__ = [
+    "LEADER_RULES",
+    "CbfParams",
+    "CbfQp",
+    "LeaderRule",
+    "NominalParams",
+    "QpSolution",
+    "WallRays",
+    "form_clusters",
+    "nominal_control",
+    "safety_rows",
+    "slow_down",
+]

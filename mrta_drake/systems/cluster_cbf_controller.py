@@ -1,0 +1,319 @@
+"""Safe control of a fleet of dynamic unicycles with clustered CBF-QPs (the paper's controller)."""
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.common.value import Value
+from pydrake.systems.framework import LeafSystem
+
+from mrta_drake.control.cbf_qp import (
+    CbfParams,
+    CbfQp,
+    SafetyRows,
+    WallRays,
+    barrier_minima,
+    safety_rows,
+    steer_blocked,
+)
+from mrta_drake.control.clusters import (
+    LEADER_RULES,
+    LeaderRule,
+    form_clusters,
+    leader_stall_times,
+)
+from mrta_drake.control.nominal import (
+    NominalParams,
+    is_active,
+    nominal_control,
+    remaining_distance,
+    slow_down,
+)
+from mrta_drake.payloads import (
+    ROBOT_COMMAND_SIZE,
+    ROBOT_STATE_SIZE,
+    ControllerTelemetry,
+    FleetPaths,
+    HumanStates,
+    RobotPath,
+)
+from mrta_drake.systems.unicycle_robots import UnicycleParams, unicycle_step
+
+__all__ = ["CbfParams", "ClusterCbfController", "QpProblem", "TickPlan"]
+
+_TELEMETRY_FIELDS = ("time", "min_barrier_wall", "min_barrier_human", "min_barrier_robot",
+                     "max_slack", "control_deviation", "solve_time", "failures")
+
+
+@dataclass(frozen=True)
+class QpProblem:
+    """One QP of a tick: the robots whose inputs it decides (``members``), their nominal
+    inputs and hard bounds (k, 2) ``[a, omega]``, and the safety rows."""
+
+    members: tuple[int, ...]
+    u_nominal: np.ndarray
+    rows: SafetyRows
+    lower: np.ndarray
+    upper: np.ndarray
+
+
+@dataclass(frozen=True)
+class TickPlan:
+    """Everything one tick solves: clusters (leader first), which robots are active (N,),
+    every robot's nominal input (N, 2) (followers' already the slow-down), the QPs, and the
+    smallest barrier values (wall, human, robot; m^2)."""
+
+    clusters: tuple[tuple[int, ...], ...]
+    active: np.ndarray
+    u_nominal: np.ndarray
+    problems: tuple[QpProblem, ...]
+    min_barriers: tuple[float, float, float]
+
+
+class ClusterCbfController(LeafSystem):
+    """Commands for N robots from their paths, kept safe from walls, humans and each other by
+    second-order control barrier functions (see ``mrta_drake.control.cbf_qp``).
+
+    Every tick (fixed dt = 1 / rate_hz) each robot's nominal input ``[a, omega]`` follows its
+    path (``mrta_drake.control.nominal``); QPs then change the inputs as little as possible so
+    that the barrier conditions hold, within the hard limits |a| <= max_accel,
+    |omega| <= max_yaw_rate and min_speed <= v + a dt <= max_speed. ``params.coordination``:
+
+    - ``clusters`` (default): robots within ``cluster_radius`` (transitively) form a cluster;
+      its leader (the first active member by the leader rule) keeps its nominal, the others
+      get the slow-down nominal, and one joint QP over all members' inputs is solved, each
+      member's wall and human rows evaluated at that member's own state. Lone robots solve
+      their own QP.
+    - ``decentralized``: each robot solves its own QP; other robots within ``cluster_radius``
+      are obstacles moving at constant velocity.
+    - ``centralized``: one QP over all robots' inputs.
+
+    Beyond the paper, against deadlocks: a robot that stands and whose nominal push forward
+    breaks a barrier row turns along the blocking obstacle (``cbf_qp.steer_blocked``); a
+    cluster leader that stands for ``stall_time`` passes the lead to the next member in turn
+    (``clusters.leader_stall_times``; the stall times are discrete state); robots within
+    ``arrival_radius`` of their path end lead no cluster.
+
+    A failed solve makes every robot of that QP brake at the acceleration limit (turning
+    stops); it is counted in the telemetry's ``failures`` (robots braked) and the run goes on.
+
+    Latency: a robot block updated at the same instants applies the commands stored at tick k
+    only from tick k + 1 on (Drake evaluates all discrete updates of an instant on the state
+    before it). With ``params.predict_latency`` the controller therefore plans from each
+    robot's state predicted one tick ahead under the commands it is executing now (the same
+    exact arc step as ``UnicycleRobots``); without it, the speed set-point v + a dt would
+    lag and braking would be halved. Barrier values in the telemetry are those of the
+    predicted states.
+
+    Input ``robot_state`` (4N): [x, y, theta, v] per robot, world frame, m, rad, m/s.
+    Input ``paths`` (FleetPaths): one path per robot, in robot order.
+    Input ``humans`` (HumanStates): may be left unconnected (no humans).
+    Output ``commands`` (2N): [v, omega] per robot, m/s and rad/s; v = v' + a dt with v' the
+    speed when the command takes effect (see Latency).
+    Output ``telemetry`` (ControllerTelemetry): the last tick's account.
+
+    ``priorities``: per robot, smaller leads (default: robot order). ``leader_rule``: a
+    function as in ``mrta_drake.control.clusters`` (default: ``params.leader_rule`` by name).
+    ``obstacles``: the world's ``Obstacles`` the wall rays are cast against (None: no walls).
+    """
+
+    def __init__(self, names, obstacles=None, params: CbfParams | None = None, priorities=None,
+                 rate_hz: float = 20.0, leader_rule: LeaderRule | None = None):
+        super().__init__()
+        params = params or CbfParams()
+        if leader_rule is None and params.leader_rule not in LEADER_RULES:
+            raise ValueError(f"leader_rule must be one of {sorted(LEADER_RULES)}, "
+                             f"got {params.leader_rule!r}")
+        self.names = tuple(names)
+        self._n = len(self.names)
+        self._rays = WallRays(obstacles, params)
+        self._params = params
+        self._dt = 1.0 / rate_hz
+        self._priorities = np.arange(self._n, dtype=float) if priorities is None else \
+            np.asarray(priorities, dtype=float).reshape(self._n)
+        self._rule = leader_rule or LEADER_RULES[params.leader_rule]
+        self._qp = CbfQp(params.solver, params.slack_weight)
+        declare_controller_ports(self, self._n, self._dt, self._update)
+        self._stall_index = self.DeclareDiscreteState(self._n)  # s stood as a blocked leader
+
+    @property
+    def params(self) -> CbfParams:
+        return self._params
+
+    def plan(self, states, paths: FleetPaths, humans: HumanStates | None = None,
+             stall_times=None) -> TickPlan:
+        """What one tick solves for robots in ``states`` (N, 4): clusters, nominal inputs and
+        the QPs of the coordination mode (``humans`` None: no humans; ``stall_times`` (N,)
+        s each robot has stood as a blocked leader, see ``clusters.leader_stall_times``;
+        None: none)."""
+        humans = humans or HumanStates()
+        p, n = self._params, self._n
+        states = np.asarray(states, dtype=float).reshape(n, ROBOT_STATE_SIZE)
+        robot_paths = robot_paths_of(paths, n)
+        active = np.array([is_active(s, path, p.arrival_radius)
+                           for s, path in zip(states, robot_paths, strict=True)], dtype=bool)
+        distances = [remaining_distance(s, path) for s, path in zip(states, robot_paths,
+                                                                   strict=True)]
+        stalled = None if stall_times is None else np.asarray(stall_times) >= p.stall_time
+        clusters = form_clusters(states[:, :2], p.cluster_radius, self._priorities, distances,
+                                 active, self._rule, stalled)
+        cluster_size = np.zeros(n, dtype=int)
+        for cluster in clusters:
+            cluster_size[list(cluster)] = len(cluster)
+        human_p, human_v = humans.positions.reshape(-1, 2), humans.velocities.reshape(-1, 2)
+        u_nom = np.zeros((n, 2))
+        for i in range(n):
+            bodies = np.vstack([np.delete(states[:, :2], i, axis=0), human_p])
+            u_nom[i] = nominal_control(states[i], robot_paths[i], p, cluster_size[i] > 1, bodies)
+        if p.coordination == "clusters":
+            groups = clusters
+            for cluster in clusters:
+                for follower in cluster[1:]:
+                    u_nom[follower] = slow_down(states[follower, 3], p)
+        elif p.coordination == "decentralized":
+            groups = tuple((i,) for i in range(n))
+        else:
+            groups = (tuple(range(n)),)
+        hits, mask = self._rays(states)
+        lower, upper = input_bounds(states, p, self._dt)
+        problems = []
+        for group in groups:
+            members = np.array(group)
+            movers = (np.delete(states, members, axis=0) if p.coordination == "decentralized"
+                      else np.zeros((0, ROBOT_STATE_SIZE)))
+            rows = safety_rows(states[members], hits[members], mask[members], human_p, human_v,
+                               movers, p)
+            u_nom[members] = steer_blocked(u_nom[members], states[members], rows, p)
+            problems.append(QpProblem(group, u_nom[members], rows, lower[members],
+                                      upper[members]))
+        wall, human, robot = barrier_minima(states, hits, mask, human_p, p)
+        return TickPlan(clusters, active, u_nom, tuple(problems), (wall, human, robot))
+
+    def control(self, time: float, states, paths: FleetPaths, humans: HumanStates | None = None,
+                stall_times=None) -> tuple[np.ndarray, ControllerTelemetry]:
+        """One tick without the systems framework: inputs ``[a, omega]`` (N, 2) for robots in
+        ``states`` (N, 4), and the tick's telemetry (arguments as for ``plan``)."""
+        return self._solve(time, self.plan(states, paths, humans, stall_times))
+
+    def _solve(self, time: float, plan: TickPlan) -> tuple[np.ndarray, ControllerTelemetry]:
+        u = np.zeros((self._n, 2))
+        failures, solve_time, max_slack = 0, 0.0, 0.0
+        for problem in plan.problems:
+            members = list(problem.members)
+            solution = self._qp.solve(problem.u_nominal, problem.rows.G, problem.rows.b,
+                                      problem.lower, problem.upper)
+            solve_time += solution.solve_time
+            if solution.success:
+                u[members] = solution.u
+                max_slack = max(max_slack, float(np.max(solution.slack, initial=0.0)))
+            else:
+                u[members] = np.stack([problem.lower[:, 0], np.zeros(len(members))], axis=1)
+                failures += len(members)
+        wall, human, robot = plan.min_barriers
+        deviation = float(np.max(np.linalg.norm(u - plan.u_nominal, axis=1), initial=0.0))
+        telemetry = ControllerTelemetry(
+            time=float(time), min_barrier_wall=wall, min_barrier_human=human,
+            min_barrier_robot=robot, max_slack=max_slack, control_deviation=deviation,
+            clusters=plan.clusters, solve_time=solve_time, failures=failures)
+        return u, telemetry
+
+    def _update(self, context, discrete_state) -> None:
+        p, stall = self._params, context.get_discrete_state(self._stall_index).value()
+
+        def control(time, states, paths, humans):
+            plan = self.plan(states, paths, humans, stall)
+            discrete_state.set_value(self._stall_index, leader_stall_times(
+                stall, states[:, 3], plan.clusters, plan.active, self._dt, p.stall_time,
+                p.stall_speed))
+            return self._solve(time, plan)
+
+        controller_update(self, context, discrete_state, control, p, self._dt, self._n)
+
+
+def input_bounds(states, params: NominalParams, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Hard bounds (N, 2) on ``[a, omega]`` for robots ``states`` (N, 4): |a| <= max_accel,
+    |omega| <= max_yaw_rate, and the speed after one step of dt s within
+    [min_speed, max_speed] as far as the acceleration limit allows."""
+    v = np.asarray(states, dtype=float).reshape(-1, ROBOT_STATE_SIZE)[:, 3]
+    a_max = params.max_accel
+    a_lo = np.clip((params.min_speed - v) / dt, -a_max, a_max)
+    a_hi = np.clip((params.max_speed - v) / dt, -a_max, a_max)
+    a_lo = np.minimum(a_lo, a_hi)
+    w = np.full_like(v, params.max_yaw_rate)
+    return np.stack([a_lo, -w], axis=1), np.stack([a_hi, w], axis=1)
+
+
+def predict_states(states, commands, params: NominalParams, dt: float) -> np.ndarray:
+    """Robot ``states`` (N, 4) one tick of ``dt`` s later under ``commands`` (N, 2)
+    ``[v, omega]``, by the robot block's own exact arc step with the controller's limits."""
+    limits = UnicycleParams(max_speed=params.max_speed,
+                            max_reverse_speed=max(0.0, -params.min_speed),
+                            max_acceleration=params.max_accel, max_yaw_rate=params.max_yaw_rate)
+    return unicycle_step(np.asarray(states, dtype=float).reshape(-1, ROBOT_STATE_SIZE),
+                         np.asarray(commands, dtype=float).reshape(-1, ROBOT_COMMAND_SIZE),
+                         limits, dt)
+
+
+def controller_update(system, context, discrete_state, control, params: CbfParams, dt: float,
+                      n: int) -> None:
+    """The periodic update of a controller with ``declare_controller_ports``' ports and state:
+    read the inputs, ``control(time, states, paths, humans) -> (u, telemetry)`` from the state
+    the new commands will act on, store the commands and the telemetry."""
+    states = system.GetInputPort("robot_state").Eval(context).reshape(n, ROBOT_STATE_SIZE)
+    paths = system.GetInputPort("paths").Eval(context)
+    humans_port = system.GetInputPort("humans")
+    humans = humans_port.Eval(context) if humans_port.HasValue(context) else HumanStates()
+    if params.predict_latency:
+        states = predict_states(states, context.get_discrete_state(0).value(), params, dt)
+    u, telemetry = control(context.get_time(), states, paths, humans)
+    commands = np.stack([states[:, 3] + u[:, 0] * dt, u[:, 1]], axis=1)
+    discrete_state.set_value(0, commands.ravel())
+    discrete_state.set_value(1, _telemetry_vector(telemetry, n))
+
+
+def robot_paths_of(paths: FleetPaths, n: int) -> tuple[RobotPath | None, ...]:
+    """The N robots' paths (all None for an empty FleetPaths: nothing planned yet)."""
+    if len(paths.paths) not in (0, n):
+        raise ValueError(f"paths: expected {n} robot paths, got {len(paths.paths)}")
+    return tuple(paths.paths) if paths.paths else (None,) * n
+
+
+def declare_controller_ports(system: LeafSystem, n: int, dt: float, update) -> None:
+    """Declare the ports, state and ``update`` event of a controller for ``n`` robots ticking
+    every ``dt`` s: discrete state group 0 holds the commands, group 1 the telemetry."""
+    commands = system.DeclareDiscreteState(ROBOT_COMMAND_SIZE * n)
+    telemetry = system.DeclareDiscreteState(_telemetry_vector(ControllerTelemetry(), n))
+    system.DeclareVectorInputPort("robot_state", ROBOT_STATE_SIZE * n)
+    system.DeclareAbstractInputPort("paths", Value[object](FleetPaths(())))
+    system.DeclareAbstractInputPort("humans", Value[object](HumanStates()))
+    system.DeclareStateOutputPort("commands", commands)
+    system.DeclareAbstractOutputPort(
+        "telemetry", lambda: Value[object](ControllerTelemetry()),
+        lambda context, output: output.set_value(_telemetry_from_vector(
+            context.get_discrete_state(telemetry).value(), n)),
+        prerequisites_of_calc={system.discrete_state_ticket(telemetry)})
+    system.DeclarePeriodicDiscreteUpdateEvent(dt, 0.0, update)
+
+
+def _telemetry_vector(telemetry: ControllerTelemetry, n: int) -> np.ndarray:
+    """Telemetry as numbers: the scalar fields, then per robot its cluster's leader (-1: no
+    clusters) and its rank in the cluster."""
+    leader, rank = np.full(n, -1.0), np.zeros(n)
+    for cluster in telemetry.clusters:
+        for r, i in enumerate(cluster):
+            leader[i], rank[i] = cluster[0], r
+    scalars = [float(getattr(telemetry, name)) for name in _TELEMETRY_FIELDS]
+    return np.concatenate([scalars, leader, rank])
+
+
+def _telemetry_from_vector(vector, n: int) -> ControllerTelemetry:
+    k = len(_TELEMETRY_FIELDS)
+    fields = dict(zip(_TELEMETRY_FIELDS, vector[:k], strict=True))
+    fields["failures"] = int(fields["failures"])
+    leader, rank = vector[k:k + n].astype(int), vector[k + n:]
+    groups: dict[int, list[int]] = {}
+    for i in range(n):
+        if leader[i] >= 0:
+            groups.setdefault(int(leader[i]), []).append(i)
+    clusters = sorted((sorted(members, key=lambda i: rank[i]) for members in groups.values()),
+                      key=min)
+    return ControllerTelemetry(clusters=tuple(tuple(c) for c in clusters), **fields)
