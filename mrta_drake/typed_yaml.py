@@ -179,6 +179,10 @@ def _without_bare_dicts(value, schema):
 def load_typed(data, schema, file: str, path: str = ""):
     """Build a frozen ``schema`` instance from raw YAML ``data`` (already parsed), raising
     InputError that names ``file`` and the field path on any mismatch."""
+    if typing.get_origin(schema) is list:  # yaml_load_typed wants a mapping at the root
+        check_shape(data, schema, file, path)
+        (item,) = typing.get_args(schema)
+        return [load_typed(v, item, file, _join(path, i)) for i, v in enumerate(data)]
     data = {} if data is None else data
     check_shape(data, schema, file, path)
     text = yaml.safe_dump(_without_bare_dicts(data, schema), sort_keys=False)
