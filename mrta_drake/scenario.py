@@ -10,11 +10,16 @@ Sections that may be a path (relative to the scenario file) instead of inline da
 ``robots`` (our list, or an MRTA-Sim ``agents:`` setup in YAML or JSON), ``locations`` and
 ``roadways`` (a YAML file holding that key), and ``tasks.file`` (our ``stream:`` list or an
 MRTA-Sim ``tasks_stream`` file).
+
+A ``tasks.generate`` block is expanded into seeded random batches (``task_generation.py``)
+with the scenario's seed, after ``overrides`` (e.g. ``{"seed": 3}``) are applied.
 """
 
+import copy
 import dataclasses
 import math
 import os
+from collections.abc import Mapping
 
 from mrta_drake.errors import InputError
 from mrta_drake.scenario_schema import (
@@ -25,12 +30,16 @@ from mrta_drake.scenario_schema import (
     TaskBatch,
     TaskConfig,
 )
+from mrta_drake.task_generation import add_generated_tasks
 from mrta_drake.typed_yaml import check_shape, load_typed, read_yaml
 
 
-def load_scenario(path: str, *, check_world: bool = True) -> Scenario:
+def load_scenario(path: str, *, check_world: bool = True,
+                  overrides: Mapping[str, object] | None = None) -> Scenario:
     """Read and validate the scenario at ``path``. With ``check_world`` the floor plan is
-    loaded too, and robot starts are checked against walls."""
+    loaded too, and robot starts are checked against walls. ``overrides`` sets fields by
+    dotted name (``{"seed": 3, "blocks.controller.kind": "go_to_goal"}``) before the
+    scenario is checked; a field under a list cannot be set."""
     path = os.fspath(path)
     raw = read_yaml(path, "scenario file")
     if raw is None:
@@ -57,14 +66,35 @@ def load_scenario(path: str, *, check_world: bool = True) -> Scenario:
                 raise InputError(section_file, key, f"file has no `{key}:` section")
             raw[key] = content[key]
     raw.pop("source", None)
+    raw = _with_overrides(raw, overrides or {}, path)
     scenario = load_typed(raw, Scenario, path)
     scenario = _resolve_files(scenario, base, path)
     check_scenario(scenario, robots_file or path)
+    if scenario.tasks.generate is not None:
+        scenario = add_generated_tasks(scenario)
+        check_scenario(scenario, robots_file or path)  # with the generated tasks
     if check_world:
         from mrta_drake.world import check_robot_starts, load_floor_plan_of
 
         check_robot_starts(scenario, load_floor_plan_of(scenario))
     return scenario
+
+
+def _with_overrides(raw: dict, overrides: Mapping[str, object], path: str) -> dict:
+    """A copy of the raw scenario ``raw`` with each dotted field of ``overrides`` set."""
+    raw = copy.deepcopy(raw)
+    for name, value in overrides.items():
+        keys = name.split(".")
+        node = raw
+        for depth, key in enumerate(keys[:-1]):
+            if node.get(key) is None:
+                node[key] = {}
+            node = node[key]
+            if not isinstance(node, dict):
+                raise InputError(path, ".".join(keys[:depth + 1]),
+                                 f"cannot set {name}: this field is not a mapping")
+        node[keys[-1]] = copy.deepcopy(value)
+    return raw
 
 
 def _resolve(base: str, name: str) -> str:
@@ -87,9 +117,12 @@ def _resolve_files(scenario: Scenario, base: str, path: str) -> Scenario:
     travel = _resolve(base, tasks.travel_times) if tasks.travel_times else ""
     if travel and not os.path.isfile(travel):
         raise InputError(path, "tasks.travel_times", f"file not found: {tasks.travel_times!r}")
+    scenic = _resolve(base, world.scenic) if world.scenic else ""
+    if scenic and not os.path.isfile(scenic):
+        raise InputError(path, "world.scenic", f"file not found: {world.scenic!r}")
     return dataclasses.replace(
         scenario,
-        world=dataclasses.replace(world, floor_plan=floor_plan),
+        world=dataclasses.replace(world, floor_plan=floor_plan, scenic=scenic),
         tasks=dataclasses.replace(tasks, file=task_file, stream=stream, travel_times=travel),
         source=os.path.abspath(path),
     )
@@ -192,6 +225,12 @@ def check_scenario(scenario: Scenario, file: str) -> None:
             if task.deadline < batch.arrival:
                 raise InputError(task_file, f"{where}.tasks[{t}].deadline",
                                  f"{task.deadline} is before the batch arrival {batch.arrival}")
+    if scenario.tasks.stream and ids != set(range(len(ids))):
+        raise InputError(path, "locations", f"ids must be 0..{len(ids) - 1} when there are "
+                         f"tasks (they index the travel-time matrix), got {sorted(ids)}")
+    if not scenario.tasks.estimate_speed > 0:
+        raise InputError(path, "tasks.estimate_speed",
+                         f"must be > 0 m/s, got {scenario.tasks.estimate_speed}")
     if scenario.tasks.service_time < 0:
         raise InputError(path, "tasks.service_time", f"must be >= 0, got "
                          f"{scenario.tasks.service_time}")

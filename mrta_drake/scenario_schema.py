@@ -11,10 +11,14 @@ from dataclasses import dataclass, field
 @dataclass(frozen=True)
 class WorldConfig:
     """The building. ``floor_plan`` is a floor-plan YAML (see ``floor_plan.py``) or a ROS
-    ``map_server`` YAML (``kind: ros_map``); paths are relative to the scenario file."""
+    ``map_server`` YAML (``kind: ros_map``); paths are relative to the scenario file.
+    ``scenic``: a Scenic 3 program placing objects (beds, carts...) for the scenario's seed,
+    with ``scenic_params`` overriding its ``param`` values (see ``scenic_objects.py``)."""
 
     floor_plan: str = ""
     kind: str = "floor_plan"  # floor_plan | ros_map
+    scenic: str = ""
+    scenic_params: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -81,15 +85,46 @@ class TaskBatch:
 
 
 @dataclass(frozen=True)
+class TaskGenerationConfig:
+    """Seeded random task batches, drawn by ``load_scenario`` with the scenario's ``seed``
+    (see ``task_generation.py``).
+
+    Arrivals: a Poisson process of ``rate`` batches per s over [``start``, ``end``) s
+    (``end`` 0: the scenario's duration), or the fixed ``times`` (s). ``batch_size``:
+    [min, max] tasks per batch, uniform. ``pickup_weights``, ``dropoff_weights``: relative
+    weights keyed by location name or id (locations left out: weight 0; empty: all
+    locations equally); a task's drop-off differs from its pickup. Deadline: arrival +
+    ``slack`` [min, max] (uniform) x the allocator's travel time pickup -> drop-off
+    (``tasks.travel_times``, or its estimate at ``tasks.estimate_speed``); or, when
+    ``deadline_range`` [min, max] s is given, arrival + a uniform draw from it.
+    ``whole_seconds``: arrivals rounded down and deadlines up to whole seconds, as in
+    MRTA-Sim task streams."""
+
+    rate: float = 0.0
+    times: list[float] = field(default_factory=list)
+    start: float = 0.0
+    end: float = 0.0
+    batch_size: list[int] = field(default_factory=lambda: [1, 1])
+    pickup_weights: dict[str, float] = field(default_factory=dict)
+    dropoff_weights: dict[str, float] = field(default_factory=dict)
+    slack: list[float] = field(default_factory=lambda: [2.0, 4.0])
+    deadline_range: list[float] = field(default_factory=list)
+    whole_seconds: bool = True
+
+
+@dataclass(frozen=True)
 class TasksConfig:
     """The task stream: inline ``stream`` batches and/or a ``file`` (this format or an
-    original MRTA-Sim ``tasks_stream`` JSON/YAML); ``travel_times``: a matrix file (YAML/CSV,
-    integer s) for the allocator, estimated from roadway lengths when empty; ``service_time``:
-    s per pickup or drop-off."""
+    original MRTA-Sim ``tasks_stream`` JSON/YAML) and/or seeded random batches
+    (``generate``), merged in arrival order; ``travel_times``: a matrix file (YAML/CSV,
+    integer s) for the allocator, estimated from roadway lengths at ``estimate_speed`` m/s
+    when empty; ``service_time``: s per pickup or drop-off."""
 
     file: str = ""
     stream: list[TaskBatch] = field(default_factory=list)
+    generate: TaskGenerationConfig | None = None
     travel_times: str = ""
+    estimate_speed: float = 0.6
     service_time: float = 1.0
 
 

@@ -4,7 +4,9 @@ The floor plan's ``Obstacles`` become welded collision and visual geometry. Each
 each human is a body on a ``PlanarJoint`` (x, y, yaw) to the world, robots first, in scenario
 order, so the plant's generalized positions are the robots' ``plant_positions`` followed by
 the humans'. The kinematic blocks do not step the plant: a
-``MultibodyPositionToGeometryPose`` poses its geometry for queries and Meshcat.
+``MultibodyPositionToGeometryPose`` poses its geometry for queries and Meshcat. A physics
+robots block (``PlantPhysics``) has the plant made discrete and added to the diagram, where
+it is stepped; see ``mrta_drake.physics``.
 """
 
 import dataclasses
@@ -12,10 +14,16 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.geometry import Box as BoxShape
+from pydrake.geometry import CollisionFilterDeclaration, SceneGraph
 from pydrake.geometry import Cylinder as CylinderShape
-from pydrake.geometry import SceneGraph
+from pydrake.geometry import Sphere as SphereShape
 from pydrake.math import RigidTransform, RotationMatrix
-from pydrake.multibody.plant import CoulombFriction, MultibodyPlant
+from pydrake.multibody.plant import (
+    AddMultibodyPlant,
+    CoulombFriction,
+    MultibodyPlant,
+    MultibodyPlantConfig,
+)
 from pydrake.multibody.tree import ModelInstanceIndex, PlanarJoint, SpatialInertia
 from pydrake.systems.primitives import Multiplexer
 from pydrake.systems.rendering import MultibodyPositionToGeometryPose
@@ -30,6 +38,8 @@ FURNITURE_COLOR = np.array([0.55, 0.42, 0.30, 1.0])
 HUMAN_COLOR = np.array([0.95, 0.65, 0.25, 1.0])
 ROBOT_HEIGHT = 0.2  # m
 HUMAN_HEIGHT = 1.7  # m
+ROBOT_MASS = 20.0  # kg, of a robot in a plant that is not stepped
+HUMAN_MASS = 70.0  # kg
 # Distinct robot colours (Tableau 10), cycled.
 ROBOT_COLORS = np.array([
     [0.12, 0.47, 0.71], [0.84, 0.15, 0.16], [0.17, 0.63, 0.17], [0.58, 0.40, 0.74],
@@ -40,10 +50,24 @@ ROBOT_COLORS = np.array([
 
 @dataclass(frozen=True)
 class Body:
-    """A moving body in the plant: a robot or a human, a cylinder of ``radius`` m."""
+    """A moving body in the plant: a robot or a human, a cylinder of ``radius`` m, starting
+    at ``pose`` [x, y, theta] (world frame, m, rad; its planar joint's default position)."""
 
     name: str
     radius: float
+    pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class PlantPhysics:
+    """How ``build_world`` makes a plant that is stepped: discrete, ``time_step`` s, SAP
+    contact solver, point contact; robots of ``robot_mass`` kg (a solid cylinder's inertia)
+    colliding as a ``robot_shape`` ("sphere" of their radius at half their height, or
+    "cylinder", their full body)."""
+
+    time_step: float
+    robot_mass: float
+    robot_shape: str = "sphere"
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,11 +86,18 @@ class World:
         return self.floor_plan.obstacles
 
 
-def load_floor_plan_of(scenario: Scenario) -> FloorPlan:
-    """The scenario's floor plan, from our format or a ROS map."""
+def load_floor_plan_of(scenario: Scenario, *, objects: bool = True) -> FloorPlan:
+    """The scenario's floor plan, from our format or a ROS map; with ``objects``, its
+    obstacles include those its Scenic program (``world.scenic``) places for its seed."""
     if scenario.world.kind == "ros_map":
-        return load_ros_map(scenario.world.floor_plan)
-    return load_floor_plan(scenario.world.floor_plan)
+        floor_plan = load_ros_map(scenario.world.floor_plan)
+    else:
+        floor_plan = load_floor_plan(scenario.world.floor_plan)
+    if objects and scenario.world.scenic:
+        from mrta_drake.scenic_objects import add_scenic_objects
+
+        floor_plan = add_scenic_objects(floor_plan, resolve_locations(scenario, floor_plan))
+    return floor_plan
 
 
 def resolve_locations(scenario: Scenario, floor_plan: FloorPlan) -> Scenario:
@@ -102,24 +133,41 @@ def check_robot_starts(scenario: Scenario, floor_plan: FloorPlan) -> None:
                              f"(clearance {gap:.2f} m < radius {robot.radius} m)")
 
 
-def build_world(builder, floor_plan: FloorPlan, robots=(), humans=()) -> World:
+def build_world(builder, floor_plan: FloorPlan, robots=(), humans=(),
+                physics: PlantPhysics | None = None) -> World:
     """Add a scene graph to ``builder`` and make a plant registered with it: the floor
     plan's obstacles as welded geometry, then one planar body per robot and per human
-    (``Body`` lists). The plant is finalized but not added to the diagram: the kinematic
-    blocks never step it, and ``add_plant_posing`` poses its geometry from their outputs."""
-    scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())
-    plant = MultibodyPlant(0.0)
-    plant.set_name("plant")
-    plant.RegisterAsSourceForSceneGraph(scene_graph)
+    (``Body`` lists). People collide with robots only, not with the building or each
+    other. Without ``physics`` the plant is finalized but not added to the diagram: the
+    kinematic blocks never step it, and ``add_plant_posing`` poses its geometry from their
+    outputs. With ``physics`` it is a discrete plant in the diagram, connected to the scene
+    graph (``mrta_drake.physics.add_plant_stepping`` closes the loop)."""
+    if physics is None:
+        scene_graph = builder.AddNamedSystem("scene_graph", SceneGraph())
+        plant = MultibodyPlant(0.0)
+        plant.set_name("plant")
+        plant.RegisterAsSourceForSceneGraph(scene_graph)
+    else:
+        plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(
+            time_step=physics.time_step, contact_model="point",
+            discrete_contact_approximation="sap"), builder)
     _add_obstacles(plant, floor_plan)
+    robot_mass = ROBOT_MASS if physics is None else physics.robot_mass
+    robot_shape = "cylinder" if physics is None else physics.robot_shape
     robot_models = tuple(
         _add_body(plant, body, ROBOT_HEIGHT, np.append(ROBOT_COLORS[k % len(ROBOT_COLORS)], 1),
-                  heading_marker=True)
+                  heading_marker=True, mass=robot_mass, shape=robot_shape)
         for k, body in enumerate(robots))
     human_models = tuple(
-        _add_body(plant, body, HUMAN_HEIGHT, HUMAN_COLOR, heading_marker=False)
+        _add_body(plant, body, HUMAN_HEIGHT, HUMAN_COLOR, heading_marker=False,
+                  mass=HUMAN_MASS, shape="cylinder")
         for body in humans)
     plant.Finalize()
+    if human_models:
+        passive = [plant.world_body()] + [plant.GetBodyByName("base", m) for m in human_models]
+        scene_graph.collision_filter_manager().Apply(
+            CollisionFilterDeclaration().ExcludeWithin(plant.CollectRegisteredGeometries(
+                passive)))
     return World(plant, scene_graph, floor_plan, robot_models, human_models)
 
 
@@ -144,17 +192,18 @@ def _add_obstacles(plant: MultibodyPlant, floor_plan: FloorPlan) -> None:
 
 
 def _add_body(plant: MultibodyPlant, body: Body, height: float, color,
-              heading_marker: bool) -> ModelInstanceIndex:
+              heading_marker: bool, mass: float, shape: str) -> ModelInstanceIndex:
     model = plant.AddModelInstance(body.name)
-    mass = 20.0 if heading_marker else 70.0
     inertia = SpatialInertia.SolidCylinderWithMass(mass, body.radius, height, [0, 0, 1])
     link = plant.AddRigidBody("base", model, inertia)
-    plant.AddJoint(PlanarJoint(f"{body.name}_planar", plant.world_frame(), link.body_frame(),
-                               [0.0, 0.0, 0.0]))
-    shape = CylinderShape(body.radius, height)
+    joint = plant.AddJoint(PlanarJoint(f"{body.name}_planar", plant.world_frame(),
+                                       link.body_frame(), [0.0, 0.0, 0.0]))
+    joint.set_default_pose(body.pose[:2], body.pose[2])
+    cylinder = CylinderShape(body.radius, height)
     pose = RigidTransform([0, 0, 0.5 * height])
-    plant.RegisterCollisionGeometry(link, pose, shape, "body", CoulombFriction(0.5, 0.5))
-    plant.RegisterVisualGeometry(link, pose, shape, "body", color)
+    collision = SphereShape(body.radius) if shape == "sphere" else cylinder
+    plant.RegisterCollisionGeometry(link, pose, collision, "body", CoulombFriction(0.5, 0.5))
+    plant.RegisterVisualGeometry(link, pose, cylinder, "body", color)
     if heading_marker:
         # A bright wedge on top, pointing along the body's +x (its heading).
         marker = BoxShape(body.radius, 0.25 * body.radius, 0.02)
