@@ -1,0 +1,507 @@
+"""SmtAllocator: allocation by SMT solving (z3), complete, with proofs of infeasibility.
+
+The encoding is disjunctive, as for job-shop scheduling, instead of a fixed number of action
+slots per robot: Booleans say which robot does each task and, for two actions that end up
+on the same robot, which comes first; times are linked by difference constraints. A robot
+may do any number of actions, so an ``INFEASIBLE`` answer is a proof. docs/allocation.md
+gives the formulas.
+"""
+
+import itertools
+import time as wallclock
+from dataclasses import dataclass
+
+import z3
+
+from mrta_drake.allocation.greedy_allocator import GreedyAllocator
+from mrta_drake.allocation.problem import (
+    FEASIBLE,
+    INFEASIBLE,
+    UNKNOWN,
+    Action,
+    Allocation,
+    AllocationProblem,
+    solve_appending,
+)
+from mrta_drake.errors import InputError
+from mrta_drake.payloads import DROPOFF, PICKUP
+
+OBJECTIVES = ("none", "makespan", "lateness")
+TIGHTEN_STEP = 0.1  # of the range left between the best value and the lower bound
+CORE_TIME_SHARE = 0.25  # of the time limit, at most, spent making a conflict minimal
+
+
+@dataclass(frozen=True)
+class SmtAllocatorParams:
+    """How the SmtAllocator works.
+
+    ``objective``: ``"none"`` (any allocation with every task on time), ``"makespan"`` (the
+    last action done earliest) or ``"lateness"`` (least total lateness: the sum over tasks
+    of drop-off time minus deadline). Optimized by bisection on a bound until within
+    ``objective_gap`` (s) of the optimum. When not every task can be on time the allocator
+    instead serves the most tasks on time and then the least total tardiness (the late
+    tasks as early as possible), whatever the objective.
+
+    ``time_limit`` (s, wall clock) bounds one ``allocate`` call; when it runs out the best
+    allocation found so far is returned (at worst the greedy one). ``greedy_start`` runs the
+    greedy allocator first and starts from its answer: when that has every task on time it
+    already proves feasibility. ``append_only`` keeps each robot's previous plan and places
+    new tasks after it. ``random_seed`` is z3's.
+    """
+
+    objective: str = "none"
+    time_limit: float = 10.0
+    objective_gap: float = 1.0
+    greedy_start: bool = True
+    append_only: bool = False
+    random_seed: int = 0
+
+    def __post_init__(self):
+        if self.objective not in OBJECTIVES:
+            raise InputError(None, "objective", f"unknown objective {self.objective!r} "
+                             f"(one of {', '.join(OBJECTIVES)})")
+        if not self.time_limit > 0:
+            raise InputError(None, "time_limit", f"must be > 0 s, got {self.time_limit}")
+        if not self.objective_gap > 0:
+            raise InputError(None, "objective_gap", f"must be > 0 s, got {self.objective_gap}")
+
+
+class SmtAllocator:
+    """Allocates tasks by SMT solving; see ``SmtAllocatorParams`` for the options."""
+
+    def __init__(self, params: SmtAllocatorParams = SmtAllocatorParams()):
+        self.params = params
+
+    def allocate(self, problem: AllocationProblem) -> Allocation:
+        start = wallclock.perf_counter()
+        if self.params.append_only:
+            allocation = solve_appending(problem, lambda rest: _Solve(rest, self.params).run())
+        else:
+            allocation = _Solve(problem, self.params).run()
+        return _replace(allocation, solve_time=wallclock.perf_counter() - start)
+
+
+class _OutOfTime(Exception):
+    """The time limit ran out while the encoding was being built."""
+
+
+class _Encoding:
+    """The z3 variables and constraints of one problem.
+
+    Per task ``i``: ``assigned[i, r]`` (robot ``r`` does it), ``on_time[i]`` (the deadline
+    literal, asserted by assumption) and the completion times ``time[action]``. Per pair of
+    actions of different tasks that may share a robot: ``first[a, b]`` (``a`` before ``b``
+    when they do).
+    """
+
+    def __init__(self, problem: AllocationProblem, solver: z3.Solver, stop_time: float):
+        self.problem = problem
+        self.solver = solver
+        self.stop_time = stop_time
+        robots, travel, service = problem.robots, problem.travel, problem.service_time
+        self.carrier = {task.id: problem.carrier(task.id) for task in problem.tasks}
+        self.actions = []
+        for task in problem.tasks:
+            if self.carrier[task.id] is None:
+                self.actions.append(Action(task.id, PICKUP))
+            self.actions.append(Action(task.id, DROPOFF))
+        self.time = {action: z3.Real(f"t_{action.key}") for action in self.actions}
+        self.on_time = {task.id: z3.Bool(f"on_time_{task.id}") for task in problem.tasks}
+        self.robots_of = {
+            task.id: range(len(robots)) if self.carrier[task.id] is None
+            else (self.carrier[task.id],)
+            for task in problem.tasks
+        }
+        self.assigned = {
+            (task.id, r): z3.Bool(f"robot_{task.id}_{r}")
+            for task in problem.tasks
+            for r in self.robots_of[task.id]
+        }
+        self.earliest = {}
+        self._add_tasks(travel, service)
+        self.same = {}
+        self.first = {}
+        for k, (a, b) in enumerate(itertools.combinations(self.actions, 2)):
+            if k % 1024 == 0:
+                self._check_time()
+            if a.task != b.task and self._same_robot(a.task, b.task) is not False:
+                self.first[a, b] = z3.Bool(f"first_{a.key}_{b.key}")
+                self._add_order(a, b, travel, service)
+        self._add_capacity()
+        self._add_releases(travel, service)
+        self._break_symmetries()
+
+    def location(self, action: Action) -> int:
+        return self.problem.location(action)
+
+    def _check_time(self):
+        if wallclock.perf_counter() > self.stop_time:
+            raise _OutOfTime
+
+    def _add_tasks(self, travel, service):
+        problem, solver = self.problem, self.solver
+        for task in problem.tasks:
+            drop = self.time[Action(task.id, DROPOFF)]
+            carrier = self.carrier[task.id]
+            if carrier is None:
+                choices = [self.assigned[task.id, r] for r in self.robots_of[task.id]]
+                solver.add(z3.PbEq([(choice, 1) for choice in choices], 1))
+                pick = self.time[Action(task.id, PICKUP)]
+                reach = []
+                for r, robot in enumerate(problem.robots):
+                    arrive = robot.ready_time + travel[robot.location, task.pickup] + service
+                    reach.append(arrive)
+                    solver.add(z3.Implies(self.assigned[task.id, r], pick >= arrive))
+                    if arrive + travel[task.pickup, task.dropoff] + service > task.deadline:
+                        solver.add(z3.Or(z3.Not(self.assigned[task.id, r]),
+                                         z3.Not(self.on_time[task.id])))
+                soonest = max(min(reach), task.release + service)
+                leg = float(travel[task.pickup, task.dropoff] + service)
+                solver.add(pick >= soonest, drop >= pick + leg)
+                self.earliest[Action(task.id, PICKUP)] = soonest
+                self.earliest[Action(task.id, DROPOFF)] = soonest + leg
+            else:
+                robot = problem.robots[carrier]
+                arrive = robot.ready_time + travel[robot.location, task.dropoff] + service
+                solver.add(self.assigned[task.id, carrier], drop >= arrive)
+                self.earliest[Action(task.id, DROPOFF)] = arrive
+            solver.add(z3.Implies(self.on_time[task.id], drop <= task.deadline))
+
+    def _same_robot(self, i: int, j: int):
+        """True, False or a Boolean saying tasks ``i`` and ``j`` are done by one robot."""
+        key = (min(i, j), max(i, j))
+        if key in self.same:
+            return self.same[key]
+        carrier_i, carrier_j = self.carrier[i], self.carrier[j]
+        if carrier_i is not None and carrier_j is not None:
+            same = carrier_i == carrier_j
+        elif carrier_i is not None:
+            same = self.assigned[j, carrier_i]
+        elif carrier_j is not None:
+            same = self.assigned[i, carrier_j]
+        else:
+            same = z3.Bool(f"same_{key[0]}_{key[1]}")
+            for r in range(len(self.problem.robots)):
+                on_i, on_j = self.assigned[i, r], self.assigned[j, r]
+                self.solver.add(z3.Or(z3.Not(on_i), z3.Not(on_j), same))
+                self.solver.add(z3.Or(z3.Not(same), z3.Not(on_i), on_j))
+        self.same[key] = same
+        return same
+
+    def before(self, a: Action, b: Action):
+        """The literal for ``a`` before ``b`` on their (shared) robot."""
+        if a.task == b.task:
+            return z3.BoolVal(a.kind == PICKUP)
+        if (a, b) in self.first:
+            return self.first[a, b]
+        return z3.Not(self.first[b, a])
+
+    def _add_order(self, a: Action, b: Action, travel, service):
+        same = self._same_robot(a.task, b.task)
+        guard = [] if same is True else [z3.Not(same)]
+        order = self.first[a, b]
+        for x, y, x_first in ((a, b, order), (b, a, z3.Not(order))):
+            leg = float(travel[self.location(x), self.location(y)] + service)
+            self.solver.add(z3.Or(*guard, z3.Not(x_first), self.time[y] >= self.time[x] + leg))
+
+    def _add_capacity(self):
+        """At each pickup the items on board (itself included) fit the robot."""
+        problem, solver = self.problem, self.solver
+        for pickup in self.actions:
+            if pickup.kind != PICKUP:
+                continue
+            self._check_time()
+            on_board = []
+            for other in problem.tasks:
+                if other.id == pickup.task or not self._shares(pickup.task, other.id):
+                    continue
+                drop = Action(other.id, DROPOFF)
+                aboard = z3.Bool(f"aboard_{other.id}_at_{pickup.key}")
+                condition = [self._same_robot(pickup.task, other.id), self.before(pickup, drop)]
+                if self.carrier[other.id] is None:
+                    condition.append(self.before(Action(other.id, PICKUP), pickup))
+                solver.add(z3.Or(*[z3.Not(c) for c in condition], aboard))
+                on_board.append(aboard)
+            if not on_board:
+                continue
+            for capacity in sorted({robot.capacity for robot in problem.robots}):
+                users = [
+                    self.assigned[pickup.task, r]
+                    for r, robot in enumerate(problem.robots)
+                    if robot.capacity == capacity
+                ]
+                solver.add(z3.Implies(z3.Or(*users), z3.AtMost(*on_board, capacity - 1)))
+
+    def _shares(self, i: int, j: int) -> bool:
+        return self._same_robot(i, j) is not False
+
+    def _add_releases(self, travel, service):
+        """A pickup released after some robot is ready may wait for its release at the
+        previous location: bound its time by the leg from its immediate predecessor."""
+        problem, solver = self.problem, self.solver
+        soonest = min(robot.ready_time for robot in problem.robots)
+        for task in problem.tasks:
+            pickup = Action(task.id, PICKUP)
+            if pickup not in self.time or task.release <= soonest:
+                continue
+            self._check_time()
+            others = [a for a in self.actions if a.task != task.id and self._shares(
+                a.task, task.id)]
+            for r in self.robots_of[task.id]:
+                robot = problem.robots[r]
+                alone = [z3.Not(z3.And(self._on_robot(c, r), self.before(c, pickup)))
+                         for c in others]
+                leg = float(travel[robot.location, task.pickup] + service)
+                solver.add(z3.Implies(z3.And(self.assigned[task.id, r], *alone),
+                                      self.time[pickup] >= task.release + leg))
+            for a in others:
+                between = [
+                    z3.Not(z3.And(self._same_robot(c.task, task.id), self.before(a, c),
+                                  self.before(c, pickup)))
+                    for c in others if c != a and self._shares(a.task, c.task)
+                ]
+                leg = float(travel[self.location(a), task.pickup] + service)
+                solver.add(z3.Implies(
+                    z3.And(self._same_robot(a.task, task.id), self.before(a, pickup), *between),
+                    self.time[pickup] >= task.release + leg,
+                ))
+
+    def _on_robot(self, action: Action, r: int):
+        if self.carrier[action.task] is not None:
+            return z3.BoolVal(self.carrier[action.task] == r)
+        return self.assigned[action.task, r]
+
+    def _break_symmetries(self):
+        """Interchangeable robots take tasks in id order (each one's lowest task id is
+        below the next one's); interchangeable tasks are picked up in id order."""
+        problem, solver = self.problem, self.solver
+        open_tasks = [task.id for task in problem.tasks if self.carrier[task.id] is None]
+        classes = {}
+        for r, robot in enumerate(problem.robots):
+            if not robot.carrying:
+                signature = (robot.location, robot.ready_time, robot.capacity)
+                classes.setdefault(signature, []).append(r)
+        for members in classes.values():
+            for r, s in zip(members, members[1:], strict=False):
+                for k, task in enumerate(open_tasks):
+                    earlier = [self.assigned[t, r] for t in open_tasks[:k]]
+                    solver.add(z3.Implies(self.assigned[task, s], z3.Or(*earlier)))
+        twins = {}
+        for task in problem.tasks:
+            if self.carrier[task.id] is None:
+                signature = (task.pickup, task.dropoff, task.deadline, task.release)
+                twins.setdefault(signature, []).append(task.id)
+        for members in twins.values():
+            for i, j in zip(members, members[1:], strict=False):
+                # Twins are interchangeable only while their deadlines are asserted alike.
+                solver.add(z3.Implies(
+                    self.on_time[i] == self.on_time[j],
+                    self.time[Action(i, PICKUP)] <= self.time[Action(j, PICKUP)],
+                ))
+
+    def routes(self, model: z3.ModelRef) -> tuple[tuple[Action, ...], ...]:
+        """The routes of a model: each robot's actions in order of their model times."""
+        routes = [[] for _ in self.problem.robots]
+        for (task, r), literal in self.assigned.items():
+            if z3.is_true(model.eval(literal, True)):
+                for action in self.actions:
+                    if action.task == task:
+                        routes[r].append(action)
+        times = {a: float(model.eval(self.time[a], True).as_fraction()) for a in self.actions}
+        return tuple(tuple(sorted(route, key=lambda a: times[a])) for route in routes)
+
+    def hint(self, allocation: Allocation):
+        """Prefer the assignments and orders of ``allocation`` in the search."""
+        solver, times = self.solver, {}
+        for r, (route, route_times) in enumerate(
+            zip(allocation.routes, allocation.times, strict=True)
+        ):
+            for action, time in zip(route, route_times, strict=True):
+                times[action] = time
+                solver.set_initial_value(self.assigned[action.task, r], True)
+        for (a, b), literal in self.first.items():
+            solver.set_initial_value(literal, times[a] < times[b])
+
+
+class _Solve:
+    """One allocation: feasibility, then the objective or the fallback, within the time
+    limit."""
+
+    def __init__(self, problem: AllocationProblem, params: SmtAllocatorParams):
+        self.problem = problem
+        self.params = params
+        self.stop_time = wallclock.perf_counter() + params.time_limit
+        self._encoding = None
+        self._bounds = 0
+
+    @property
+    def encoding(self) -> _Encoding:
+        if self._encoding is None:
+            solver = z3.SimpleSolver()
+            solver.set("random_seed", self.params.random_seed)
+            self._encoding = _Encoding(self.problem, solver, self.stop_time)
+        return self._encoding
+
+    @property
+    def solver(self) -> z3.Solver:
+        return self.encoding.solver
+
+    def run(self) -> Allocation:
+        if not self.problem.tasks:
+            return Allocation.of(self.problem, [() for _ in self.problem.robots], optimal=True)
+        greedy = GreedyAllocator().allocate(self.problem) if self.params.greedy_start else None
+        try:
+            return self._solve(greedy)
+        except _OutOfTime:
+            return self._time_out(greedy, "time limit while building the encoding")
+
+    def _time_out(self, greedy: Allocation | None, note: str) -> Allocation:
+        greedy = greedy or GreedyAllocator().allocate(self.problem)
+        status = FEASIBLE if not greedy.late_tasks else UNKNOWN
+        return _replace(greedy, status=status, optimal=False, note=note)
+
+    def _solve(self, greedy: Allocation | None) -> Allocation:
+        if greedy is not None and not greedy.late_tasks:
+            best, optimal = self._optimize_objective(greedy)
+            return _replace(best, status=FEASIBLE, optimal=optimal)
+        if greedy is not None:
+            self.encoding.hint(greedy)
+        result = self._check(list(self.encoding.on_time.values()))
+        if result == z3.sat:
+            best, optimal = self._optimize_objective(self._allocation())
+            return _replace(best, status=FEASIBLE, optimal=optimal)
+        if result == z3.unknown:
+            return self._time_out(greedy, "time limit before the solver answered")
+        greedy = greedy or GreedyAllocator().allocate(self.problem)
+        conflict = self._minimal_conflict()
+        best, most, assumptions = self._most_on_time(greedy)
+        best, least = self._least_tardiness(best, assumptions)
+        note = "" if most and least else "time limit before the fallback was proven best"
+        return _replace(best, status=INFEASIBLE, conflict=conflict, optimal=most and least,
+                        note=note)
+
+    def _minimal_conflict(self) -> tuple[int, ...]:
+        """The tasks of the last unsat core, made minimal by deletion while a quarter of the
+        time limit lasts (then possibly not minimal)."""
+        task_of = {literal.get_id(): task for task, literal in self.encoding.on_time.items()}
+        core = [literal for literal in self.solver.unsat_core()]
+        stop_time = min(
+            self.stop_time, wallclock.perf_counter() + CORE_TIME_SHARE * self.params.time_limit
+        )
+        k = 0
+        while k < len(core):
+            trial = core[:k] + core[k + 1 :]
+            result = self._check(trial, stop_time)
+            if result == z3.unsat:
+                smaller = {literal.get_id() for literal in self.solver.unsat_core()}
+                core = [literal for literal in trial if literal.get_id() in smaller]
+            elif result == z3.sat:
+                k += 1
+            else:
+                break
+        return tuple(sorted(task_of[literal.get_id()] for literal in core))
+
+    def _check(self, assumptions, stop_time: float | None = None) -> z3.CheckSatResult:
+        remaining = (stop_time or self.stop_time) - wallclock.perf_counter()
+        if remaining <= 0:
+            return z3.unknown
+        self.solver.set("timeout", max(1, int(remaining * 1000)))
+        return self.solver.check(*assumptions)
+
+    def _allocation(self) -> Allocation:
+        return Allocation.of(self.problem, self.encoding.routes(self.solver.model()))
+
+    def _bound_literal(self, constraint) -> z3.BoolRef:
+        self._bounds += 1
+        literal = z3.Bool(f"bound_{self._bounds}")
+        self.solver.add(z3.Implies(literal, constraint))
+        return literal
+
+    def _tighten(self, best, value_of, term, lower, assumptions):
+        """Search on ``term <= bound`` until ``value_of(best)`` is within the gap of the
+        optimum. Returns the best allocation and whether it is proven within the gap.
+
+        Each bound asks for a tenth of the remaining range (at least half the gap): easy
+        improvements come first, so an answer cut short by the time limit is still good."""
+        value = value_of(best)
+        lower -= 1e-9  # the optimum is > lower
+        while value - lower > self.params.objective_gap:
+            bound = value - max(TIGHTEN_STEP * (value - lower), self.params.objective_gap / 2)
+            result = self._check([*assumptions, self._bound_literal(term <= bound)])
+            if result == z3.sat:
+                best = self._allocation()
+                value = value_of(best)
+                if value > bound + 1e-6:
+                    raise RuntimeError(f"the schedule ({value}) breaks the bound ({bound})")
+            elif result == z3.unsat:
+                lower = bound
+            else:
+                return best, False
+        return best, True
+
+    def _optimize_objective(self, best: Allocation):
+        objective = self.params.objective
+        if objective == "none":
+            return best, True
+        encoding = self.encoding
+        encoding.hint(best)
+        on_time = list(encoding.on_time.values())
+        times = [encoding.time[action] for action in encoding.actions]
+        if objective == "makespan":
+            makespan = z3.Real("makespan")
+            for time in times:
+                self.solver.add(makespan >= time)
+            lower = max(encoding.earliest.values())
+            return self._tighten(best, Allocation.makespan, makespan, lower, on_time)
+        drops = [action for action in encoding.actions if action.kind == DROPOFF]
+        total = z3.Sum([encoding.time[action] for action in drops])
+        lower = sum(encoding.earliest[action] for action in drops)
+        return self._tighten(best, _total_drop_time, total, lower, on_time)
+
+    def _most_on_time(self, best: Allocation):
+        """Linear search upwards on the number of tasks on time, starting from ``best``.
+        Returns the best allocation, whether it is proven to have the most tasks on time,
+        and assumptions that keep at least that many on time."""
+        encoding, tasks = self.encoding, self.problem.tasks
+        hopeful = [
+            encoding.on_time[task.id] for task in tasks
+            if encoding.earliest[Action(task.id, DROPOFF)] <= task.deadline
+        ]
+        result = self._check(hopeful)
+        if result == z3.sat:
+            return self._allocation(), True, hopeful
+        proven = result == z3.unsat
+        while proven and len(tasks) - len(best.late_tasks) < len(hopeful) - 1:
+            wanted = len(tasks) - len(best.late_tasks) + 1
+            result = self._check([self._bound_literal(z3.AtLeast(*hopeful, wanted))])
+            proven = result != z3.unknown
+            if result != z3.sat:
+                break
+            best = self._allocation()
+        on_time = len(tasks) - len(best.late_tasks)
+        if on_time == 0:
+            return best, proven, []
+        return best, proven, [self._bound_literal(z3.AtLeast(*hopeful, on_time))]
+
+    def _least_tardiness(self, best: Allocation, assumptions):
+        """Among allocations with as many tasks on time as ``best`` (``assumptions``), the
+        one with the least total tardiness (the late tasks as early as possible)."""
+        encoding, tardiness, lower = self.encoding, [], 0.0
+        for task in self.problem.tasks:
+            drop = Action(task.id, DROPOFF)
+            late_by = z3.Real(f"late_{task.id}")
+            self.solver.add(late_by >= 0, late_by >= encoding.time[drop] - task.deadline)
+            tardiness.append(late_by)
+            lower += max(0.0, encoding.earliest[drop] - task.deadline)
+        return self._tighten(best, self._tardiness_of, z3.Sum(tardiness), lower, assumptions)
+
+    def _tardiness_of(self, allocation: Allocation) -> float:
+        return allocation.total_tardiness(self.problem)
+
+
+def _total_drop_time(allocation: Allocation) -> float:
+    return sum(allocation.drop_times().values())
+
+
+def _replace(allocation: Allocation, **changes) -> Allocation:
+    return Allocation(**dict(allocation.__dict__, **changes))

@@ -1,0 +1,260 @@
+"""TaskAllocator: the Drake block that turns a task stream into plans for the fleet.
+
+When a batch of tasks arrives it freezes what each robot has done and the leg it is driving
+(from the ``progress_<robot>`` inputs, with measured times), hands everything else to the
+configured allocator, and outputs the new ``FleetPlan``. State changes only in its periodic
+unrestricted update.
+"""
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import LeafSystem
+
+from mrta_drake.allocation.problem import (
+    Action,
+    Allocation,
+    AllocationProblem,
+    RobotStart,
+    RobotStatus,
+    check_stream,
+    committed_start,
+    stream_tasks,
+)
+from mrta_drake.errors import InputError
+from mrta_drake.payloads import DROPOFF, PICKUP, FleetPlan, RobotPlan, RobotProgress, Stop
+
+
+@dataclass(frozen=True)
+class AllocationEvent:
+    """One allocation the TaskAllocator made, at ``time`` (s), for the batches numbered
+    ``batches`` (0-based in stream order).
+
+    ``assignment`` pairs each robot name with the task ids of its new route (in order of
+    their first action); ``predicted`` pairs each task id in those routes with its predicted
+    drop-off time (s). ``late_tasks`` are predicted to miss their deadline; ``conflict`` is a
+    set of tasks proven unable to all be on time (empty unless proven). ``status`` is the
+    allocation's (``feasible``, ``infeasible`` or ``unknown``). ``solve_time`` is wall-clock
+    seconds, the one field that differs between identical runs.
+    """
+
+    time: float
+    batches: tuple[int, ...]
+    status: str
+    assignment: tuple[tuple[str, tuple[int, ...]], ...]
+    predicted: tuple[tuple[int, float], ...]
+    late_tasks: tuple[int, ...] = ()
+    conflict: tuple[int, ...] = ()
+    solve_time: float = 0.0
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class _State:
+    """The TaskAllocator's abstract state. Immutable, so copies share it (Drake copies the
+    state every update)."""
+
+    next_batch: int
+    plan: FleetPlan
+    events: tuple[AllocationEvent, ...] = ()
+
+    def __deepcopy__(self, memo):
+        return self
+
+
+class TaskAllocator(LeafSystem):
+    """Allocates a stream of task batches to a fleet as the batches arrive.
+
+    Input ports ``progress_<robot>`` (one per robot, ``RobotProgress``; an unconnected one
+    means the robot has done nothing yet). Output ports ``plan`` (``FleetPlan``) and
+    ``events`` (a tuple of ``AllocationEvent``, oldest first).
+
+    Args:
+        stream: the task batches (``scenario_schema.TaskBatch`` or alike: ``arrival`` s,
+            ``tasks`` with ``pickup``, ``dropoff``, ``deadline``), arrivals in order; task
+            ids are numbered from 0 in stream order (see ``stream_tasks``).
+        robot_names, start_locations, capacities: per robot, in scenario order (location
+            ids; items carried at once).
+        travel: (L, L) travel times between locations (s).
+        allocator: any object with ``allocate(AllocationProblem) -> Allocation``, e.g. an
+            ``SmtAllocator`` or a ``GreedyAllocator``.
+        service_time: time for one pickup or drop-off (s).
+        rate: how often arrivals are checked (Hz); a batch is allocated at the first check
+            at or after its arrival.
+    """
+
+    def __init__(
+        self,
+        stream: Sequence,
+        robot_names: Sequence[str],
+        start_locations: Sequence[int],
+        capacities: Sequence[int],
+        travel: np.ndarray,
+        allocator,
+        service_time: float = 1.0,
+        rate: float = 1.0,
+        source: str | None = None,
+    ):
+        super().__init__()
+        if not len(robot_names) == len(start_locations) == len(capacities):
+            raise InputError(source, "robots", f"{len(robot_names)} names, "
+                             f"{len(start_locations)} start locations and {len(capacities)} "
+                             "capacities")
+        if not rate > 0:
+            raise InputError(source, "rate", f"must be > 0 Hz, got {rate}")
+        fleet = tuple(
+            RobotStart(name, location, 0.0, capacity)
+            for name, location, capacity in zip(robot_names, start_locations, capacities,
+                                                strict=True)
+        )
+        empty = AllocationProblem(travel, fleet, (), service_time, source)  # checks the input
+        check_stream(stream, empty.num_locations, source)
+        self._fleet = fleet
+        self._travel = empty.travel
+        self._service_time = service_time
+        self._arrivals = tuple(float(batch.arrival) for batch in stream)
+        self._batches = stream_tasks(stream)
+        self._allocator = allocator
+        self._source = source
+
+        self._progress_ports = [
+            self.DeclareAbstractInputPort(
+                f"progress_{name}", AbstractValue.Make(RobotProgress(robot=name))
+            )
+            for name in robot_names
+        ]
+        initial = _State(
+            next_batch=0,
+            plan=FleetPlan(plans=tuple(RobotPlan(robot=name) for name in robot_names)),
+        )
+        self._state_index = self.DeclareAbstractState(AbstractValue.Make(initial))
+        ticket = {self.abstract_state_ticket(self._state_index)}
+        self.DeclareAbstractOutputPort(
+            "plan", lambda: AbstractValue.Make(initial.plan),
+            lambda context, output: output.set_value(self._state(context).plan),
+            prerequisites_of_calc=ticket,
+        )
+        self.DeclareAbstractOutputPort(
+            "events", lambda: AbstractValue.Make(()),
+            lambda context, output: output.set_value(self._state(context).events),
+            prerequisites_of_calc=ticket,
+        )
+        self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate, 0.0, self._update)
+
+    def get_progress_input_port(self, robot: int):
+        return self._progress_ports[robot]
+
+    def _state(self, context) -> _State:
+        return context.get_abstract_state(self._state_index).get_value()
+
+    def _update(self, context, state):
+        current = self._state(context)
+        now = context.get_time()
+        arrived = current.next_batch
+        while arrived < len(self._arrivals) and self._arrivals[arrived] <= now:
+            arrived += 1
+        if arrived == current.next_batch:
+            return
+        released = [task for batch in self._batches[:arrived] for task in batch]
+        progress = [self._progress(context, r) for r in range(len(self._fleet))]
+        problem, committed = self._problem(now, released, progress, current.plan)
+        allocation = self._allocator.allocate(problem)
+        plan = FleetPlan(
+            plans=tuple(
+                RobotPlan(robot=robot.name, stops=committed[r] + _stops(problem, allocation, r))
+                for r, robot in enumerate(self._fleet)
+            ),
+            revision=current.plan.revision + 1,
+        )
+        event = _event(now, range(current.next_batch, arrived), problem, allocation)
+        state.get_mutable_abstract_state(self._state_index).set_value(
+            _State(next_batch=arrived, plan=plan, events=(*current.events, event))
+        )
+
+    def _progress(self, context, r: int) -> RobotProgress:
+        port = self._progress_ports[r]
+        if not port.HasValue(context):
+            return RobotProgress(robot=self._fleet[r].name)
+        return port.Eval(context)
+
+    def _problem(self, now, released, progress, previous: FleetPlan):
+        """The problem to solve at ``now``, and each robot's committed stop (as a tuple)."""
+        by_id = {task.id: task for task in released}
+        done = {visit.key for robot in progress for visit in robot.visits}
+        robots, committed, finishing = [], [], set()
+        for r, (robot, report) in enumerate(zip(self._fleet, progress, strict=True)):
+            status, current = self._status(robot, report, done, by_id)
+            planned = tuple(
+                Action(stop.task, stop.action)
+                for stop in previous.plans[r].stops
+                if stop.key not in done and (current is None or stop.key != current.key)
+                and stop.task in by_id
+            )
+            start = committed_start(status, now, by_id, self._travel, self._service_time,
+                                    planned)
+            robots.append(start)
+            if current is None:
+                committed.append(())
+            else:
+                committed.append((Stop(current.key, start.location, current.action,
+                                       current.task, start.ready_time),))
+                if current.action == DROPOFF:
+                    finishing.add(current.task)
+        open_tasks = tuple(
+            task for task in released
+            if f"t{task.id}/{DROPOFF}" not in done and task.id not in finishing
+        )
+        problem = AllocationProblem(self._travel, tuple(robots), open_tasks,
+                                    self._service_time, self._source)
+        return problem, committed
+
+    def _status(self, robot: RobotStart, report: RobotProgress, done, by_id):
+        """The robot's ``RobotStatus`` and the task stop it is driving to (or None)."""
+        location, time = robot.location, 0.0
+        if report.last_location is not None:
+            location = report.last_location
+        on_board = []
+        for visit in report.visits:
+            location, time = visit.location, visit.time
+            if visit.task in by_id and visit.action == PICKUP:
+                on_board.append(visit.task)
+            elif visit.task in on_board and visit.action == DROPOFF:
+                on_board.remove(visit.task)
+        stop = report.current_stop
+        current = None
+        if (stop is not None and stop.key not in done and stop.task in by_id
+                and stop.action in (PICKUP, DROPOFF)):
+            current = stop
+        status = RobotStatus(
+            name=robot.name, location=location, time=time, capacity=robot.capacity,
+            carrying=tuple(on_board),
+            current=None if current is None else Action(current.task, current.action),
+        )
+        return status, current
+
+
+def _stops(problem: AllocationProblem, allocation: Allocation, r: int) -> tuple[Stop, ...]:
+    return tuple(
+        Stop(action.key, problem.location(action), action.kind, action.task, time)
+        for action, time in zip(allocation.routes[r], allocation.times[r], strict=True)
+    )
+
+
+def _event(now, batches, problem: AllocationProblem, allocation: Allocation) -> AllocationEvent:
+    assignment = []
+    for robot, route in zip(problem.robots, allocation.routes, strict=True):
+        tasks = tuple(dict.fromkeys(action.task for action in route))
+        assignment.append((robot.name, tasks))
+    return AllocationEvent(
+        time=now,
+        batches=tuple(batches),
+        status=allocation.status,
+        assignment=tuple(assignment),
+        predicted=tuple(sorted(allocation.drop_times().items())),
+        late_tasks=allocation.late_tasks,
+        conflict=allocation.conflict,
+        solve_time=allocation.solve_time,
+        note=allocation.note,
+    )
