@@ -1,0 +1,144 @@
+"""Robots as bodies in a stepped ``MultibodyPlant``, driven by wheel-like forces."""
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.framework import BasicVector, LeafSystem
+
+from mrta_drake.payloads import PLANAR_POSITION_SIZE, ROBOT_COMMAND_SIZE, ROBOT_STATE_SIZE
+
+
+@dataclass(frozen=True)
+class PhysicsRobotParams:
+    """The plant and the robots' drive. Defaults: a TurtleBot3 Waffle Pi's mass (1.8 kg,
+    with computer, battery and sensors), and the kinematic block's limits (``UnicycleParams``:
+    1.5 m/s, 0.3 m/s reverse, 2 rad/s, 1 m/s^2, so the traction force is 1.8 kg x 1 m/s^2),
+    so that the two backends can be compared.
+
+    The forces are computed from the plant state at the start of each step and held through
+    it (explicit), so the servo and damping gains are checked against ``time_step``.
+    """
+
+    time_step: float = 1e-2  # s, the discrete plant's step (SAP contact solver)
+    mass: float = 1.8  # kg; inertia: a solid cylinder of the robot's radius and height
+    collision_shape: str = "sphere"  # "sphere" (of the robot's radius) or "cylinder"
+    max_speed: float = 1.5  # m/s, forward speed commands are clipped to this
+    max_reverse_speed: float = 0.3  # m/s, backward
+    max_yaw_rate: float = 2.0  # rad/s
+    max_traction_force: float = 1.8  # N, the most the wheels push along the heading
+    max_traction_torque: float = 1.0  # N m, the most the wheels turn the robot
+    response_time: float = 0.05  # s, time constant of the wheel speed servo
+    lateral_damping: float = 90.0  # N s/m, no-slip force per m/s of sideways velocity
+    max_lateral_force: float = 14.0  # N, wheels' side friction (~0.8 x 1.8 kg x 9.81 m/s^2)
+
+    def __post_init__(self):
+        for name in ("time_step", "mass", "max_speed", "max_yaw_rate", "max_traction_force",
+                     "max_traction_torque", "response_time", "lateral_damping",
+                     "max_lateral_force"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.max_reverse_speed < 0:
+            raise ValueError(f"max_reverse_speed must be >= 0, got {self.max_reverse_speed}")
+        if self.collision_shape not in ("sphere", "cylinder"):
+            raise ValueError(f"collision_shape must be 'sphere' or 'cylinder', got "
+                             f"{self.collision_shape!r}")
+        if self.response_time < self.time_step:
+            raise ValueError(f"response_time ({self.response_time} s) must be >= time_step "
+                             f"({self.time_step} s): the servo is explicit")
+        if self.lateral_damping * self.time_step > self.mass:
+            raise ValueError(f"lateral_damping x time_step / mass = "
+                             f"{self.lateral_damping * self.time_step / self.mass:.2f} must "
+                             f"be <= 1: the damping is explicit")
+
+
+class PhysicsRobots(LeafSystem):
+    """N robots that are bodies on planar joints of a stepped (discrete) plant.
+
+    Each robot is driven like a differential drive: the commanded forward speed v (clipped
+    to [-max_reverse_speed, max_speed]) and yaw rate omega (clipped to +-max_yaw_rate) are
+    servoed with time constant ``response_time`` by a force along the heading and a torque
+    about +z, limited to ``max_traction_force`` and ``max_traction_torque``; a no-slip force
+    opposes the sideways velocity (``lateral_damping``, limited to ``max_lateral_force``).
+    Contact with walls, furniture, people and other robots is the plant's (SAP).
+
+    Input ``commands`` (2N): [v, omega] per robot, m/s and rad/s.
+    Input ``plant_state``: the plant's state [q; v].
+    Output ``generalized_force`` (the plant's nv): the drive forces, [f_x, f_y, tau_z] on
+        each robot's planar joint (world frame, N, N m), zero for the plant's other joints;
+        for the plant's applied generalized force input.
+    Output ``state`` (4N): [x, y, theta, v] per robot, world frame, m, rad; v the forward
+        speed (body-frame x velocity), m/s.
+    Output ``plant_positions`` (3N): [x, y, theta] per robot, its planar joint's positions.
+    """
+
+    def __init__(self, plant: MultibodyPlant, robot_models, params: PhysicsRobotParams):
+        super().__init__()
+        self._params = params
+        self._n = len(robot_models)
+        nq, nv = plant.num_positions(), plant.num_velocities()
+        joints = [plant.get_joint(plant.GetJointIndices(m)[0]) for m in robot_models]
+        bodies = [plant.GetBodyByName("base", m) for m in robot_models]
+        # Indices (N, 3) of each robot's [x, y, theta] and [vx, vy, omega] in [q; v], and of
+        # its generalized forces in the nv-vector.
+        offsets = np.arange(3)
+        self._q = np.array([j.position_start() + offsets for j in joints])
+        self._v = np.array([nq + j.velocity_start() + offsets for j in joints])
+        self._f = self._v - nq
+        self._nv = nv
+        self._mass = np.array([b.default_mass() for b in bodies])
+        self._inertia = np.array([b.default_rotational_inertia().get_moments()[2]
+                                  for b in bodies])
+        self.names = tuple(plant.GetModelInstanceName(m) for m in robot_models)
+        self._commands = self.DeclareVectorInputPort("commands", ROBOT_COMMAND_SIZE * self._n)
+        self._plant_state = self.DeclareVectorInputPort("plant_state", nq + nv)
+        plant_state = {self._plant_state.ticket()}
+        self.DeclareVectorOutputPort(
+            "generalized_force", BasicVector(nv), self._calc_forces,
+            prerequisites_of_calc={self._commands.ticket(), self._plant_state.ticket()})
+        self.DeclareVectorOutputPort(
+            "state", BasicVector(ROBOT_STATE_SIZE * self._n), self._calc_state,
+            prerequisites_of_calc=plant_state)
+        self.DeclareVectorOutputPort(
+            "plant_positions", BasicVector(PLANAR_POSITION_SIZE * self._n),
+            self._calc_plant_positions, prerequisites_of_calc=plant_state)
+
+    @property
+    def num_robots(self) -> int:
+        return self._n
+
+    def _read(self, context) -> tuple[np.ndarray, np.ndarray]:
+        """Poses (N, 3) [x, y, theta] and velocities (N, 3) [vx, vy, omega], world frame."""
+        x = self._plant_state.Eval(context)
+        return x[self._q], x[self._v]
+
+    def _calc_forces(self, context, output: BasicVector) -> None:
+        p = self._params
+        pose, velocity = self._read(context)
+        if self._commands.HasValue(context):
+            u = self._commands.Eval(context).reshape(self._n, ROBOT_COMMAND_SIZE)
+        else:
+            u = np.zeros((self._n, ROBOT_COMMAND_SIZE))
+        v_cmd = np.clip(u[:, 0], -p.max_reverse_speed, p.max_speed)
+        omega_cmd = np.clip(u[:, 1], -p.max_yaw_rate, p.max_yaw_rate)
+        c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+        forward = c * velocity[:, 0] + s * velocity[:, 1]
+        sideways = -s * velocity[:, 0] + c * velocity[:, 1]
+        push = np.clip(self._mass * (v_cmd - forward) / p.response_time,
+                       -p.max_traction_force, p.max_traction_force)
+        grip = np.clip(-p.lateral_damping * sideways, -p.max_lateral_force,
+                       p.max_lateral_force)
+        turn = np.clip(self._inertia * (omega_cmd - velocity[:, 2]) / p.response_time,
+                       -p.max_traction_torque, p.max_traction_torque)
+        forces = np.zeros(self._nv)
+        forces[self._f] = np.column_stack([c * push - s * grip, s * push + c * grip, turn])
+        output.SetFromVector(forces)
+
+    def _calc_state(self, context, output: BasicVector) -> None:
+        pose, velocity = self._read(context)
+        forward = np.cos(pose[:, 2]) * velocity[:, 0] + np.sin(pose[:, 2]) * velocity[:, 1]
+        theta = np.mod(pose[:, 2] + np.pi, 2.0 * np.pi) - np.pi
+        output.SetFromVector(np.column_stack([pose[:, :2], theta, forward]).ravel())
+
+    def _calc_plant_positions(self, context, output: BasicVector) -> None:
+        output.SetFromVector(self._read(context)[0].ravel())
