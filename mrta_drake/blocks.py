@@ -16,6 +16,9 @@ controller  robot_state, paths, humans            commands (2N), telemetry
 robots      commands (2N)                         state (4N), plant_positions (3N)
 humans      robot_state (4N)                      human_states (HumanStates), plant_positions
 =========== ===================================== ============================================
+
+A robots block that steps the plant (``BlockType.physics``, e.g. kind ``physics``) also has
+an input ``plant_state`` and an output ``generalized_force`` (see ``mrta_drake.physics``).
 """
 
 import dataclasses
@@ -37,6 +40,7 @@ class BuildContext:
     scenario: Scenario
     floor_plan: object  # FloorPlan
     rates: object  # RatesConfig
+    world: object = None  # World, for the blocks made after it (all but humans)
 
     @property
     def robot_names(self) -> list[str]:
@@ -58,6 +62,17 @@ class BuildContext:
         return Roadways(self.scenario.roadways, self.scenario.locations, self.scenario.source)
 
     @cached_property
+    def travel_times(self) -> np.ndarray:
+        """The allocator's (L, L) integer travel times (s): the scenario's file, else an
+        estimate from roadway leg lengths at ``tasks.estimate_speed``."""
+        from mrta_drake.travel_times import load_travel_times
+
+        tasks = self.scenario.tasks
+        if tasks.travel_times:
+            return load_travel_times(tasks.travel_times, len(self.scenario.locations))
+        return self.roadways.travel_time_estimate(tasks.estimate_speed)
+
+    @cached_property
     def start_locations(self) -> list[int | None]:
         """Each robot's start location: as given, else the location whose point is within
         1 m of its start position, else None."""
@@ -77,10 +92,12 @@ class BuildContext:
 class BlockType:
     """An implementation of a block slot: its parameter dataclass and a factory
     ``make(context, params) -> LeafSystem`` (for ``waypoints``: one system per robot,
-    ``make(context, params, robot_index)``)."""
+    ``make(context, params, robot_index)``). A robots block that steps the plant gives
+    ``physics(params) -> world.PlantPhysics``, how the world makes the plant."""
 
     params: type
     make: Callable
+    physics: Callable | None = None
 
 
 _REGISTRY: dict[str, dict[str, Callable[[], BlockType]]] = {
@@ -102,6 +119,11 @@ def block_kinds(slot: str) -> list[str]:
     return sorted(_REGISTRY[slot])
 
 
+def block_type(slot: str, kind: str) -> BlockType:
+    """The registered implementation ``kind`` of ``slot``."""
+    return _REGISTRY[slot][kind]()
+
+
 def resolve_block(scenario: Scenario, slot: str) -> tuple[BlockType, object]:
     """The chosen implementation of ``slot`` and its parameters, checked."""
     config: BlockConfig = getattr(scenario.blocks, slot)
@@ -109,10 +131,9 @@ def resolve_block(scenario: Scenario, slot: str) -> tuple[BlockType, object]:
     if config.kind not in kinds:
         raise InputError(scenario.source, f"blocks.{slot}.kind",
                          f"unknown kind {config.kind!r} (known: {', '.join(sorted(kinds))})")
-    block_type = kinds[config.kind]()
-    params = load_typed(config.params, block_type.params, scenario.source,
-                        f"blocks.{slot}.params")
-    return block_type, params
+    chosen = kinds[config.kind]()
+    params = load_typed(config.params, chosen.params, scenario.source, f"blocks.{slot}.params")
+    return chosen, params
 
 
 def check_blocks(scenario: Scenario) -> None:
@@ -131,9 +152,52 @@ def _kinematic_robots() -> BlockType:
         ctx.robot_names, ctx.robot_starts, params, ctx.rates.robots))
 
 
+def _physics_robots() -> BlockType:
+    from mrta_drake.systems.physics_robots import PhysicsRobotParams, PhysicsRobots
+    from mrta_drake.world import PlantPhysics
+
+    return BlockType(
+        PhysicsRobotParams,
+        lambda ctx, params: PhysicsRobots(ctx.world.plant, ctx.world.robots, params),
+        physics=lambda params: PlantPhysics(params.time_step, params.mass,
+                                            params.collision_shape))
+
+
 @dataclass(frozen=True)
 class NoParams:
     """For implementations without parameters."""
+
+
+def _task_allocator(allocator_class, params_class):
+    def make(ctx: BuildContext, params):
+        from mrta_drake.systems.task_allocator import TaskAllocator
+
+        # A robot that does not start on a location is planned from the nearest one.
+        points = np.array([loc.point for loc in ctx.scenario.locations])
+        ids = [loc.id for loc in ctx.scenario.locations]
+        starts = [
+            location if location is not None
+            else ids[int(np.argmin(np.linalg.norm(points - start[:2], axis=1)))]
+            for location, start in zip(ctx.start_locations, ctx.robot_starts, strict=True)]
+        return TaskAllocator(
+            ctx.scenario.tasks.stream, ctx.robot_names, starts,
+            [r.capacity for r in ctx.scenario.robots], ctx.travel_times,
+            allocator_class(params), ctx.scenario.tasks.service_time, ctx.rates.allocator,
+            ctx.scenario.source)
+
+    return BlockType(params_class, make)
+
+
+def _smt_allocator() -> BlockType:
+    from mrta_drake.allocation import SmtAllocator, SmtAllocatorParams
+
+    return _task_allocator(SmtAllocator, SmtAllocatorParams)
+
+
+def _greedy_allocator() -> BlockType:
+    from mrta_drake.allocation import GreedyAllocator, GreedyAllocatorParams
+
+    return _task_allocator(GreedyAllocator, GreedyAllocatorParams)
 
 
 def _fixed_allocator() -> BlockType:
@@ -216,11 +280,14 @@ def _go_to_goal_controller() -> BlockType:
 
 
 register_block("robots", "kinematic", _kinematic_robots)
+register_block("robots", "physics", _physics_robots)
 register_block("controller", "cluster_cbf", _cluster_cbf_controller)
 register_block("controller", "go_to_goal", _go_to_goal_controller)
 register_block("humans", "social_force", _social_force_humans)
 register_block("planner", "grid_astar", _grid_astar_planner)
 register_block("allocator", "fixed", _fixed_allocator)
+register_block("allocator", "smt", _smt_allocator)
+register_block("allocator", "greedy", _greedy_allocator)
 register_block("waypoints", "roadway", _roadway_waypoints)
 register_block("queues", "fifo", _fifo_queues)
 

@@ -31,8 +31,10 @@ def _parser() -> argparse.ArgumentParser:
                      help="pace the run at this multiple of real time (default with "
                      "--meshcat: 1)")
     run.add_argument("--record", metavar="HTML", help="write a self-contained replay page")
-    run.add_argument("--out", metavar="DIR", help="write timeline.csv, events.jsonl and "
-                     "summary.json here")
+    run.add_argument("--out", metavar="DIR", help="write timeline.csv, events.jsonl, "
+                     "summary.json and plots here")
+    run.add_argument("--no-plots", dest="plots", action="store_false",
+                     help="with --out, skip the PNG plots")
     run.add_argument("--seed", type=int, help="override the scenario's seed")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -43,6 +45,25 @@ def _parser() -> argparse.ArgumentParser:
     diagram.add_argument("scenario", help="scenario YAML file")
     diagram.add_argument("output", help="output file: .dot, or .png/.svg (needs graphviz)")
     diagram.add_argument("--depth", type=int, default=1, help="diagram nesting depth")
+
+    sweep = commands.add_parser("sweep", help="run a scenario over a grid of variations "
+                                "(resumable; see mrta_drake/sweep.py)")
+    sweep.add_argument("spec", help="sweep spec YAML file")
+    sweep.add_argument("--out", metavar="DIR", help="results folder (default: "
+                       "sweeps/<spec name>); runs already in it are not redone")
+    sweep.add_argument("--workers", type=int, help="parallel local processes (default: one "
+                       "per CPU)")
+    sweep.add_argument("--ray", metavar="ADDRESS", help="run on this Ray cluster instead "
+                       "(e.g. auto, ray://host:10001, local)")
+    sweep.add_argument("--plots", action="store_true", help="write each run's PNG plots")
+    sweep.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    report = commands.add_parser("report", help="print the results of a run (its --out DIR)")
+    report.add_argument("folder", help="results folder written by `run --out`")
+
+    compare = commands.add_parser("compare", help="print two runs' results side by side")
+    compare.add_argument("first", help="results folder written by `run --out`")
+    compare.add_argument("second", help="another results folder")
     return parser
 
 
@@ -59,15 +80,12 @@ def main(argv=None) -> int:
 
 
 def _run(args) -> int:
-    import dataclasses
-
+    from mrta_drake.report import format_summary
     from mrta_drake.scenario import load_scenario
     from mrta_drake.simulate import simulate
-    from mrta_drake.summary import format_summary
 
-    scenario = load_scenario(args.scenario)
-    if args.seed is not None:
-        scenario = dataclasses.replace(scenario, seed=args.seed)
+    scenario = load_scenario(args.scenario,
+                             overrides=None if args.seed is None else {"seed": args.seed})
     meshcat = None
     realtime = args.realtime or 0.0
     if args.meshcat:
@@ -78,7 +96,8 @@ def _run(args) -> int:
         realtime = args.realtime or 1.0
     result = simulate(scenario, duration=args.duration, meshcat=meshcat,
                       record_html=args.record, out_dir=args.out,
-                      progress=not args.quiet and sys.stderr.isatty(), realtime_rate=realtime)
+                      progress=not args.quiet and sys.stderr.isatty(), realtime_rate=realtime,
+                      plots=args.plots)
     print(format_summary(result.summary))
     if args.record:
         print(f"replay written to {args.record}")
@@ -120,7 +139,45 @@ def _diagram(args) -> int:
     return 0
 
 
-_COMMANDS = {"run": _run, "validate": _validate, "diagram": _diagram}
+def _report(args) -> int:
+    from mrta_drake.report import format_summary, load_summary
+
+    print(format_summary(load_summary(args.folder)))
+    return 0
+
+
+def _compare(args) -> int:
+    import os
+
+    from mrta_drake.report import format_comparison, load_summary
+
+    names = tuple(os.path.basename(os.path.normpath(f)) for f in (args.first, args.second))
+    if names[0] == names[1]:
+        names = (args.first, args.second)
+    print(format_comparison(load_summary(args.first), load_summary(args.second), names))
+    return 0
+
+
+def _sweep(args) -> int:
+    import os
+
+    from mrta_drake.sweep import format_table, load_sweep, run_sweep
+
+    if args.workers is not None and args.workers < 1:
+        raise InputError(None, "--workers", f"must be >= 1, got {args.workers}")
+    spec = load_sweep(args.spec)
+    out = args.out or os.path.join("sweeps", os.path.splitext(os.path.basename(args.spec))[0])
+    result = run_sweep(spec, out, workers=args.workers, ray_address=args.ray,
+                       plots=args.plots, progress=not args.quiet and sys.stderr.isatty())
+    print(format_table(result.rows))
+    failed = sum(row["status"] != "ok" for row in result.rows)
+    print(f"{len(result.rows)} runs ({result.ran} run now, {result.reused} reused, {failed} "
+          f"failed); table: {', '.join(result.table)}")
+    return 0
+
+
+_COMMANDS = {"run": _run, "validate": _validate, "diagram": _diagram, "report": _report,
+             "compare": _compare, "sweep": _sweep}
 
 
 if __name__ == "__main__":

@@ -32,11 +32,12 @@ class SimulationResult:
 def simulate(scenario: Scenario, *, duration: float | None = None,
              meshcat: Meshcat | None = None, record_html: str | None = None,
              out_dir: str | None = None, progress: bool = False,
-             realtime_rate: float = 0.0) -> SimulationResult:
+             realtime_rate: float = 0.0, plots: bool = True) -> SimulationResult:
     """Run ``scenario`` for ``duration`` s (default: the scenario's), headless unless a
     ``meshcat`` is given. ``record_html`` writes a self-contained replay page;
-    ``out_dir`` receives timeline.csv and events.jsonl as the run goes and summary.json at
-    the end; ``progress`` shows a progress bar; ``realtime_rate`` > 0 paces the run."""
+    ``out_dir`` receives timeline.csv and events.jsonl as the run goes and summary.json
+    (and, with ``plots``, the PNG plots of ``mrta_drake.plots``) at the end; ``progress``
+    shows a progress bar; ``realtime_rate`` > 0 paces the run."""
     duration = scenario.duration if duration is None else duration
     if record_html and meshcat is None:
         meshcat = Meshcat()
@@ -71,11 +72,15 @@ def simulate(scenario: Scenario, *, duration: float | None = None,
         with open(record_html, "w") as f:
             f.write(meshcat.StaticHtml())
     times, states, humans = stack.recorder.arrays()
-    summary = summarize(stack, times, states, humans, duration, wall, cpu)
+    summary = summarize(stack, duration, wall, cpu)
     if out_dir:
         os.makedirs(out_dir, exist_ok=True)
         with open(os.path.join(out_dir, "summary.json"), "w") as f:
             json.dump(summary, f, indent=2)
+        if plots:
+            from mrta_drake.plots import write_plots
+
+            write_plots(out_dir, stack, summary)
     return SimulationResult(scenario, times, states, humans, list(stack.recorder.events),
                             summary, stack)
 

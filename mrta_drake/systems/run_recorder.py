@@ -1,6 +1,7 @@
 """Recording what happened in a run, as it happens."""
 
 import csv
+import dataclasses
 import json
 import math
 import os
@@ -18,35 +19,72 @@ from mrta_drake.payloads import (
     HumanStates,
     QueueState,
     RobotProgress,
+    WaypointTarget,
 )
+
+# What a robot is doing at a sample (``RunRecorder.mode_array``).
+IDLE = 0  # no stop to do (standing, or driving to its parking spot)
+DRIVE = 1  # has a stop and should be moving towards it
+QUEUE = 2  # waiting in a room's queue
+SERVE = 3  # holding its stop's room, at the room's point
 
 
 class RunRecorder(LeafSystem):
     """Samples the run at a fixed rate (publish events only: it never changes the run).
 
-    Keeps in memory the robot states (T, N, 4), human positions (T, M, 2) and controller
-    telemetry, and notes events: allocator plan revisions, room grants, arrivals at stops,
-    planner failures. With ``out_dir`` it also appends every sample to ``timeline.csv`` and
-    every event to ``events.jsonl`` as they happen, flushed, so a crash loses nothing.
+    Keeps in memory, per sample: the time, the robot states (T, N, 4) [x, y, theta, v]
+    (world frame, m, rad, m/s), the human positions (T, M, 2) (NaN while a human is not yet
+    present), each robot's mode (T, N) (``IDLE``, ``DRIVE``, ``QUEUE``, ``SERVE``) and the
+    controller telemetry; and notes events (dicts, ``time`` the sample time, s):
+
+    - ``plan``: the allocator's plan changed: ``revision`` and, per robot, its stops
+      (``key``, ``task``, ``action``, ``location``, ``planned``: predicted completion, s).
+    - ``start``: a robot began stop ``key`` (its ``current_stop``) at ``at`` (s): when it
+      completed its previous stop if that is noted at the same sample, else the previous
+      sample's time. (A sample at t sees the states as updated before t, so the change
+      happened at or after the previous sample: exactly then when the waypoint generators
+      update at the recorder's rate, as by default.)
+    - ``arrival``: a robot completed stop ``key`` at ``at`` (s).
+    - ``room``: a room's holder or waiting robots changed (a grant when ``holder`` is set).
+    - ``planner_failure``: the planner failed for ``robots`` (``total`` so far).
+    - ``controller_failure``: the controller braked ``failures`` robots at its last tick.
+    - ``allocation``: an event from the allocator's ``events`` output, as ``event``.
+
+    With ``out_dir`` it appends every sample to ``timeline.csv`` and every event to
+    ``events.jsonl`` as they happen, flushed, so a crash loses nothing.
+
+    A robot's mode: ``IDLE`` without a current stop or an active target; ``QUEUE`` while it
+    waits in some room's queue; ``SERVE`` while it holds its stop's room, drives to no waypoint
+    after the current one and is within ``serve_radius`` m of it; ``DRIVE`` otherwise.
 
     Inputs: ``robot_state`` (4N), ``telemetry``, ``paths``, ``queue_state``, ``plan``,
-    ``progress_<robot>`` per robot, ``human_states`` (optional).
+    ``progress_<robot>`` and ``target_<robot>`` per robot; optional (may stay unconnected):
+    ``human_states``, ``human_active`` (M, 1 = present), ``allocator_events`` (a sequence
+    of event objects; new ones are noted).
     """
 
-    def __init__(self, robot_names, humans=(), rate_hz: float = 10.0, out_dir: str | None = None):
+    def __init__(self, robot_names, humans=(), rate_hz: float = 10.0,
+                 out_dir: str | None = None, serve_radius: float = 1.0):
         super().__init__()
         self.robot_names = tuple(robot_names)
         self.human_names = tuple(h.name for h in humans)
         self._n = len(self.robot_names)
         self._out_dir = out_dir
+        self._serve_radius = serve_radius
         self.DeclareVectorInputPort("robot_state", ROBOT_STATE_SIZE * self._n)
         self.DeclareAbstractInputPort("telemetry", _value(ControllerTelemetry()))
         self.DeclareAbstractInputPort("paths", _value(FleetPaths(())))
         self.DeclareAbstractInputPort("queue_state", _value(QueueState()))
         self.DeclareAbstractInputPort("plan", _value(FleetPlan(())))
-        for name in self.robot_names:
+        self._progress = [
             self.DeclareAbstractInputPort(f"progress_{name}", _value(RobotProgress(name)))
+            for name in self.robot_names]
+        self._targets = [
+            self.DeclareAbstractInputPort(f"target_{name}", _value(WaypointTarget(name)))
+            for name in self.robot_names]
         self.DeclareAbstractInputPort("human_states", _value(HumanStates()))
+        self.DeclareVectorInputPort("human_active", len(self.human_names))
+        self.DeclareAbstractInputPort("allocator_events", _value(()))
         self.DeclarePeriodicPublishEvent(1.0 / rate_hz, 0.0, self._sample)
         self.DeclareForcedPublishEvent(self._sample)
         self.clear()
@@ -56,12 +94,15 @@ class RunRecorder(LeafSystem):
         self.times: list[float] = []
         self.robot_states: list[np.ndarray] = []
         self.human_positions: list[np.ndarray] = []
+        self.modes: list[np.ndarray] = []
         self.telemetry: list[ControllerTelemetry] = []
         self.events: list[dict] = []
         self._seen_visits = [0] * self._n
+        self._current_keys: list[str | None] = [None] * self._n
         self._last_revision = None
-        self._last_holders: dict[int, str | None] = {}
+        self._last_rooms: dict[int, tuple] = {}
         self._last_failures = 0
+        self._allocator_events = ()
         self._timeline = None
         self._event_file = None
 
@@ -81,7 +122,7 @@ class RunRecorder(LeafSystem):
     def _event(self, event: dict) -> None:
         self.events.append(event)
         if self._event_file is not None:
-            self._event_file.write(json.dumps(event, default=_jsonable) + "\n")
+            self._event_file.write(json.dumps(_jsonable(event)) + "\n")
             self._event_file.flush()
 
     def _sample(self, context) -> None:
@@ -95,39 +136,104 @@ class RunRecorder(LeafSystem):
         self.robot_states.append(states)
         humans_port = self.GetInputPort("human_states")
         if humans_port.HasValue(context):
-            self.human_positions.append(np.array(humans_port.Eval(context).positions))
+            positions = np.array(humans_port.Eval(context).positions, dtype=float)
+            active_port = self.GetInputPort("human_active")
+            if active_port.HasValue(context):
+                positions[active_port.Eval(context) < 0.5] = np.nan
+            self.human_positions.append(positions)
         telemetry = self.GetInputPort("telemetry").Eval(context)
         self.telemetry.append(telemetry)
         if self._timeline is not None:
             for name, row in zip(self.robot_names, states, strict=True):
                 self._csv.writerow([f"{t:.3f}", name] + [f"{v:.4f}" for v in row])
             self._timeline.flush()
-        self._note_events(context, t)
+        queues = self.GetInputPort("queue_state").Eval(context)
+        self.modes.append(self._modes(context, states, queues))
+        self._note_plan(context, t)
+        self._note_progress(context, t)
+        self._note_rooms(queues, t)
+        self._note_failures(context, t, telemetry)
+        self._note_allocator_events(context, t)
 
-    def _note_events(self, context, t: float) -> None:
-        plan = self.GetInputPort("plan").Eval(context)
-        if plan.plans and plan.revision != self._last_revision:
-            self._last_revision = plan.revision
-            self._event({"time": t, "type": "plan", "revision": plan.revision,
-                         "plans": {p.robot: [s.key for s in p.stops] for p in plan.plans}})
+    def _modes(self, context, states: np.ndarray, queues: QueueState) -> np.ndarray:
+        waiting = {robot for queue in queues.rooms for robot in queue.waiting}
+        holders = {queue.room: queue.holder for queue in queues.rooms}
+        modes = np.full(self._n, IDLE, dtype=np.int8)
         for k, name in enumerate(self.robot_names):
-            progress = self.GetInputPort(f"progress_{name}").Eval(context)
+            stop = self._progress[k].Eval(context).current_stop
+            target = self._targets[k].Eval(context)
+            if stop is None or not target.active:
+                continue
+            if name in waiting:
+                modes[k] = QUEUE
+            elif (holders.get(stop.location) == name and target.next is None
+                  and target.current is not None
+                  and math.dist(states[k, :2], target.current) <= self._serve_radius):
+                modes[k] = SERVE
+            else:
+                modes[k] = DRIVE
+        return modes
+
+    def _note_plan(self, context, t: float) -> None:
+        plan = self.GetInputPort("plan").Eval(context)
+        if not plan.plans or plan.revision == self._last_revision:
+            return
+        self._last_revision = plan.revision
+        self._event({"time": t, "type": "plan", "revision": plan.revision, "plans": {
+            p.robot: [{"key": s.key, "task": s.task, "action": s.action,
+                       "location": s.location, "planned": s.planned_time} for s in p.stops]
+            for p in plan.plans}})
+
+    def _note_progress(self, context, t: float) -> None:
+        for k, name in enumerate(self.robot_names):
+            progress = self._progress[k].Eval(context)
+            began = self.times[-2] if len(self.times) > 1 else t
             for visit in progress.visits[self._seen_visits[k]:]:
                 self._event({"time": t, "type": "arrival", "robot": name, "key": visit.key,
                              "location": visit.location, "at": visit.time,
                              "task": visit.task, "action": visit.action})
+                began = visit.time
             self._seen_visits[k] = len(progress.visits)
-        for queue in self.GetInputPort("queue_state").Eval(context).rooms:
-            if self._last_holders.get(queue.room) != queue.holder:
-                self._last_holders[queue.room] = queue.holder
+            stop = progress.current_stop
+            key = None if stop is None else stop.key
+            if key is not None and key != self._current_keys[k]:
+                self._event({"time": t, "type": "start", "robot": name, "key": key,
+                             "at": began, "location": stop.location, "task": stop.task,
+                             "action": stop.action})
+            self._current_keys[k] = key
+
+    def _note_rooms(self, queues: QueueState, t: float) -> None:
+        for queue in queues.rooms:
+            now = (queue.holder, queue.waiting)
+            if self._last_rooms.get(queue.room) != now:
+                self._last_rooms[queue.room] = now
                 self._event({"time": t, "type": "room", "room": queue.room,
                              "holder": queue.holder, "waiting": list(queue.waiting)})
+
+    def _note_failures(self, context, t: float, telemetry: ControllerTelemetry) -> None:
         paths = self.GetInputPort("paths").Eval(context)
         if paths.failures > self._last_failures:
             failed = [p.robot for p in paths.paths if p.status == PATH_FAILED]
             self._event({"time": t, "type": "planner_failure", "robots": failed,
                          "total": paths.failures})
             self._last_failures = paths.failures
+        if telemetry.failures:
+            self._event({"time": t, "type": "controller_failure",
+                         "failures": int(telemetry.failures)})
+
+    def _note_allocator_events(self, context, t: float) -> None:
+        port = self.GetInputPort("allocator_events")
+        if not port.HasValue(context):
+            return
+        events = tuple(port.Eval(context))
+        seen = self._allocator_events
+        if events == seen:
+            return
+        # A growing log gets its new tail noted; anything else is noted whole.
+        new = events[len(seen):] if events[:len(seen)] == seen else events
+        for event in new:
+            self._event({"time": t, "type": "allocation", "event": _as_dict(event)})
+        self._allocator_events = events
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """times (T,), robot states (T, N, 4), human positions (T, M, 2)."""
@@ -138,14 +244,39 @@ class RunRecorder(LeafSystem):
                   else np.zeros((len(times), 0, 2)))
         return times, states, humans
 
+    def mode_array(self) -> np.ndarray:
+        """(T, N) int8: each robot's mode at each sample (``IDLE``, ``DRIVE``, ...)."""
+        return np.array(self.modes, dtype=np.int8).reshape(len(self.modes), self._n)
+
 
 def _value(example):
     return Value[object](example)
 
 
+def _as_dict(event) -> dict:
+    """An allocator event as a plain dict: dataclass fields plus ``kind`` (its class name)."""
+    if dataclasses.is_dataclass(event):
+        return {"kind": type(event).__name__} | {
+            f.name: getattr(event, f.name) for f in dataclasses.fields(event)}
+    if isinstance(event, dict):
+        return dict(event)
+    return {"kind": type(event).__name__, "value": str(event)}
+
+
 def _jsonable(value):
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, np.generic):
+    """``value`` with non-finite floats as None, tuples as lists, numpy scalars as Python
+    numbers, dataclasses as dicts and anything else unknown as its string."""
+    if isinstance(value, float | np.floating):
+        value = float(value)
+        return value if math.isfinite(value) else None
+    if isinstance(value, bool | int | str | type(None)):
+        return value
+    if isinstance(value, np.integer | np.bool_):
         return value.item()
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple | np.ndarray):
+        return [_jsonable(v) for v in value]
+    if dataclasses.is_dataclass(value):
+        return _jsonable(_as_dict(value))
     return str(value)
