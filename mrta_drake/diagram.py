@@ -6,13 +6,17 @@ Users who want to add their own systems call ``add_stack`` on their own builder,
 what they like to the returned handles, then build.
 """
 
+import dataclasses
 from dataclasses import dataclass, field
 
+import numpy as np
 from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Role
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 
 from mrta_drake.blocks import BuildContext, resolve_block
+from mrta_drake.physics import add_plant_stepping
 from mrta_drake.scenario_schema import Scenario
+from mrta_drake.systems.contact_recorder import ContactRecorder
 from mrta_drake.systems.meshcat_overlay import MeshcatOverlay
 from mrta_drake.systems.run_recorder import RunRecorder
 from mrta_drake.world import (
@@ -27,7 +31,8 @@ from mrta_drake.world import (
 
 @dataclass(eq=False)
 class Stack:
-    """Handles to the systems of one scenario's diagram (``diagram`` once built)."""
+    """Handles to the systems of one scenario's diagram (``diagram`` once built);
+    ``contacts`` records the plant's contacts when a physics robots block steps it."""
 
     scenario: Scenario
     world: World
@@ -41,6 +46,7 @@ class Stack:
     recorder: RunRecorder
     visualizer: MeshcatVisualizer | None = None
     diagram: Diagram | None = None
+    contacts: ContactRecorder | None = None
     extras: dict = field(default_factory=dict)
 
 
@@ -59,11 +65,17 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
     if has_humans:
         humans_type, humans_params = resolve_block(scenario, "humans")
         humans = builder.AddNamedSystem("humans", humans_type.make(ctx, humans_params))
-    human_bodies = ([Body(n, r) for n, r in zip(humans.human_names, humans.human_radii,
-                                                 strict=True)] if humans else [])
+    human_bodies = ([Body(n, r, tuple(p)) for n, r, p in zip(
+        humans.human_names, humans.human_radii, _start_poses(humans), strict=True)]
+        if humans else [])
+    robots_type, robots_params = resolve_block(scenario, "robots")
     world = build_world(builder, floor_plan,
-                        robots=[Body(r.name, r.radius) for r in scenario.robots],
-                        humans=human_bodies)
+                        robots=[Body(r.name, r.radius, tuple(pose)) for r, pose in zip(
+                            scenario.robots, ctx.robot_starts, strict=True)],
+                        humans=human_bodies,
+                        physics=robots_type.physics(robots_params) if robots_type.physics
+                        else None)
+    ctx = dataclasses.replace(ctx, world=world)
 
     def make(slot: str, *extra):
         block_type, params = resolve_block(scenario, slot)
@@ -96,10 +108,12 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
     if humans is not None:
         builder.Connect(state, humans.GetInputPort("robot_state"))
         builder.Connect(humans.GetOutputPort("human_states"), controller.GetInputPort("humans"))
-        add_plant_posing(builder, world, robots.GetOutputPort("plant_positions"),
-                         humans.GetOutputPort("plant_positions"))
+    human_positions = humans.GetOutputPort("plant_positions") if humans is not None else None
+    contacts = None
+    if robots_type.physics is None:
+        add_plant_posing(builder, world, robots.GetOutputPort("plant_positions"), human_positions)
     else:
-        add_plant_posing(builder, world, robots.GetOutputPort("plant_positions"))
+        contacts = add_plant_stepping(builder, world, robots, human_positions)
 
     recorder = builder.AddNamedSystem("recorder", RunRecorder(
         names, human_bodies, scenario.rates.logging, out_dir))
@@ -111,12 +125,20 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
     for name, generator in zip(names, generators, strict=True):
         builder.Connect(generator.GetOutputPort("progress"),
                         recorder.GetInputPort(f"progress_{name}"))
+        builder.Connect(generator.GetOutputPort("target"),
+                        recorder.GetInputPort(f"target_{name}"))
+    if allocator.HasOutputPort("events"):
+        builder.Connect(allocator.GetOutputPort("events"),
+                        recorder.GetInputPort("allocator_events"))
     if humans is not None:
         builder.Connect(humans.GetOutputPort("human_states"),
                         recorder.GetInputPort("human_states"))
+        if humans.HasOutputPort("active"):
+            builder.Connect(humans.GetOutputPort("active"), recorder.GetInputPort("human_active"))
 
     visualizer = None
     if meshcat is not None:
+        _look_at_floor_plan(meshcat, floor_plan.bounds)
         visualizer = MeshcatVisualizer.AddToBuilder(
             builder, world.scene_graph, meshcat,
             MeshcatVisualizerParams(publish_period=1.0 / scenario.rates.meshcat,
@@ -126,7 +148,22 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
         builder.Connect(planner.GetOutputPort("paths"), overlay.GetInputPort("paths"))
         builder.Connect(queues.GetOutputPort("queue_state"), overlay.GetInputPort("queue_state"))
     return Stack(scenario, world, robots, controller, planner, queues, allocator, generators,
-                 humans, recorder, visualizer)
+                 humans, recorder, visualizer, contacts=contacts)
+
+
+def _look_at_floor_plan(meshcat: Meshcat, bounds) -> None:
+    """Puts the camera south of and above the floor plan's middle, looking north and down
+    at it, far enough back to see all of it."""
+    x_min, x_max, y_min, y_max = bounds
+    middle = np.array([0.5 * (x_min + x_max), 0.5 * (y_min + y_max), 0.0])
+    extent = max(x_max - x_min, y_max - y_min)
+    meshcat.SetCameraPose(middle + [0.0, -0.3 * extent, 0.75 * extent], middle)
+
+
+def _start_poses(system) -> np.ndarray:
+    """(K, 3) [x, y, theta] rows of ``system``'s ``plant_positions`` in a default context."""
+    context = system.CreateDefaultContext()
+    return system.GetOutputPort("plant_positions").Eval(context).reshape(-1, 3)
 
 
 def build_diagram(scenario: Scenario, *, meshcat: Meshcat | None = None,

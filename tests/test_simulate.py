@@ -58,7 +58,9 @@ def test_recorded_replay_page_renders_in_headless_chromium(routes_scenario, tmp_
          "--disable-sync", f"--user-data-dir={tmp_path / 'profile'}",
          "--enable-unsafe-swiftshader", "--use-angle=swiftshader",
          "--enable-logging=stderr", "--v=0", "--window-size=1024,768",
-         "--virtual-time-budget=8000", f"--screenshot={shot}", page.as_uri()],
+         # --timeout, not --virtual-time-budget: the replay animates forever, so virtual
+         # time never runs out of work and the budget is never reached.
+         "--timeout=8000", f"--screenshot={shot}", page.as_uri()],
         capture_output=True, text=True, timeout=120)
     console = [line for line in done.stderr.splitlines() if "CONSOLE" in line]
     assert not [line for line in console if "Uncaught" in line or "Error" in line], console
