@@ -94,6 +94,50 @@ class Costmap:
         inflate them."""
         return cls.from_grid(obstacles.rasterize(bounds, resolution), params)
 
+    def with_obstacles(self, obstacles: Obstacles, cost: int = LETHAL) -> "Costmap":
+        """This costmap with ``obstacles`` added (e.g. a region closed for a while),
+        recomputed only around them: each one is rasterized (``Obstacles.rasterize``) over
+        its own window of cells, reaching one cell beyond the inflation radius, and inflated
+        there. Costs equal those of a costmap built with the obstacles from the start;
+        ``distance`` is exact within the inflation reach of them and may overstate beyond.
+        With a ``cost`` below ``LETHAL`` the obstacles' cells only cost at least that much
+        (not inflated, not occupied): e.g. ``MAX_NON_OBSTACLE`` for a region paths avoid
+        where they can but may cross."""
+        grid, params = self.grid, self.params
+        res = grid.resolution
+        rows, cols = self.shape
+        reach = math.ceil(params.inflation_radius / res - 1e-9) + 1
+        occupied, distance = grid.occupied.copy(), self.distance.copy()
+        cost_map = self.cost.copy()
+        parts = ([Obstacles(boxes=(box,)) for box in obstacles.boxes]
+                 + [Obstacles(cylinders=(cyl,)) for cyl in obstacles.cylinders])
+        for part in parts:
+            x_min, x_max, y_min, y_max = part.bounds()
+            i0, j0 = grid.world_to_cell((x_min, y_min))
+            i1, j1 = grid.world_to_cell((x_max, y_max))
+            i0, j0 = max(int(i0) - reach, 0), max(int(j0) - reach, 0)
+            i1, j1 = min(int(i1) + reach, rows - 1), min(int(j1) + reach, cols - 1)
+            if i0 > i1 or j0 > j1:
+                continue  # off the grid
+            x0, y0 = grid.origin[0] + j0 * res, grid.origin[1] + i0 * res
+            raster = part.rasterize((x0, x0 + (j1 + 1 - j0) * res, y0,
+                                     y0 + (i1 + 1 - i0) * res), res).occupied
+            if not raster.any():
+                continue
+            window = (slice(i0, i1 + 1), slice(j0, j1 + 1))
+            if cost < LETHAL:
+                cost_map[window] = np.where(raster, np.maximum(cost_map[window], cost),
+                                            cost_map[window])
+                continue
+            occupied[window] |= raster
+            np.minimum(distance[window], ndimage.distance_transform_edt(~raster) * res,
+                       out=distance[window])
+            cost_map[window] = inflation_cost(distance[window], params.robot_radius,
+                                              params.inflation_radius, params.cost_scaling, res)
+        for array in (occupied, distance, cost_map):
+            array.flags.writeable = False
+        return Costmap(OccupancyGrid(occupied, res, grid.origin), params, cost_map, distance)
+
     @property
     def shape(self) -> tuple[int, int]:
         return self.cost.shape

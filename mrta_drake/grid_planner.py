@@ -88,14 +88,10 @@ class GridPlanner:
     """Plans paths between world points over ``costmap`` (see the module docstring)."""
 
     def __init__(self, costmap: Costmap, params: PlannerParams = PlannerParams()):
-        self._costmap = costmap
         self._params = params
+        self._set_costmap(costmap)
+        self._landmark_costmap = costmap
         rows, cols = costmap.shape
-        traversable = costmap.traversable
-        factor = 1.0 + params.cost_weight * costmap.cost.astype(float) / MAX_NON_OBSTACLE
-        self._factor = np.where(traversable, factor, np.inf).ravel()
-        # Without corner cutting, cells connect as 4-neighbours.
-        self._component, _ = ndimage.label(traversable)
         n = rows * cols
         self._g = np.empty(n)
         self._parent = np.empty(n, dtype=np.int64)
@@ -109,6 +105,24 @@ class GridPlanner:
     @property
     def costmap(self) -> Costmap:
         return self._costmap
+
+    def use_costmap(self, costmap: Costmap) -> None:
+        """Plan on ``costmap`` from now on (e.g. ``Costmap.with_obstacles`` of the one the
+        planner was made with). Its costs must be nowhere below those of the costmap the
+        planner was made with, whose landmark distances it keeps: they stay lower bounds."""
+        base = self._landmark_costmap
+        if costmap.shape != base.shape or np.any(costmap.cost < base.cost):
+            raise ValueError("the new costmap must cover the same grid with costs nowhere "
+                             "below the planner's own")
+        self._set_costmap(costmap)
+
+    def _set_costmap(self, costmap: Costmap) -> None:
+        self._costmap = costmap
+        traversable = costmap.traversable
+        factor = 1.0 + self._params.cost_weight * costmap.cost.astype(float) / MAX_NON_OBSTACLE
+        self._factor = np.where(traversable, factor, np.inf).ravel()
+        # Without corner cutting, cells connect as 4-neighbours.
+        self._component, _ = ndimage.label(traversable)
 
     @property
     def params(self) -> PlannerParams:

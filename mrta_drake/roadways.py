@@ -9,6 +9,7 @@ World frame, x east, y north, metres. Lanes are one-way (right-hand traffic is e
 edges: each corridor has one lane per direction).
 """
 
+import copy
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -54,6 +55,23 @@ def _xy(value, file, field) -> np.ndarray:
 
 def _polyline_length(points: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+
+
+def segment_crosses_box(a, b, box) -> bool:
+    """Whether the segment from ``a`` to ``b`` (world points, m) touches the axis-aligned
+    ``box`` (x_min, x_max, y_min, y_max), m (slab test; edges count)."""
+    low, high = 0.0, 1.0
+    for k, (lo, hi) in enumerate(((box[0], box[1]), (box[2], box[3]))):
+        d = b[k] - a[k]
+        if d == 0.0:
+            if not lo <= a[k] <= hi:
+                return False
+            continue
+        t0, t1 = (lo - a[k]) / d, (hi - a[k]) / d
+        low, high = max(low, min(t0, t1)), min(high, max(t0, t1))
+        if low > high:
+            return False
+    return True
 
 
 def _without_repeats(points: list[np.ndarray]) -> np.ndarray:
@@ -108,7 +126,9 @@ class Roadways:
             self._places[location.id] = self._place(location, f"locations[{i}]")
         self.location_ids: tuple[int, ...] = tuple(sorted(self._places))
         self._check_reachable(locations)
-        self._legs: dict[tuple[int, int], np.ndarray] = {}
+        self._legs: dict[tuple[int, int], np.ndarray | None] = {}
+        self.closures: tuple[tuple[float, float, float, float], ...] = ()
+        self._closed_views: dict[tuple, Roadways] = {}
 
     def _place(self, location: LocationConfig, field: str) -> Place:
         file = self._file
@@ -161,20 +181,46 @@ class Roadways:
         """The roadway node at exactly ``xy`` (a point taken from a leg), or None."""
         return self._node_at.get((float(xy[0]), float(xy[1])))
 
+    # --- Closures ----------------------------------------------------------------------------
+
+    def closed(self, boxes: Sequence[Sequence[float]]) -> "Roadways":
+        """These roadways with every lane that touches one of ``boxes`` (x_min, x_max,
+        y_min, y_max; m) closed: its ``closures`` are the boxes, legs and routes avoid them
+        or are None where no lane is left. Views are cached per set of boxes."""
+        key = tuple(tuple(float(v) for v in box) for box in boxes)
+        if not key:
+            return self
+        view = self._closed_views.get(key)
+        if view is None:
+            view = copy.copy(self)
+            view.graph = self.graph.copy()
+            view.graph.remove_edges_from([
+                (a, b) for a, b in self.graph.edges
+                if any(segment_crosses_box(self.node_position(a), self.node_position(b), box)
+                       for box in key)])
+            view.closures, view._legs, view._closed_views = key, {}, {}
+            self._closed_views[key] = view
+        return view
+
+    def crosses_closure(self, points) -> bool:
+        """Whether the polyline ``points`` (k, 2) touches one of the ``closures``."""
+        return any(segment_crosses_box(a, b, box) for box in self.closures
+                   for a, b in zip(points[:-1], points[1:], strict=True))
+
     # --- Legs --------------------------------------------------------------------------------
 
-    def leg(self, from_location: int, to_location: int) -> np.ndarray:
+    def leg(self, from_location: int, to_location: int) -> np.ndarray | None:
         """The polyline (k, 2) from ``from_location``'s point out of the room to the tail slot
-        of ``to_location``'s queue, shortest along the lanes. The locations must differ."""
+        of ``to_location``'s queue, shortest along the lanes (None if closed lanes leave no
+        way). The locations must differ."""
         key = (from_location, to_location)
         if key not in self._legs:
             if from_location == to_location:
                 raise ValueError(f"a leg joins two different locations, got {from_location} twice")
             start = self.place(from_location)
-            out = [start.point, *start.entry[::-1]]
-            self._legs[key] = _without_repeats(
-                out + list(self.route_from_node(start.exit_node, to_location))
-            )
+            route = self.route_from_node(start.exit_node, to_location)
+            self._legs[key] = None if route is None else _without_repeats(
+                [start.point, *start.entry[::-1], *route])
         return self._legs[key]
 
     def leg_length(self, from_location: int, to_location: int) -> float:
@@ -193,18 +239,19 @@ class Roadways:
             return None
         return _without_repeats([self.node_position(n) for n in names] + [target.tail])
 
-    def route_from_point(self, xy, to_location: int) -> np.ndarray:
+    def route_from_point(self, xy, to_location: int) -> np.ndarray | None:
         """The polyline (k, 2) from the roadway node nearest ``xy`` that leads to
-        ``to_location`` (for a robot that is not at a location, e.g. at the start)."""
+        ``to_location`` (for a robot that is not at a location, e.g. at the start), skipping
+        nodes the straight line from ``xy`` to which touches a closure; None if none does."""
         xy = np.asarray(xy, dtype=float)
         by_distance = sorted(
             self.graph.nodes, key=lambda n: float(np.linalg.norm(self.node_position(n) - xy))
         )
         for node in by_distance:
             route = self.route_from_node(node, to_location)
-            if route is not None:
+            if route is not None and not self.crosses_closure([xy, self.node_position(node)]):
                 return route
-        raise ValueError(f"no roadway node leads to location {to_location}")
+        return None
 
     def travel_time_estimate(self, speed: float) -> np.ndarray:
         """Integer travel times (s) between all locations at a nominal ``speed`` (m/s):

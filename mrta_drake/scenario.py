@@ -21,6 +21,7 @@ import math
 import os
 from collections.abc import Mapping
 
+from mrta_drake.disturbances import check_blockages_inside, check_disturbances
 from mrta_drake.errors import InputError
 from mrta_drake.scenario_schema import (
     LocationConfig,
@@ -76,7 +77,9 @@ def load_scenario(path: str, *, check_world: bool = True,
     if check_world:
         from mrta_drake.world import check_robot_starts, load_floor_plan_of
 
-        check_robot_starts(scenario, load_floor_plan_of(scenario))
+        floor_plan = load_floor_plan_of(scenario)
+        check_robot_starts(scenario, floor_plan)
+        check_blockages_inside(scenario.disturbances, floor_plan.bounds, scenario.source)
     return scenario
 
 
@@ -243,6 +246,7 @@ def check_scenario(scenario: Scenario, file: str) -> None:
     if scenario.world.kind not in ("floor_plan", "ros_map"):
         raise InputError(path, "world.kind",
                          f"must be floor_plan or ros_map, got {scenario.world.kind!r}")
+    check_disturbances(scenario.disturbances, [r.name for r in scenario.robots], path)
 
 
 def _check_point(point, file, field) -> None:

@@ -171,6 +171,52 @@ class HumansConfig:
 
 
 @dataclass(frozen=True)
+class BlockageConfig:
+    """A region closed to robots from ``start`` to ``end`` s (no ``end``: to the end of the
+    run). ``box`` [x_min, x_max, y_min, y_max] (m, inside the floor plan) is lethal in the
+    planner's costmap, roadway lanes crossing it are closed (robots driving through it are
+    re-routed), and the controllers' wall rays see it. People are not affected."""
+
+    name: str = ""
+    box: list[float] = field(default_factory=list)
+    start: float = 0.0
+    end: float | None = None
+
+
+@dataclass(frozen=True)
+class BreakdownConfig:
+    """``robot`` breaks down at ``start`` s: it brakes to a stop where it is (an obstacle the
+    others' paths go around), gives up its rooms and drops out of the fleet; the items it
+    carries are lost (their tasks fail) and its other tasks go to the others. With ``end``
+    (s) it is repaired then and rejoins the fleet."""
+
+    robot: str = ""
+    start: float = 0.0
+    end: float | None = None
+
+
+@dataclass(frozen=True)
+class OutageConfig:
+    """``robot``'s cluster messages are lost from ``start`` to ``end`` s (no ``end``: to the
+    end of the run): the others' controllers see its state as last broadcast at
+    ``start``; it brakes and stands, solving its own QP alone against their states as they
+    were then, until the messages return."""
+
+    robot: str = ""
+    start: float = 0.0
+    end: float | None = None
+
+
+@dataclass(frozen=True)
+class DisturbancesConfig:
+    """Scheduled disturbances (see ``mrta_drake/disturbances.py``); none by default."""
+
+    blockages: list[BlockageConfig] = field(default_factory=list)
+    breakdowns: list[BreakdownConfig] = field(default_factory=list)
+    outages: list[OutageConfig] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
 class BlockConfig:
     """Which implementation of a block to use (``kind``) and its parameters (``params``,
     checked against that implementation's own parameter dataclass)."""
@@ -218,6 +264,7 @@ class Scenario:
     tasks: TasksConfig = field(default_factory=TasksConfig)
     blocks: BlocksConfig = field(default_factory=BlocksConfig)
     rates: RatesConfig = field(default_factory=RatesConfig)
+    disturbances: DisturbancesConfig = field(default_factory=DisturbancesConfig)
     seed: int = 0
     duration: float = 60.0
     source: str = ""

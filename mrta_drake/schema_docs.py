@@ -28,6 +28,10 @@ SECTIONS = [
     (schema.BlocksConfig, "blocks."),
     (schema.BlockConfig, "blocks.<slot>."),
     (schema.RatesConfig, "rates."),
+    (schema.DisturbancesConfig, "disturbances."),
+    (schema.BlockageConfig, "disturbances.blockages[]."),
+    (schema.BreakdownConfig, "disturbances.breakdowns[]."),
+    (schema.OutageConfig, "disturbances.outages[]."),
 ]
 
 

@@ -28,6 +28,14 @@ clearances), times in s of simulation time unless named ``wall``/``cpu``. The ke
 - ``physics_contacts``: with the physics robots block, the plant's contacts
   (``ContactRecorder.summary``: count, pairs of bodies by name, impulse, largest force and
   penetration); None with the kinematic one.
+- ``disturbances``: one entry per scheduled disturbance (blockages, then breakdowns, then
+  outages, each in scenario order) with its ``kind``, ``start`` and ``end`` (None: open
+  ended): a blockage's ``name``, ``box``, ``robots_rerouted`` (given a new route around or
+  back through it), ``robots_waited`` (found no lane left) and ``detours`` (route changes
+  it caused); a breakdown's ``robot``, ``removed_at`` (when the allocator took it out of the
+  fleet, None if it never did), ``tasks_reassigned`` and ``tasks_failed`` (items lost with
+  it); an outage's ``robot`` and ``min_robot_clearance`` (to any other robot while cut off,
+  m; None without samples).
 """
 
 import dataclasses
@@ -97,6 +105,7 @@ def summarize(stack, duration: float, wall_time: float, cpu_time: float) -> dict
                                      if e["type"] == "planner_failure"), default=0)),
         "controller_failures": int(sum(t.failures for t in telemetry)),
         "physics_contacts": stack.contacts.summary() if stack.contacts is not None else None,
+        "disturbances": _disturbances(scenario.disturbances, names, times, xy, radii, events),
     }
 
 
@@ -178,6 +187,38 @@ def _allocations(events: list[dict]) -> dict:
         "conflicts": sorted({t for e in events for t in e.get("conflict", ())}),
         "solve_time": float(sum(e.get("solve_time", 0.0) for e in events)),
     }
+
+
+def _disturbances(config, names, times, xy, radii, events) -> list[dict]:
+    detours = [e for e in events if e["type"] == "detour"]
+    allocations = [e["event"] for e in events if e["type"] == "allocation"]
+    result = []
+    for blockage in config.blockages:
+        caused = [e for e in detours if blockage.name in e["blockages"]]
+        result.append({
+            "kind": "blockage", "name": blockage.name, "box": list(blockage.box),
+            "start": blockage.start, "end": blockage.end,
+            "robots_rerouted": sorted({e["robot"] for e in caused if e["found"]}),
+            "robots_waited": sorted({e["robot"] for e in caused if not e["found"]}),
+            "detours": len(caused)})
+    for breakdown in config.breakdowns:
+        removal = next((a for a in allocations if breakdown.robot in a.get("removed", ())
+                        and a["time"] >= breakdown.start), None)
+        result.append({
+            "kind": "breakdown", "robot": breakdown.robot, "start": breakdown.start,
+            "end": breakdown.end, "removed_at": removal and removal["time"],
+            "tasks_reassigned": list(removal["reassigned"]) if removal else [],
+            "tasks_failed": list(removal["lost_tasks"]) if removal else []})
+    for outage in config.outages:
+        k = names.index(outage.robot)
+        during = (times >= outage.start) & (times < (np.inf if outage.end is None
+                                                     else outage.end))
+        gaps = (np.linalg.norm(xy[during] - xy[during, k:k + 1], axis=-1)
+                - radii[k] - radii)[:, np.arange(len(names)) != k]
+        result.append({
+            "kind": "outage", "robot": outage.robot, "start": outage.start, "end": outage.end,
+            "min_robot_clearance": float(gaps.min()) if gaps.size else None})
+    return result
 
 
 def _deadlocks(names, times, xy, modes, humans, human_names) -> dict:

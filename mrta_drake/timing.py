@@ -18,6 +18,7 @@ from mrta_drake.payloads import DROPOFF, PICKUP
 ON_TIME = "on_time"  # dropped off by the deadline
 LATE = "late"  # dropped off after the deadline
 CARRYING = "carrying"  # picked up, not yet dropped off
+FAILED = "failed"  # its item was lost with a robot that broke down
 ASSIGNED = "assigned"  # in some robot's plan, not yet picked up
 UNASSIGNED = "unassigned"  # released but never planned
 NOT_RELEASED = "not_released"  # its batch arrives after the end of the run
@@ -30,12 +31,15 @@ def task_rows(stream, events, end_time: float) -> list[dict]:
     ``predicted_pickup``/``actual_pickup`` and ``predicted_dropoff``/``actual_dropoff``
     (completion times), ``status``, ``deadline_met`` (None while undecided at
     ``end_time``) and ``lateness`` (drop-off minus deadline; negative = early; None if not
-    dropped off). Unknown times are None."""
-    done, done_by = {}, {}
+    dropped off). Unknown times are None. A task whose item an allocation event reports
+    lost (``lost_tasks``, a robot broke down carrying it) has failed."""
+    done, done_by, lost = {}, {}, set()
     for event in events:
         if event["type"] == "arrival" and event.get("task") is not None:
             done[event["task"], event["action"]] = event["at"]
             done_by[event["task"], event["action"]] = event["robot"]
+        elif event["type"] == "allocation":
+            lost.update(event["event"].get("lost_tasks", ()))
     predicted, planned_robot, assigned_at = {}, {}, {}
     for event in events:
         if event["type"] != "plan":
@@ -61,9 +65,10 @@ def task_rows(stream, events, end_time: float) -> list[dict]:
             status = ON_TIME if lateness <= 0 else LATE
             met = lateness <= 0
         else:
-            status = (NOT_RELEASED if arrival > end_time else CARRYING if picked is not None
+            status = (NOT_RELEASED if arrival > end_time else FAILED if task_id in lost
+                      else CARRYING if picked is not None
                       else ASSIGNED if task_id in assigned_at else UNASSIGNED)
-            met = False if end_time > task.deadline else None
+            met = False if end_time > task.deadline or status == FAILED else None
         rows.append({
             "id": task_id, "arrival": arrival, "pickup": task.pickup, "dropoff": task.dropoff,
             "deadline": task.deadline,
@@ -80,7 +85,8 @@ def task_rows(stream, events, end_time: float) -> list[dict]:
 def task_totals(rows: list[dict]) -> dict:
     """Counts over ``task_rows``: ``total``, ``released``, ``assigned`` (ever planned),
     ``completed``, ``on_time``, ``late`` (completed late), ``missed`` (deadline not met,
-    done or not), ``completed_ids``; over completed tasks ``mean_lateness``,
+    done or not), ``failed`` (items lost), ``completed_ids``; over completed tasks
+    ``mean_lateness``,
     ``max_lateness`` and ``total_tardiness`` (sum of positive lateness), s (None if none)."""
     done = [r for r in rows if r["actual_dropoff"] is not None]
     lateness = [r["lateness"] for r in done]
@@ -92,6 +98,7 @@ def task_totals(rows: list[dict]) -> dict:
         "on_time": sum(r["status"] == ON_TIME for r in rows),
         "late": sum(r["status"] == LATE for r in rows),
         "missed": sum(r["deadline_met"] is False for r in rows),
+        "failed": sum(r["status"] == FAILED for r in rows),
         "completed_ids": [r["id"] for r in done],
         "mean_lateness": sum(lateness) / len(lateness) if lateness else None,
         "max_lateness": max(lateness, default=None),

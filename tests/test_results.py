@@ -114,7 +114,8 @@ def test_task_totals_count_and_average_over_completed_tasks():
     totals = task_totals(task_rows(STREAM, EVENTS, end_time=300.0))
     assert totals == {
         "total": 4, "released": 3, "assigned": 3, "completed": 2, "on_time": 1, "late": 1,
-        "missed": 2, "completed_ids": [0, 1], "mean_lateness": -10.0, "max_lateness": 5.0,
+        "missed": 2, "failed": 0, "completed_ids": [0, 1], "mean_lateness": -10.0,
+        "max_lateness": 5.0,
         "total_tardiness": 5.0,
     }
 

@@ -5,11 +5,18 @@ from pydrake.systems.framework import LeafSystem
 
 from mrta_drake.control.cbf_qp import CbfParams, WallRays, barrier_minima
 from mrta_drake.control.nominal import nominal_control
-from mrta_drake.payloads import ROBOT_STATE_SIZE, ControllerTelemetry, FleetPaths, HumanStates
+from mrta_drake.payloads import (
+    ROBOT_STATE_SIZE,
+    ControllerTelemetry,
+    Disturbances,
+    FleetPaths,
+    HumanStates,
+)
 from mrta_drake.systems.cluster_cbf_controller import (
     controller_update,
     declare_controller_ports,
     input_bounds,
+    rays_with_blockages,
     robot_paths_of,
 )
 
@@ -25,6 +32,8 @@ class GoToGoalController(LeafSystem):
     Input ``robot_state`` (4N): [x, y, theta, v] per robot, world frame, m, rad, m/s.
     Input ``paths`` (FleetPaths): one path per robot, in robot order.
     Input ``humans`` (HumanStates): optional; only measured, for the telemetry.
+    Input ``disturbances`` (Disturbances): optional; broken-down robots get [0, 0], blockages
+    are measured as walls.
     Output ``commands`` (2N): [v, omega] per robot, m/s and rad/s (as ClusterCbfController's).
     Output ``telemetry`` (ControllerTelemetry): barrier values of the last tick; no clusters,
     no slack, no solver.
@@ -46,9 +55,11 @@ class GoToGoalController(LeafSystem):
         return self._params
 
     def control(self, time: float, states, paths: FleetPaths,
-                humans: HumanStates | None = None) -> tuple[np.ndarray, ControllerTelemetry]:
+                humans: HumanStates | None = None, disturbances: Disturbances | None = None
+                ) -> tuple[np.ndarray, ControllerTelemetry]:
         """One tick without the systems framework: inputs ``[a, omega]`` (N, 2) for robots in
-        ``states`` (N, 4), and the tick's telemetry (``humans`` None: no humans)."""
+        ``states`` (N, 4), and the tick's telemetry (``humans``, ``disturbances`` None:
+        none)."""
         humans = humans or HumanStates()
         p = self._params
         states = np.asarray(states, dtype=float).reshape(self._n, ROBOT_STATE_SIZE)
@@ -57,6 +68,8 @@ class GoToGoalController(LeafSystem):
         lower, upper = input_bounds(states, p, self._dt)
         u = np.clip(u.reshape(self._n, 2), lower, upper)
         hits, mask = self._rays(states)
+        if disturbances is not None and disturbances.blockages:
+            hits, mask = rays_with_blockages(states, hits, mask, disturbances.blockages, p)
         wall, human, robot = barrier_minima(states, hits, mask, humans.positions, p)
         return u, ControllerTelemetry(time=float(time), min_barrier_wall=wall,
                                       min_barrier_human=human, min_barrier_robot=robot)

@@ -7,19 +7,25 @@ import numpy as np
 from pydrake.common.value import Value
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
-from mrta_drake.costmap import Costmap, CostmapParams
+from mrta_drake.costmap import MAX_NON_OBSTACLE, Costmap, CostmapParams
+from mrta_drake.disturbances import blockage_obstacles
 from mrta_drake.grid_planner import GridPlanner, PlannerParams
-from mrta_drake.obstacles import Obstacles
+from mrta_drake.obstacles import Cylinder, Obstacles
 from mrta_drake.payloads import (
+    NO_DISTURBANCES,
     PATH_FAILED,
     PATH_IDLE,
     PATH_OK,
     ROBOT_STATE_SIZE,
+    Disturbances,
     FleetPaths,
     RobotPath,
     WaypointTarget,
     frozen_array,
 )
+
+STOPPED_SPEED = 0.05  # m/s: a broken-down robot slower than this has come to rest
+_COSTMAP_CACHE = 16  # costmaps with closures kept for reuse
 
 
 @dataclass(frozen=True)
@@ -35,11 +41,13 @@ class PlannerServiceParams:
 @dataclass(frozen=True)
 class _ServiceState:
     """The block's abstract state: the paths it outputs, the targets they were planned
-    for, and the time (s) of the next periodic re-plan."""
+    for, the time (s) of the next periodic re-plan, and what they were planned around
+    (``PlannerService._closures``)."""
 
     paths: FleetPaths
     targets: tuple[WaypointTarget | None, ...]
     next_replan: float
+    closed: tuple = ()
 
     def __deepcopy__(self, memo):
         # Everything in here is immutable, so Drake's per-update copy can share it.
@@ -61,6 +69,15 @@ class PlannerService(LeafSystem):
     next periodic re-plan); if only the leg on to ``next`` fails the path ends at
     ``current``. Each failed leg adds one to ``FleetPaths.failures``. A path ends with a stop
     (``stop_at_end``) at ``next``, or at ``current`` when the target says so.
+
+    Optional input ``disturbances`` (abstract ``Disturbances``): while blockages are in force
+    their boxes are obstacles of the costmap (``Costmap.with_obstacles``, recomputed around
+    them only). A broken-down robot at rest (slower than ``STOPPED_SPEED``) makes the cells
+    within the costmap's robot radius plus inflation radius of it (its position rounded to
+    the costmap's cells) cost ``MAX_NON_OBSTACLE``: paths go around it where there is room
+    rather than queue behind it, and still reach a place it stands on or next to (the
+    controller keeps the distance). When these change, every robot is re-planned at the
+    next check tick. A robot caught inside a blockage has no path (failed) until it opens.
     """
 
     def __init__(self, planner: GridPlanner, robots: Sequence[str], replan_rate: float = 2.0,
@@ -69,6 +86,8 @@ class PlannerService(LeafSystem):
         if replan_rate <= 0.0 or target_check_rate <= 0.0:
             raise ValueError("replan_rate and target_check_rate must be positive")
         self._planner = planner
+        self._open_costmap = planner.costmap
+        self._costmaps = {(): planner.costmap}  # by closures (``_closures``)
         self._robots = tuple(robots)
         self._replan_period = 1.0 / replan_rate
         n = len(self._robots)
@@ -81,6 +100,8 @@ class PlannerService(LeafSystem):
             self.DeclareAbstractInputPort(f"target_{robot}", Value[object](WaypointTarget(robot)))
             for robot in self._robots
         ]
+        self._disturbances = self.DeclareAbstractInputPort(
+            "disturbances", Value[object](Disturbances()))
         self.DeclareAbstractOutputPort(
             "paths",
             lambda: Value[object](initial.paths),
@@ -118,11 +139,15 @@ class PlannerService(LeafSystem):
         old = context.get_abstract_state(self._state_index).get_value()
         now = context.get_time()
         targets = tuple(port.Eval(context) for port in self._targets)
-        replan_all = now >= old.next_replan - 1e-9
+        disturbances = (self._disturbances.Eval(context) if self._disturbances.HasValue(context)
+                        else NO_DISTURBANCES)
+        closed = self._closures(context, disturbances)
+        replan_all = now >= old.next_replan - 1e-9 or closed != old.closed
         due = [k for k in range(len(self._robots))
                if replan_all or targets[k] != old.targets[k]]
         if not due:
             return EventStatus.DidNothing()
+        self._close(disturbances.blockages, closed)
         robot_state = self._robot_state.Eval(context)
         paths = list(old.paths.paths)
         failures = old.paths.failures
@@ -131,12 +156,43 @@ class PlannerService(LeafSystem):
             paths[k], failed = self._plan(self._robots[k], xy, targets[k], now)
             failures += failed
         next_replan = old.next_replan
-        if replan_all:
+        if now >= old.next_replan - 1e-9:
             # Keep the period's phase, but never fall behind the clock.
             next_replan = max(next_replan + self._replan_period, now + 0.5 * self._replan_period)
         state.get_mutable_abstract_state(self._state_index).set_value(
-            _ServiceState(FleetPaths(tuple(paths), failures), targets, next_replan))
+            _ServiceState(FleetPaths(tuple(paths), failures), targets, next_replan, closed))
         return EventStatus.Succeeded()
+
+    def _closures(self, context, disturbances: Disturbances) -> tuple:
+        """What closes cells now: the blockages' names and (index, x, y) of each broken-down
+        robot at rest, its position rounded to the costmap's cells (m); () for nothing."""
+        if not disturbances.blockages and not disturbances.breakdowns:
+            return ()
+        states = self._robot_state.Eval(context).reshape(-1, ROBOT_STATE_SIZE)
+        res = self._open_costmap.resolution
+        resting = tuple((k, round(states[k, 0] / res) * res, round(states[k, 1] / res) * res)
+                        for k in disturbances.broken if abs(states[k, 3]) < STOPPED_SPEED)
+        return tuple(b.name for b in disturbances.blockages), resting
+
+    def _close(self, blockages, closed: tuple) -> None:
+        """Make the planner's costmap the open one with the ``closed`` cells (``_closures``,
+        of ``blockages``) added. Costmaps are cached by closures and the planner switched to
+        the state's before every use, so results never depend on what was planned before."""
+        costmap = self._costmaps.get(closed)
+        if costmap is None:
+            costmap = self._open_costmap
+            if blockages:
+                costmap = costmap.with_obstacles(blockage_obstacles(blockages))
+            if closed[1]:
+                reach = costmap.params.robot_radius + costmap.params.inflation_radius
+                costmap = costmap.with_obstacles(Obstacles(cylinders=tuple(
+                    Cylinder(f"broken_{k}", (x, y), reach) for k, x, y in closed[1])),
+                    MAX_NON_OBSTACLE)
+            if len(self._costmaps) > _COSTMAP_CACHE:
+                self._costmaps = {(): self._open_costmap}
+            self._costmaps[closed] = costmap
+        if self._planner.costmap is not costmap:
+            self._planner.use_costmap(costmap)
 
     def _plan(self, robot: str, xy: np.ndarray, target: WaypointTarget, now: float
               ) -> tuple[RobotPath, int]:

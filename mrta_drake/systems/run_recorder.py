@@ -14,6 +14,7 @@ from mrta_drake.payloads import (
     PATH_FAILED,
     ROBOT_STATE_SIZE,
     ControllerTelemetry,
+    Disturbances,
     FleetPaths,
     FleetPlan,
     HumanStates,
@@ -49,6 +50,11 @@ class RunRecorder(LeafSystem):
     - ``planner_failure``: the planner failed for ``robots`` (``total`` so far).
     - ``controller_failure``: the controller braked ``failures`` robots at its last tick.
     - ``allocation``: an event from the allocator's ``events`` output, as ``event``.
+    - ``disturbance``: a scheduled disturbance started or ended (``phase`` ``start`` or
+      ``end``) at ``at`` (s): ``kind`` ``blockage`` (with ``name`` and ``box``),
+      ``breakdown`` or ``outage`` (with ``robot``).
+    - ``detour``: blockages (``blockages``, names) changed a robot's route at ``at`` (s);
+      ``found`` False: no lane was left, it waits.
 
     With ``out_dir`` it appends every sample to ``timeline.csv`` and every event to
     ``events.jsonl`` as they happen, flushed, so a crash loses nothing.
@@ -60,7 +66,7 @@ class RunRecorder(LeafSystem):
     Inputs: ``robot_state`` (4N), ``telemetry``, ``paths``, ``queue_state``, ``plan``,
     ``progress_<robot>`` and ``target_<robot>`` per robot; optional (may stay unconnected):
     ``human_states``, ``human_active`` (M, 1 = present), ``allocator_events`` (a sequence
-    of event objects; new ones are noted).
+    of event objects; new ones are noted), ``disturbances``.
     """
 
     def __init__(self, robot_names, humans=(), rate_hz: float = 10.0,
@@ -85,6 +91,7 @@ class RunRecorder(LeafSystem):
         self.DeclareAbstractInputPort("human_states", _value(HumanStates()))
         self.DeclareVectorInputPort("human_active", len(self.human_names))
         self.DeclareAbstractInputPort("allocator_events", _value(()))
+        self.DeclareAbstractInputPort("disturbances", _value(Disturbances()))
         self.DeclarePeriodicPublishEvent(1.0 / rate_hz, 0.0, self._sample)
         self.DeclareForcedPublishEvent(self._sample)
         self.clear()
@@ -98,6 +105,8 @@ class RunRecorder(LeafSystem):
         self.telemetry: list[ControllerTelemetry] = []
         self.events: list[dict] = []
         self._seen_visits = [0] * self._n
+        self._seen_detours = [0] * self._n
+        self._disturbances: dict[tuple, dict] = {}
         self._current_keys: list[str | None] = [None] * self._n
         self._last_revision = None
         self._last_rooms: dict[int, tuple] = {}
@@ -154,6 +163,7 @@ class RunRecorder(LeafSystem):
         self._note_rooms(queues, t)
         self._note_failures(context, t, telemetry)
         self._note_allocator_events(context, t)
+        self._note_disturbances(context, t)
 
     def _modes(self, context, states: np.ndarray, queues: QueueState) -> np.ndarray:
         waiting = {robot for queue in queues.rooms for robot in queue.waiting}
@@ -194,6 +204,10 @@ class RunRecorder(LeafSystem):
                              "task": visit.task, "action": visit.action})
                 began = visit.time
             self._seen_visits[k] = len(progress.visits)
+            for detour in progress.detours[self._seen_detours[k]:]:
+                self._event({"time": t, "type": "detour", "robot": name, "at": detour.time,
+                             "blockages": list(detour.blockages), "found": detour.found})
+            self._seen_detours[k] = len(progress.detours)
             stop = progress.current_stop
             key = None if stop is None else stop.key
             if key is not None and key != self._current_keys[k]:
@@ -235,6 +249,27 @@ class RunRecorder(LeafSystem):
             self._event({"time": t, "type": "allocation", "event": _as_dict(event)})
         self._allocator_events = events
 
+    def _note_disturbances(self, context, t: float) -> None:
+        port = self.GetInputPort("disturbances")
+        if not port.HasValue(context):
+            return
+        active = port.Eval(context)
+        now = {("blockage", b.name): {"kind": "blockage", "name": b.name, "box": list(b.box),
+                                      "start": b.start, "end": b.end}
+               for b in active.blockages}
+        for kind, entries in (("breakdown", active.breakdowns), ("outage", active.outages)):
+            now |= {(kind, e.robot): {"kind": kind, "robot": self.robot_names[e.robot],
+                                      "start": e.start, "end": e.end} for e in entries}
+        for key, entry in self._disturbances.items():
+            if key not in now:
+                self._event({"time": t, "type": "disturbance", "phase": "end",
+                             "at": entry["end"]} | _without(entry, "start", "end"))
+        for key, entry in now.items():
+            if key not in self._disturbances:
+                self._event({"time": t, "type": "disturbance", "phase": "start",
+                             "at": entry["start"]} | _without(entry, "start", "end"))
+        self._disturbances = now
+
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """times (T,), robot states (T, N, 4), human positions (T, M, 2)."""
         times = np.array(self.times)
@@ -251,6 +286,10 @@ class RunRecorder(LeafSystem):
 
 def _value(example):
     return Value[object](example)
+
+
+def _without(entry: dict, *keys) -> dict:
+    return {k: v for k, v in entry.items() if k not in keys}
 
 
 def _as_dict(event) -> dict:

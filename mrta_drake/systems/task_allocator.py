@@ -2,10 +2,12 @@
 
 When a batch of tasks arrives it freezes what each robot has done and the leg it is driving
 (from the ``progress_<robot>`` inputs, with measured times), hands everything else to the
-configured allocator, and outputs the new ``FleetPlan``. State changes only in its periodic
+configured allocator, and outputs the new ``FleetPlan``. A robot breaking down (or being
+repaired) is a reason to allocate again too. State changes only in its periodic
 unrestricted update.
 """
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -14,6 +16,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
 from mrta_drake.allocation.problem import (
+    UNKNOWN,
     Action,
     Allocation,
     AllocationProblem,
@@ -24,7 +27,16 @@ from mrta_drake.allocation.problem import (
     stream_tasks,
 )
 from mrta_drake.errors import InputError
-from mrta_drake.payloads import DROPOFF, PICKUP, FleetPlan, RobotPlan, RobotProgress, Stop
+from mrta_drake.payloads import (
+    DROPOFF,
+    NO_DISTURBANCES,
+    PICKUP,
+    Disturbances,
+    FleetPlan,
+    RobotPlan,
+    RobotProgress,
+    Stop,
+)
 
 
 @dataclass(frozen=True)
@@ -38,6 +50,11 @@ class AllocationEvent:
     set of tasks proven unable to all be on time (empty unless proven). ``status`` is the
     allocation's (``feasible``, ``infeasible`` or ``unknown``). ``solve_time`` is wall-clock
     seconds, the one field that differs between identical runs.
+
+    Breakdowns: ``removed`` robots broke down since the last allocation and are out of the
+    fleet (``returned`` ones were repaired and are back); ``lost_tasks`` are the tasks whose
+    items the removed robots carried (they fail); ``reassigned`` the tasks the removed robots
+    had planned that are now in other robots' routes.
     """
 
     time: float
@@ -49,16 +66,23 @@ class AllocationEvent:
     conflict: tuple[int, ...] = ()
     solve_time: float = 0.0
     note: str = ""
+    removed: tuple[str, ...] = ()
+    returned: tuple[str, ...] = ()
+    lost_tasks: tuple[int, ...] = ()
+    reassigned: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)
 class _State:
-    """The TaskAllocator's abstract state. Immutable, so copies share it (Drake copies the
-    state every update)."""
+    """The TaskAllocator's abstract state: also the robots out of service (broken down) at
+    the last allocation, and the tasks whose items were lost. Immutable, so copies share it
+    (Drake copies the state every update)."""
 
     next_batch: int
     plan: FleetPlan
     events: tuple[AllocationEvent, ...] = ()
+    out: tuple[int, ...] = ()
+    lost: tuple[int, ...] = ()
 
     def __deepcopy__(self, memo):
         return self
@@ -68,8 +92,15 @@ class TaskAllocator(LeafSystem):
     """Allocates a stream of task batches to a fleet as the batches arrive.
 
     Input ports ``progress_<robot>`` (one per robot, ``RobotProgress``; an unconnected one
-    means the robot has done nothing yet). Output ports ``plan`` (``FleetPlan``) and
-    ``events`` (a tuple of ``AllocationEvent``, oldest first).
+    means the robot has done nothing yet) and, optional, ``disturbances``
+    (``Disturbances``). Output ports ``plan`` (``FleetPlan``) and ``events`` (a tuple of
+    ``AllocationEvent``, oldest first).
+
+    Breakdowns: at the first check after a robot breaks down it leaves the fleet: its plan
+    is emptied, the items it carries are lost (their tasks are never allocated again) and
+    everything else still open is allocated to the robots in service. A repaired robot
+    rejoins at the first check after, planned from the location it last completed. With no
+    robot in service nothing is allocated.
 
     Args:
         stream: the task batches (``scenario_schema.TaskBatch`` or alike: ``arrival`` s,
@@ -141,6 +172,8 @@ class TaskAllocator(LeafSystem):
             lambda context, output: output.set_value(self._state(context).events),
             prerequisites_of_calc=ticket,
         )
+        self._disturbances = self.DeclareAbstractInputPort(
+            "disturbances", AbstractValue.Make(Disturbances()))
         self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate, 0.0, self._update)
 
     def get_progress_input_port(self, robot: int):
@@ -152,25 +185,48 @@ class TaskAllocator(LeafSystem):
     def _update(self, context, state):
         current = self._state(context)
         now = context.get_time()
+        out = (self._disturbances.Eval(context) if self._disturbances.HasValue(context)
+               else NO_DISTURBANCES).broken
         arrived = current.next_batch
         while arrived < len(self._arrivals) and self._arrivals[arrived] <= now:
             arrived += 1
-        if arrived == current.next_batch:
+        if arrived == current.next_batch and out == current.out:
             return
         released = [task for batch in self._batches[:arrived] for task in batch]
         progress = [self._progress(context, r) for r in range(len(self._fleet))]
-        problem, committed = self._problem(now, released, progress, current.plan)
-        allocation = self._allocator.allocate(problem)
+        removed = [r for r in out if r not in current.out]
+        done = {visit.key for robot in progress for visit in robot.visits}
+        by_id = {task.id: task for task in released if task.id not in current.lost}
+        newly_lost = tuple(sorted(
+            task for r in removed
+            for task in self._status(self._fleet[r], progress[r], done, by_id)[0].carrying))
+        lost = current.lost + newly_lost
+        problem, committed = self._problem(now, released, progress, current.plan, out, lost)
+        in_service = [r for r in range(len(self._fleet)) if r not in out]
+        if in_service:
+            allocation = self._allocator.allocate(problem)
+        else:
+            allocation = Allocation((), (), UNKNOWN, note="no robot in service")
+        routes = dict(zip(in_service, range(len(in_service)), strict=True))
         plan = FleetPlan(
             plans=tuple(
-                RobotPlan(robot=robot.name, stops=committed[r] + _stops(problem, allocation, r))
+                RobotPlan(robot=robot.name, stops=committed[r] + (
+                    _stops(problem, allocation, routes[r]) if r in routes else ()))
                 for r, robot in enumerate(self._fleet)
             ),
             revision=current.plan.revision + 1,
         )
+        orphans = {stop.task for r in removed for stop in current.plan.plans[r].stops
+                   if stop.task is not None and stop.task not in lost}
         event = _event(now, range(current.next_batch, arrived), problem, allocation)
+        event = dataclasses.replace(
+            event, removed=tuple(self._fleet[r].name for r in removed),
+            returned=tuple(self._fleet[r].name for r in current.out if r not in out),
+            lost_tasks=newly_lost,
+            reassigned=tuple(sorted(orphans & {stop.task for p in plan.plans for stop in p.stops})))
         state.get_mutable_abstract_state(self._state_index).set_value(
-            _State(next_batch=arrived, plan=plan, events=(*current.events, event))
+            _State(next_batch=arrived, plan=plan, events=(*current.events, event), out=out,
+                   lost=lost)
         )
 
     def _progress(self, context, r: int) -> RobotProgress:
@@ -179,12 +235,16 @@ class TaskAllocator(LeafSystem):
             return RobotProgress(robot=self._fleet[r].name)
         return port.Eval(context)
 
-    def _problem(self, now, released, progress, previous: FleetPlan):
-        """The problem to solve at ``now``, and each robot's committed stop (as a tuple)."""
-        by_id = {task.id: task for task in released}
+    def _problem(self, now, released, progress, previous: FleetPlan, out=(), lost=()):
+        """The problem to solve at ``now`` for the robots not ``out`` of service, without
+        the ``lost`` tasks, and each robot's committed stop (as a tuple; none when out)."""
+        by_id = {task.id: task for task in released if task.id not in lost}
         done = {visit.key for robot in progress for visit in robot.visits}
         robots, committed, finishing = [], [], set()
         for r, (robot, report) in enumerate(zip(self._fleet, progress, strict=True)):
+            if r in out:
+                committed.append(())
+                continue
             status, current = self._status(robot, report, done, by_id)
             planned = tuple(
                 Action(stop.task, stop.action)
@@ -203,7 +263,7 @@ class TaskAllocator(LeafSystem):
                 if current.action == DROPOFF:
                     finishing.add(current.task)
         open_tasks = tuple(
-            task for task in released
+            task for task in by_id.values()
             if f"t{task.id}/{DROPOFF}" not in done and task.id not in finishing
         )
         problem = AllocationProblem(self._travel, tuple(robots), open_tasks,

@@ -8,7 +8,10 @@ from pydrake.common.value import Value
 from pydrake.systems.framework import BasicVector, LeafSystem
 
 from mrta_drake.payloads import (
+    NO_DISTURBANCES,
     ROBOT_STATE_SIZE,
+    Detour,
+    Disturbances,
     FleetPlan,
     QueueRequest,
     QueueState,
@@ -25,6 +28,7 @@ QUEUE = "queue"  # requesting the stop's room, waiting at a queue slot
 ENTER = "enter"  # holding the room, driving through the queue slots and entry to its point
 SERVE = "serve"  # at the point: once holding the room, stand there for the service time
 PARK = "park"  # no stop to do: wait on a free parking spot of the last location
+WAIT = "wait"  # blockages leave no lane to the stop: stand still until they change
 
 
 @dataclass(frozen=True)
@@ -43,7 +47,8 @@ class WaypointParams:
 class _Drive:
     """The generator's whole state. ``index`` is the route waypoint being driven to (drive,
     enter) or the queue slot being waited at (queue); ``since`` the time service began;
-    ``release`` the room the robot asks to release."""
+    ``release`` the room the robot asks to release; ``closed`` the blockages (names) in
+    force at the last update; ``detours`` the route changes they forced."""
 
     phase: str = IDLE
     stop: Stop | None = None
@@ -53,6 +58,8 @@ class _Drive:
     release: int | None = None
     visits: tuple[Visit, ...] = ()
     last_location: int | None = None
+    closed: tuple[str, ...] = ()
+    detours: tuple[Detour, ...] = ()
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the state can share it
@@ -64,6 +71,10 @@ def _point(xy) -> tuple[float, float]:
 
 def _points(array) -> tuple[tuple[float, float], ...]:
     return tuple(_point(xy) for xy in np.asarray(array))
+
+
+def _points_or_none(array) -> tuple[tuple[float, float], ...] | None:
+    return None if array is None else _points(array)
 
 
 def _distance(a, b) -> float:
@@ -111,6 +122,19 @@ class WaypointGenerator(LeafSystem):
     point, or, with no stop left, once it is more than ``reach_tolerance`` from the point
     (at once where there is no parking spot). It keeps naming that room in ``release``
     until the queues no longer show it as the holder.
+
+    Optional input ``disturbances`` (abstract ``Disturbances``):
+
+    - blockages close the lanes that touch their boxes (``Roadways.closed``): legs and
+      routes made while they are in force go around them. When the set of blockages
+      changes, a robot driving (or waiting, below) takes the route ahead again: it keeps
+      its route if that touches no newly closed box and none has opened, else it goes on to
+      the first roadway node ahead it can reach without touching a closed box and from which
+      lanes lead to its stop, else to the nearest such node it can reach in a straight line
+      (turning back). Each change of route is a ``Detour`` in ``progress``. With no lane
+      left to the stop the robot waits (wait, target inactive) until the blockages change.
+    - a breakdown of this robot makes it drop its stop and stand (idle): it leaves any
+      queue, gives up any room it holds and ignores the plan until it is repaired.
     """
 
     def __init__(
@@ -138,6 +162,9 @@ class WaypointGenerator(LeafSystem):
         self._queue_state = self.DeclareAbstractInputPort(
             "queue_state", Value[object](QueueState())
         )
+        self._disturbances = self.DeclareAbstractInputPort(
+            "disturbances", Value[object](Disturbances())
+        )
         state_ticket = {self.abstract_state_ticket(self._state_index)}
         for name, payload, calc in (
             ("target", WaypointTarget(robot), self._calc_target),
@@ -163,7 +190,7 @@ class WaypointGenerator(LeafSystem):
             parking = _point(self._roadways.place(s.last_location).parking[s.index])
             output.set_value(WaypointTarget(self._robot, True, parking, None, True))
             return
-        if s.stop is None:
+        if s.stop is None or s.phase == WAIT:
             output.set_value(WaypointTarget(self._robot))
             return
         place = self._roadways.place(s.stop.location)
@@ -185,7 +212,8 @@ class WaypointGenerator(LeafSystem):
 
     def _calc_progress(self, context, output):
         s = self._drive(context)
-        output.set_value(RobotProgress(self._robot, s.visits, s.last_location, s.stop))
+        output.set_value(RobotProgress(self._robot, s.visits, s.last_location, s.stop,
+                                       s.detours))
 
     # --- Update ------------------------------------------------------------------------------
 
@@ -196,10 +224,19 @@ class WaypointGenerator(LeafSystem):
         xy = _point(states[self._index])
         others = np.delete(states[:, :2], self._index, axis=0)
         queues = self._queue_state.Eval(context)
-        done = {visit.key for visit in s.visits}
-        remaining = [stop for stop in self._stops(context) if stop.key not in done]
-        s = self._follow_plan(s, remaining[0] if remaining else None, xy, others)
-        s = self._advance(s, xy, t, queues, remaining)
+        disturbances = (self._disturbances.Eval(context) if self._disturbances.HasValue(context)
+                        else NO_DISTURBANCES)
+        lanes = self._roadways.closed([b.box for b in disturbances.blockages])
+        closed = tuple(b.name for b in disturbances.blockages)
+        if closed != s.closed:
+            s = self._reroute(s, xy, lanes, closed, t)
+        if self._index in disturbances.broken:
+            s = replace(s, phase=IDLE, stop=None, route=(), index=0, since=None)
+        else:
+            done = {visit.key for visit in s.visits}
+            remaining = [stop for stop in self._stops(context) if stop.key not in done]
+            s = self._follow_plan(s, remaining[0] if remaining else None, xy, others, lanes, t)
+            s = self._advance(s, xy, t, queues, remaining, lanes)
         s = replace(s, release=self._release(s, xy, queues))
         state.get_mutable_abstract_state(self._state_index).set_value(s)
 
@@ -209,7 +246,8 @@ class WaypointGenerator(LeafSystem):
             return plans[self._index].stops
         return next((plan.stops for plan in plans if plan.robot == self._robot), ())
 
-    def _follow_plan(self, s: _Drive, stop: Stop | None, xy, others) -> _Drive:
+    def _follow_plan(self, s: _Drive, stop: Stop | None, xy, others, lanes: Roadways,
+                     t: float) -> _Drive:
         if stop is None:
             if s.phase == PARK:
                 return s
@@ -220,17 +258,54 @@ class WaypointGenerator(LeafSystem):
             return replace(s, phase=PARK, stop=None, route=(), since=None,
                            index=self._free_parking(place, others))
         if s.stop is None:
-            return self._start(s, stop, xy)
+            return self._start(s, stop, xy, lanes, t)
         if stop.location == s.stop.location:
             return replace(s, stop=stop)
         old = self._roadways.place(s.stop.location)
         if s.phase == DRIVE:
-            route = self._splice(s.route[s.index:], old.exit_node, stop.location)
+            def route(roadways):
+                return self._splice(s.route[s.index:], xy, old.exit_node, stop.location,
+                                    roadways)
+        elif s.phase == WAIT:
+            route = self._way_from(s, stop, xy)
         elif s.phase == QUEUE:
-            route = _points(self._roadways.route_from_node(old.exit_node, stop.location))
+            def route(roadways):
+                return _points_or_none(roadways.route_from_node(old.exit_node, stop.location))
         else:
-            route = _points(self._roadways.leg(old.id, stop.location))
-        return replace(s, phase=DRIVE, stop=stop, route=route, index=0, since=None)
+            def route(roadways):
+                return _points_or_none(roadways.leg(old.id, stop.location))
+        return self._drive_to(s, stop, route, lanes, t)
+
+    def _drive_to(self, s: _Drive, stop: Stop, route, lanes: Roadways, t: float) -> _Drive:
+        """Drive to ``stop`` along ``route(lanes)`` (a function of the roadways: waypoints,
+        or None where no lane leads there), or wait without one. Under blockages, a route
+        other than the open roadways' is a detour."""
+        waypoints = route(lanes)
+        if lanes.closures and waypoints != route(self._roadways):
+            s = replace(s, detours=s.detours + (Detour(t, s.closed, waypoints is not None),))
+        return replace(s, phase=DRIVE if waypoints else WAIT, stop=stop,
+                       route=waypoints or (), index=0, since=None)
+
+    def _reroute(self, s: _Drive, xy, lanes: Roadways, closed: tuple[str, ...],
+                 t: float) -> _Drive:
+        """Take the route ahead again after the blockages changed from ``s.closed`` to
+        ``closed`` (see the class docstring)."""
+        opened = set(s.closed) - set(closed)
+        changed = tuple(sorted(opened | (set(closed) - set(s.closed))))
+        s = replace(s, closed=closed)
+        if s.phase == WAIT:
+            route = self._way_from(s, s.stop, xy)(lanes)
+        elif s.phase == DRIVE:
+            ahead = s.route[s.index:]
+            if not opened and not lanes.crosses_closure((xy, *ahead)):
+                return s
+            route = self._splice(ahead, xy, None, s.stop.location, lanes)
+            if route == ahead:
+                return s
+        else:
+            return s
+        return replace(s, phase=DRIVE if route else WAIT, route=route or (), index=0,
+                       detours=s.detours + (Detour(t, changed, route is not None),))
 
     def _free_parking(self, place, others: np.ndarray) -> int:
         """Index of the first of ``place``'s parking spots with no other robot near it (the
@@ -241,13 +316,21 @@ class WaypointGenerator(LeafSystem):
                 return k
         return len(place.parking) - 1
 
-    def _start(self, s: _Drive, stop: Stop, xy) -> _Drive:
+    def _start(self, s: _Drive, stop: Stop, xy, lanes: Roadways, t: float) -> _Drive:
         """Begin ``stop`` from standing (at the start, or after finishing a stop)."""
         roadways, tolerance = self._roadways, self._params.reach_tolerance
         parked = s.phase == PARK
         if (_distance(xy, roadways.place(stop.location).point) <= tolerance
                 or (parked and s.last_location == stop.location)):
             return replace(s, phase=SERVE, stop=stop, route=(), index=0, since=None)
+        return self._drive_to(s, stop, self._way_from(s, stop, xy), lanes, t)
+
+    def _way_from(self, s: _Drive, stop: Stop, xy):
+        """How to reach ``stop`` from standing at ``xy``, as a function of the roadways:
+        the leg from the last location when on its point (or parked there), else the lanes
+        from the nearest roadway node."""
+        roadways, tolerance = self._roadways, self._params.reach_tolerance
+        parked = s.phase == PARK
         last = s.last_location
         if last is None:  # e.g. a robot placed on a location's point without start_location
             last = next(
@@ -260,23 +343,42 @@ class WaypointGenerator(LeafSystem):
             and last != stop.location
             and (parked or _distance(xy, roadways.place(last).point) <= tolerance)
         ):
-            route = roadways.leg(last, stop.location)
+            def route(lanes):
+                return _points_or_none(lanes.leg(last, stop.location))
         else:
-            route = roadways.route_from_point(xy, stop.location)
-        return replace(s, phase=DRIVE, stop=stop, route=_points(route), index=0, since=None)
+            def route(lanes):
+                return _points_or_none(lanes.route_from_point(xy, stop.location))
+        return route
 
-    def _splice(self, ahead, exit_node: str, location: int) -> tuple[tuple[float, float], ...]:
+    @staticmethod
+    def _splice(ahead, xy, exit_node: str | None, location: int, lanes: Roadways):
         """The rest of the route ``ahead`` up to its first roadway node that leads to
-        ``location``, then the lanes from there; if none does (the robot is past the last
-        node), the rest of the route and then the lanes from ``exit_node``."""
+        ``location``, then the lanes from there, looking only as far ahead as the robot at
+        ``xy`` gets without touching a closure. If no node ahead leads there: with
+        ``exit_node`` (the robot is past the last node of its leg), the rest of the route
+        and then the lanes from it; else the rest of the route as it is. If the way ahead
+        touches a closure (or there is none): the lanes from the nearest node the robot
+        reaches in a straight line; None if none leads there."""
+        last = xy
         for j, point in enumerate(ahead):
-            node = self._roadways.node_at(point)
-            route = None if node is None else self._roadways.route_from_node(node, location)
+            if lanes.crosses_closure((last, point)):
+                break
+            last = point
+            node = lanes.node_at(point)
+            route = None if node is None else lanes.route_from_node(node, location)
             if route is not None:
                 return ahead[:j] + _points(route)
-        return ahead + _points(self._roadways.route_from_node(exit_node, location))
+        else:
+            if exit_node is not None:
+                route = lanes.route_from_node(exit_node, location)
+                if route is not None and not lanes.crosses_closure((last, route[0])):
+                    return ahead + _points(route)
+            elif ahead:
+                return ahead
+        return _points_or_none(lanes.route_from_point(xy, location))
 
-    def _advance(self, s: _Drive, xy, t: float, queues: QueueState, remaining) -> _Drive:
+    def _advance(self, s: _Drive, xy, t: float, queues: QueueState, remaining,
+                 lanes: Roadways) -> _Drive:
         if s.stop is None:
             return s
         params = self._params
@@ -314,7 +416,7 @@ class WaypointGenerator(LeafSystem):
             )
             following = [other for other in remaining if other.key != stop.key]
             if following:
-                s = self._start(s, following[0], xy)
+                s = self._start(s, following[0], xy, lanes, t)
         return s
 
     def _reached(self, s: _Drive, xy) -> int:
