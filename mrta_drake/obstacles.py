@@ -8,9 +8,11 @@ all derived from it, so they can never disagree.
 Frames and units: world frame, x east, y north, metres, yaw in radians about +z.
 """
 
+import math
 from dataclasses import dataclass
 from functools import cached_property
 
+import numba
 import numpy as np
 
 from mrta_drake.occupancy_grid import OccupancyGrid
@@ -90,45 +92,10 @@ class Obstacles:
         """For each point (shape (n, 2)): the closest point on any obstacle's boundary
         (shape (n, 2)) and the signed distance to it (shape (n,), negative inside).
         With no obstacles, distances are +inf and closest points equal the inputs."""
-        p = np.atleast_2d(np.asarray(points, dtype=float))
-        n = len(p)
-        best_d = np.full(n, np.inf)
-        best_q = p.copy()
-        centers, half, c, s = self._box_arrays
-        if len(centers):
-            d = p[:, None, :] - centers[None, :, :]  # (n, K, 2) world offsets
-            lx = c * d[..., 0] + s * d[..., 1]  # local frame coordinates
-            ly = -s * d[..., 0] + c * d[..., 1]
-            qx = np.clip(lx, -half[:, 0], half[:, 0])
-            qy = np.clip(ly, -half[:, 1], half[:, 1])
-            outside = np.hypot(lx - qx, ly - qy)
-            gap_x = half[:, 0] - np.abs(lx)
-            gap_y = half[:, 1] - np.abs(ly)
-            inside = (gap_x >= 0) & (gap_y >= 0)
-            # Inside: push to the nearer face.
-            to_x = inside & (gap_x <= gap_y)
-            to_y = inside & ~to_x
-            qx = np.where(to_x, np.sign(lx + (lx == 0)) * half[:, 0], qx)
-            qy = np.where(to_y, np.sign(ly + (ly == 0)) * half[:, 1], qy)
-            sd = np.where(inside, -np.minimum(gap_x, gap_y), outside)
-            k = np.argmin(sd, axis=1)
-            rows = np.arange(n)
-            best_d = sd[rows, k]
-            qxk, qyk = qx[rows, k], qy[rows, k]
-            best_q = centers[k] + np.stack([c[k] * qxk - s[k] * qyk, s[k] * qxk + c[k] * qyk], 1)
-        cc, r = self._cylinder_arrays
-        if len(cc):
-            d = p[:, None, :] - cc[None, :, :]
-            dist = np.linalg.norm(d, axis=-1)
-            sd = dist - r
-            k = np.argmin(sd, axis=1)
-            rows = np.arange(n)
-            better = sd[rows, k] < best_d
-            safe = np.maximum(dist[rows, k], 1e-12)[:, None]
-            direction = np.where(dist[rows, k][:, None] > 1e-12, d[rows, k] / safe, [1.0, 0.0])
-            q = cc[k] + r[k][:, None] * direction
-            best_d = np.where(better, sd[rows, k], best_d)
-            best_q = np.where(better[:, None], q, best_q)
+        p = np.ascontiguousarray(np.atleast_2d(np.asarray(points, dtype=float)))
+        best_q, best_d = p.copy(), np.full(len(p), np.inf)
+        _closest_points(p, *self._box_arrays, *self._cylinder_arrays, self._box_reach, best_q,
+                        best_d)
         return best_q, best_d
 
     def signed_distance(self, points) -> np.ndarray:
@@ -142,48 +109,19 @@ class Obstacles:
         (n, k) per origin, radians. Returns (n, k) distances in metres. A ray starting inside
         an obstacle hits at distance 0.
         """
-        o = np.atleast_2d(np.asarray(origins, dtype=float))
+        o = np.ascontiguousarray(np.atleast_2d(np.asarray(origins, dtype=float)))
         ang = np.asarray(angles, dtype=float)
         if ang.ndim == 1:
             ang = np.broadcast_to(ang, (len(o), len(ang)))
-        dx, dy = np.cos(ang), np.sin(ang)  # (n, k)
         hit = np.full(ang.shape, float(max_range))
-        centers, half, c, s = self._box_arrays
-        if len(centers):
-            d = o[:, None, :] - centers[None, :, :]  # (n, K, 2)
-            ox = (c * d[..., 0] + s * d[..., 1])[:, None, :]  # (n, 1, K)
-            oy = (-s * d[..., 0] + c * d[..., 1])[:, None, :]
-            ux = c * dx[..., None] + s * dy[..., None]  # (n, k, K)
-            uy = -s * dx[..., None] + c * dy[..., None]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                inv_x, inv_y = 1.0 / ux, 1.0 / uy
-                tx1, tx2 = (-half[:, 0] - ox) * inv_x, (half[:, 0] - ox) * inv_x
-                ty1, ty2 = (-half[:, 1] - oy) * inv_y, (half[:, 1] - oy) * inv_y
-            # A ray parallel to a slab is inside it for all t or for none.
-            in_x = np.abs(ox) <= half[:, 0]
-            in_y = np.abs(oy) <= half[:, 1]
-            t_near_x = np.where(ux == 0, np.where(in_x, -np.inf, np.inf), np.minimum(tx1, tx2))
-            t_far_x = np.where(ux == 0, np.where(in_x, np.inf, -np.inf), np.maximum(tx1, tx2))
-            t_near_y = np.where(uy == 0, np.where(in_y, -np.inf, np.inf), np.minimum(ty1, ty2))
-            t_far_y = np.where(uy == 0, np.where(in_y, np.inf, -np.inf), np.maximum(ty1, ty2))
-            t_near = np.maximum(t_near_x, t_near_y)
-            t_far = np.minimum(t_far_x, t_far_y)
-            valid = (t_near <= t_far) & (t_far >= 0)
-            t = np.where(valid, np.maximum(t_near, 0.0), np.inf)
-            hit = np.minimum(hit, t.min(axis=-1))
-        cc, r = self._cylinder_arrays
-        if len(cc):
-            m = (o[:, None, :] - cc[None, :, :])[:, None, :, :]  # (n, 1, L, 2)
-            b = m[..., 0] * dx[..., None] + m[..., 1] * dy[..., None]  # (n, k, L)
-            cterm = (m**2).sum(-1) - r**2
-            disc = b * b - cterm
-            with np.errstate(invalid="ignore"):
-                root = np.sqrt(disc)
-            t0, t1 = -b - root, -b + root
-            valid = (disc >= 0) & (t1 >= 0)
-            t = np.where(valid, np.maximum(t0, 0.0), np.inf)
-            hit = np.minimum(hit, t.min(axis=-1))
+        _cast_rays(o, np.cos(ang), np.sin(ang), *self._box_arrays, *self._cylinder_arrays,
+                   self._box_reach, hit)
         return hit
+
+    @cached_property
+    def _box_reach(self) -> np.ndarray:
+        """(K,) half diagonals of the boxes: no point of a box is farther from its centre."""
+        return np.hypot(*self._box_arrays[1].T)
 
     def rasterize(self, bounds, resolution: float) -> OccupancyGrid:
         """An occupancy grid over ``bounds`` = (x_min, x_max, y_min, y_max) with square cells of
@@ -220,3 +158,92 @@ class Obstacles:
         xy = grid.cell_to_world(ii, jj)
         mask = inside(xy[..., 0] - center[0], xy[..., 1] - center[1])
         grid.occupied[i0:i1 + 1, j0:j1 + 1] |= mask
+
+
+@numba.njit(cache=True)
+def _closest_points(p, centers, half, cos, sin, cyl_centers, cyl_radii, reach, best_q, best_d):
+    """``Obstacles.closest_points`` into ``best_q`` (n, 2) and ``best_d`` (n,), which start
+    as the points and +inf. Boxes that cannot be nearer than the best so far are skipped;
+    ties keep the first obstacle (boxes, then cylinders)."""
+    for i in range(len(p)):
+        px, py = p[i, 0], p[i, 1]
+        for k in range(len(centers)):
+            dx, dy = px - centers[k, 0], py - centers[k, 1]
+            hx, hy = half[k, 0], half[k, 1]
+            if math.sqrt(dx * dx + dy * dy) - reach[k] >= best_d[i]:
+                continue
+            c, s = cos[k], sin[k]
+            lx, ly = c * dx + s * dy, -s * dx + c * dy
+            qx, qy = min(max(lx, -hx), hx), min(max(ly, -hy), hy)
+            gap_x, gap_y = hx - abs(lx), hy - abs(ly)
+            if gap_x >= 0 and gap_y >= 0:  # inside: push to the nearer face
+                if gap_x <= gap_y:
+                    qx = (1.0 if lx >= 0 else -1.0) * hx
+                else:
+                    qy = (1.0 if ly >= 0 else -1.0) * hy
+                sd = -min(gap_x, gap_y)
+            else:
+                sd = math.hypot(lx - qx, ly - qy)
+            if sd < best_d[i]:
+                best_d[i] = sd
+                best_q[i, 0] = centers[k, 0] + (c * qx - s * qy)
+                best_q[i, 1] = centers[k, 1] + (s * qx + c * qy)
+        for k in range(len(cyl_centers)):
+            dx, dy = px - cyl_centers[k, 0], py - cyl_centers[k, 1]
+            dist = math.sqrt(dx * dx + dy * dy)
+            sd = dist - cyl_radii[k]
+            if sd < best_d[i]:
+                best_d[i] = sd
+                ux, uy = (dx / dist, dy / dist) if dist > 1e-12 else (1.0, 0.0)
+                best_q[i, 0] = cyl_centers[k, 0] + cyl_radii[k] * ux
+                best_q[i, 1] = cyl_centers[k, 1] + cyl_radii[k] * uy
+
+
+@numba.njit(cache=True)
+def _cast_rays(o, dx, dy, centers, half, cos, sin, cyl_centers, cyl_radii, reach, hit):
+    """``Obstacles.cast_rays`` into ``hit`` (n, k), which starts at the maximum range: slab
+    test per box in its own frame, quadratic per cylinder. Boxes whose bounding circle (of
+    radius ``reach``) the ray misses, or that cannot be hit nearer than the nearest hit so
+    far, are skipped."""
+    inf = math.inf
+    nearest = np.empty(len(centers))  # no point of box k is nearer the origin
+    for i in range(len(o)):
+        for k in range(len(centers)):
+            ddx, ddy = o[i, 0] - centers[k, 0], o[i, 1] - centers[k, 1]
+            nearest[k] = math.sqrt(ddx * ddx + ddy * ddy) - reach[k]
+        for r in range(hit.shape[1]):
+            ux_w, uy_w = dx[i, r], dy[i, r]
+            for k in range(len(centers)):
+                if nearest[k] >= hit[i, r]:
+                    continue
+                ddx, ddy = o[i, 0] - centers[k, 0], o[i, 1] - centers[k, 1]
+                # A ray that misses the box's bounding circle misses the box.
+                if (ddx * ux_w + ddy * uy_w > reach[k]
+                        or abs(ddx * uy_w - ddy * ux_w) > reach[k]):
+                    continue
+                c, s = cos[k], sin[k]
+                hx, hy = half[k, 0], half[k, 1]
+                ox, oy = c * ddx + s * ddy, -s * ddx + c * ddy
+                ux, uy = c * ux_w + s * uy_w, -s * ux_w + c * uy_w
+                # A ray parallel to a slab is inside it for all t or for none.
+                if ux == 0:
+                    near_x, far_x = (-inf, inf) if abs(ox) <= hx else (inf, -inf)
+                else:
+                    t1, t2 = (-hx - ox) * (1.0 / ux), (hx - ox) * (1.0 / ux)
+                    near_x, far_x = min(t1, t2), max(t1, t2)
+                if uy == 0:
+                    near_y, far_y = (-inf, inf) if abs(oy) <= hy else (inf, -inf)
+                else:
+                    t1, t2 = (-hy - oy) * (1.0 / uy), (hy - oy) * (1.0 / uy)
+                    near_y, far_y = min(t1, t2), max(t1, t2)
+                near, far = max(near_x, near_y), min(far_x, far_y)
+                if near <= far and far >= 0:
+                    hit[i, r] = min(hit[i, r], max(near, 0.0))
+            for k in range(len(cyl_centers)):
+                mx, my = o[i, 0] - cyl_centers[k, 0], o[i, 1] - cyl_centers[k, 1]
+                b = mx * ux_w + my * uy_w
+                disc = b * b - ((mx * mx + my * my) - cyl_radii[k] ** 2)
+                if disc >= 0:
+                    root = math.sqrt(disc)
+                    if -b + root >= 0:
+                        hit[i, r] = min(hit[i, r], max(-b - root, 0.0))

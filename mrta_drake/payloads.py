@@ -90,14 +90,27 @@ class Visit:
 
 
 @dataclass(frozen=True)
+class Detour:
+    """A robot's route ahead changed at ``time`` (s) because the blockages named in
+    ``blockages`` closed or opened; ``found`` False: no lane led to its stop then, so it
+    waits where it is until the blockages change again."""
+
+    time: float
+    blockages: tuple[str, ...]
+    found: bool = True
+
+
+@dataclass(frozen=True)
 class RobotProgress:
     """What one robot has done so far: every completed visit, oldest first; the location it
-    last completed (or its start location); the stop it is driving to now."""
+    last completed (or its start location); the stop it is driving to now; every detour
+    blockages forced on it, oldest first."""
 
     robot: str
     visits: tuple[Visit, ...] = ()
     last_location: int | None = None
     current_stop: Stop | None = None
+    detours: tuple[Detour, ...] = ()
 
 
 # --- Waypoints: waypoint generator -> planner, controller -----------------------------------
@@ -162,6 +175,9 @@ class QueueState:
                 return queue
         return None
 
+    def __deepcopy__(self, memo):
+        return self  # immutable: Drake's copies of the room queues' state can share it
+
 
 # --- Paths: planner -> controller ------------------------------------------------------------
 
@@ -224,3 +240,87 @@ class ControllerTelemetry:
     clusters: tuple[tuple[int, ...], ...] = ()
     solve_time: float = 0.0  # s of CPU time spent in solvers this tick
     failures: int = 0  # solver failures this tick (robots braked)
+
+
+# --- Disturbances: disturbance schedule -> planner, waypoints, allocator, controller, results
+
+
+@dataclass(frozen=True)
+class Blockage:
+    """A region closed to robots: ``box`` (x_min, x_max, y_min, y_max), world frame, m,
+    scheduled from ``start`` to ``end`` (s; inf: the end of the run)."""
+
+    name: str
+    box: tuple[float, float, float, float]
+    start: float
+    end: float = float("inf")
+
+    def contains(self, xy) -> np.ndarray:
+        """True where world points ``xy`` (shape (..., 2)) lie in the box (edges included)."""
+        xy = np.asarray(xy, dtype=float)
+        x_min, x_max, y_min, y_max = self.box
+        return ((xy[..., 0] >= x_min) & (xy[..., 0] <= x_max)
+                & (xy[..., 1] >= y_min) & (xy[..., 1] <= y_max))
+
+
+@dataclass(frozen=True)
+class Breakdown:
+    """Robot index ``robot`` (scenario order) is broken down, from ``start`` to ``end`` (s;
+    inf: for good)."""
+
+    robot: int
+    start: float
+    end: float = float("inf")
+
+
+@dataclass(frozen=True, eq=False)
+class Outage:
+    """Robot index ``robot`` exchanges no cluster messages from ``start`` to ``end`` (s;
+    inf: the end of the run). ``snapshot`` (N, 4) is every robot's ``[x, y, theta, v]`` at
+    ``start``: the last states the robot and the others exchanged. (Compared by identity.)"""
+
+    robot: int
+    start: float
+    end: float
+    snapshot: np.ndarray
+
+
+@dataclass(frozen=True)
+class Disturbances:
+    """The disturbances in force now: closed regions, broken-down robots, and robots cut
+    off from messages (earliest outage first)."""
+
+    blockages: tuple[Blockage, ...] = ()
+    breakdowns: tuple[Breakdown, ...] = ()
+    outages: tuple[Outage, ...] = ()
+
+    @property
+    def broken(self) -> tuple[int, ...]:
+        """Indices of the broken-down robots, ascending."""
+        return tuple(sorted(b.robot for b in self.breakdowns))
+
+    @property
+    def cut_off(self) -> tuple[int, ...]:
+        """Indices of the robots cut off from messages, ascending."""
+        return tuple(sorted(o.robot for o in self.outages))
+
+    def seen_by(self, states: np.ndarray, observer: int | None = None) -> np.ndarray:
+        """The robots' ``states`` (N, 4) as robot ``observer`` knows them (None: as the
+        robots still in touch know them): a cut-off robot's state as of its outage's
+        start; for a cut-off observer, everyone else's as of its own outage's start (or
+        of the other's, if that began earlier). Its own state is always the true one."""
+        if not self.outages:
+            return states
+        view = np.array(states, dtype=float)
+        own = next((o for o in self.outages if o.robot == observer), None)
+        if own is not None:
+            view[:] = own.snapshot
+        for outage in self.outages:
+            if own is None or outage.start < own.start:
+                view[outage.robot] = outage.snapshot[outage.robot]
+        if observer is not None:
+            view[observer] = states[observer]
+        return view
+
+
+NO_DISTURBANCES = Disturbances()

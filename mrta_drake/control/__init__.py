@@ -4,7 +4,12 @@ Plain numpy/Drake-solver code without the systems framework; the controller bloc
 ``mrta_drake.systems`` call it every tick."""
 
 from mrta_drake.control.cbf_qp import CbfParams, CbfQp, QpSolution, WallRays, safety_rows
-from mrta_drake.control.clusters import LEADER_RULES, LeaderRule, form_clusters
+from mrta_drake.control.clusters import (
+    LEADER_RULES,
+    LeaderRule,
+    form_clusters,
+    register_leader_rule,
+)
 from mrta_drake.control.nominal import NominalParams, nominal_control, slow_down
 
 __all__ = [
@@ -17,6 +22,7 @@ __all__ = [
     "WallRays",
     "form_clusters",
     "nominal_control",
+    "register_leader_rule",
     "safety_rows",
     "slow_down",
 ]

@@ -39,11 +39,12 @@ so that one ``MathematicalProgram`` per (robots, padded rows) is built once and 
 its coefficients and bounds are updated.
 """
 
-import dataclasses
 import math
 import time
 from dataclasses import dataclass
+from functools import cached_property
 
+import numba
 import numpy as np
 from pydrake.solvers import ClarabelSolver, MathematicalProgram, OsqpSolver, SolverOptions
 
@@ -103,6 +104,15 @@ class CbfParams(NominalParams):
         if self.solver not in SOLVERS:
             raise ValueError(f"solver must be one of {SOLVERS}, got {self.solver!r}")
 
+    @cached_property
+    def _row_params(self) -> np.ndarray:
+        """Safety distance, alpha1, alpha2 of walls, humans, robots, then the cluster radius,
+        for the compiled row kernel."""
+        return np.array([self.safety_distance_wall, self.alpha1_wall, self.alpha2_wall,
+                         self.safety_distance_human, self.alpha1_human, self.alpha2_human,
+                         self.safety_distance_robot, self.alpha1_robot, self.alpha2_robot,
+                         self.cluster_radius])
+
     def ray_angles(self) -> np.ndarray:
         """Ray directions (rad): world frame, or offsets from the heading in the body frame."""
         return self.ray_start + self.ray_spacing * np.arange(self.ray_count)
@@ -130,18 +140,18 @@ class BarrierTerms:
 def point_barrier(position, heading, speed, points, point_velocities, safety_distance):
     """Barrier terms of robots (``position`` (m, 2) or (2,), ``heading``, ``speed``) against
     obstacle points (m, 2) moving at constant ``point_velocities`` (m, 2), world frame."""
-    p = np.asarray(position, dtype=float)
     o = np.asarray(points, dtype=float)
-    w = np.broadcast_to(np.asarray(point_velocities, dtype=float), o.shape)
-    v = np.asarray(speed, dtype=float)
-    c, s = np.cos(heading), np.sin(heading)
-    rx, ry = p[..., 0] - o[..., 0], p[..., 1] - o[..., 1]
-    vx, vy = v * c - w[..., 0], v * s - w[..., 1]
-    r2 = rx * rx + ry * ry
-    own = np.stack([2.0 * (rx * c + ry * s), 2.0 * v * (ry * c - rx * s)], axis=-1)
-    return BarrierTerms(r2 - safety_distance**2, 2.0 * (rx * vx + ry * vy),
-                        2.0 * (vx * vx + vy * vy), own, np.zeros_like(own),
-                        np.stack([rx, ry], axis=-1), np.sqrt(r2))
+    p, w = (np.broadcast_to(np.asarray(a, dtype=float), o.shape)
+            for a in (position, point_velocities))
+    heading, v = (np.broadcast_to(np.asarray(a, dtype=float), o.shape[:-1])
+                  for a in (heading, speed))
+    h, h_dot, drift, own_a, own_w, rx, ry, distance = _point_terms(
+        *(np.ascontiguousarray(a) for a in (p[..., 0], p[..., 1], heading, v, o[..., 0],
+                                            o[..., 1], w[..., 0], w[..., 1])),
+        float(safety_distance))
+    own = np.stack([own_a, own_w], axis=-1)
+    return BarrierTerms(h, h_dot, drift, own, np.zeros_like(own), np.stack([rx, ry], axis=-1),
+                        distance)
 
 
 def pair_barrier(state_i, state_j, safety_distance):
@@ -149,80 +159,70 @@ def pair_barrier(state_i, state_j, safety_distance):
     ``own`` are the coefficients of robot i's input, ``other`` those of robot j's."""
     si = np.atleast_2d(np.asarray(state_i, dtype=float))
     sj = np.atleast_2d(np.asarray(state_j, dtype=float))
-    cj, sn = np.cos(sj[:, 2]), np.sin(sj[:, 2])
     vj = sj[:, 3]
     terms = point_barrier(si[:, :2], si[:, 2], si[:, 3], sj[:, :2],
-                          np.stack([vj * cj, vj * sn], axis=-1), safety_distance)
-    rx, ry = si[:, 0] - sj[:, 0], si[:, 1] - sj[:, 1]
-    other = np.stack([-2.0 * (rx * cj + ry * sn), -2.0 * vj * (ry * cj - rx * sn)], axis=-1)
+                          np.stack([vj * np.cos(sj[:, 2]), vj * np.sin(sj[:, 2])], axis=-1),
+                          safety_distance)
+    other = np.stack(_pair_other(*(np.ascontiguousarray(a) for a in (
+        terms.offset[:, 0], terms.offset[:, 1], sj[:, 2], vj))), axis=-1)
     return BarrierTerms(terms.h, terms.h_dot, terms.drift, terms.own, other, terms.offset,
                         terms.distance)
 
 
 def cbf_rhs(terms: BarrierTerms, alpha1: float, alpha2: float) -> np.ndarray:
     """``b`` of the unscaled rows ``own.u + other.u_j >= b``."""
-    return -(terms.drift + (alpha1 + alpha2) * terms.h_dot + alpha1 * alpha2 * terms.h)
+    return _rhs(terms.drift, terms.h_dot, terms.h, float(alpha1), float(alpha2))
 
 
-def row_scale(terms: BarrierTerms) -> np.ndarray:
-    """Positive per-row factors (1/m) applied to a row and its right-hand side."""
-    return 1.0 / np.maximum(terms.distance, _MIN_SCALE)
+# The formulas above, compiled; each works on scalars (in the row kernel) and on arrays.
+
+
+@numba.njit(cache=True)
+def _point_terms(px, py, heading, v, ox, oy, wx, wy, safety_distance):
+    """h, h_dot, drift, the coefficients of [a, omega], r = p - o and |r| (see the module
+    docstring)."""
+    c, s = np.cos(heading), np.sin(heading)
+    rx, ry = px - ox, py - oy
+    vx, vy = v * c - wx, v * s - wy
+    r2 = rx * rx + ry * ry
+    return (r2 - safety_distance * safety_distance, 2.0 * (rx * vx + ry * vy),
+            2.0 * (vx * vx + vy * vy), 2.0 * (rx * c + ry * s), 2.0 * v * (ry * c - rx * s),
+            rx, ry, np.sqrt(r2))
+
+
+@numba.njit(cache=True)
+def _pair_other(rx, ry, heading_j, v_j):
+    """The coefficients of robot j's [a, omega] in a pair row, r = p_i - p_j."""
+    c, s = np.cos(heading_j), np.sin(heading_j)
+    return -2.0 * (rx * c + ry * s), -2.0 * v_j * (ry * c - rx * s)
+
+
+@numba.njit(cache=True)
+def _rhs(drift, h_dot, h, alpha1, alpha2):
+    return -(drift + (alpha1 + alpha2) * h_dot + alpha1 * alpha2 * h)
 
 
 class WallRays:
     """Wall rays of robots against the world's ``Obstacles`` (None: no walls).
 
     Calling it with robot states (N, 4) returns the ray hits (N, R, 2) in the world frame and a
-    mask (N, R) of rays that hit within ``ray_range``. Obstacles farther than ``ray_range``
-    from every robot cannot be hit, so rays are cast against the near ones only; those subsets
-    are kept for reuse (robots move little between ticks). The result is the same as casting
-    against all obstacles.
+    mask (N, R) of rays that hit within ``ray_range``.
     """
-
-    _CACHE_SIZE = 256
 
     def __init__(self, obstacles, params: CbfParams):
         self._params = params
         self._obstacles = obstacles if obstacles is not None and len(obstacles) else None
-        if self._obstacles is None:
-            return
-        boxes, cylinders = self._obstacles.boxes, self._obstacles.cylinders
-        # Bounding circles: centre and radius of every box, then every cylinder.
-        self._centers = np.array([b.center for b in boxes] + [c.center for c in cylinders],
-                                 dtype=float).reshape(-1, 2)
-        self._radii = np.array([0.5 * math.hypot(*b.size) for b in boxes]
-                               + [c.radius for c in cylinders], dtype=float)
-        self._subsets: dict[bytes, object] = {}
-
-    def _near(self, positions):
-        d = positions[:, None, :] - self._centers[None, :, :]
-        reach = self._params.ray_range + self._radii
-        near = np.any(np.sum(d * d, axis=-1) <= reach * reach, axis=0)
-        key = near.tobytes()
-        subset = self._subsets.get(key)
-        if subset is None:
-            if len(self._subsets) >= self._CACHE_SIZE:
-                self._subsets.clear()
-            boxes = self._obstacles.boxes
-            subset = type(self._obstacles)(
-                tuple(b for b, keep in zip(boxes, near, strict=False) if keep),
-                tuple(c for c, keep in zip(self._obstacles.cylinders, near[len(boxes):],
-                                           strict=True) if keep))
-            self._subsets[key] = subset
-        return subset
+        self._angles = params.ray_angles()
 
     def __call__(self, states) -> tuple[np.ndarray, np.ndarray]:
         p = self._params
         states = np.asarray(states, dtype=float).reshape(-1, 4)
-        angles = np.broadcast_to(p.ray_angles(), (len(states), p.ray_count))
+        angles = np.broadcast_to(self._angles, (len(states), p.ray_count))
         if p.rays_in_body_frame:
             angles = angles + states[:, 2:3]
         if self._obstacles is None or p.ray_count == 0:
             return np.zeros(angles.shape + (2,)), np.zeros(angles.shape, dtype=bool)
-        near = self._near(states[:, :2])
-        if len(near) == 0:
-            return np.zeros(angles.shape + (2,)), np.zeros(angles.shape, dtype=bool)
-        dist = near.cast_rays(states[:, :2], angles, p.ray_range)
+        dist = self._obstacles.cast_rays(states[:, :2], angles, p.ray_range)
         directions = np.stack([np.cos(angles), np.sin(angles)], -1)
         return states[:, None, :2] + dist[..., None] * directions, dist < p.ray_range
 
@@ -243,19 +243,16 @@ class SafetyRows:
     normal: np.ndarray
 
 
-def _rows(terms: BarrierTerms, alphas, members, others, kind: int, k: int) -> SafetyRows:
-    m = len(terms.h)
-    scale = row_scale(terms)
-    G = np.zeros((m, 2 * k))
-    rows = np.arange(m)
-    G[rows, 2 * members] = terms.own[:, 0] * scale
-    G[rows, 2 * members + 1] = terms.own[:, 1] * scale
-    if others is not None:
-        G[rows, 2 * others] = terms.other[:, 0] * scale
-        G[rows, 2 * others + 1] = terms.other[:, 1] * scale
-    return SafetyRows(G, cbf_rhs(terms, *alphas) * scale, np.full(m, kind), terms.h,
-                      np.asarray(members), np.full(m, -1) if others is None else others,
-                      terms.offset * scale[:, None])
+@dataclass(frozen=True)
+class QpProblem:
+    """One QP of a tick: the robots whose inputs it decides (``members``), their nominal
+    inputs and hard bounds (k, 2) ``[a, omega]``, and the safety rows."""
+
+    members: tuple[int, ...]
+    u_nominal: np.ndarray
+    rows: SafetyRows
+    lower: np.ndarray
+    upper: np.ndarray
 
 
 def safety_rows(states, hits, hit_mask, human_positions, human_velocities, movers,
@@ -268,47 +265,213 @@ def safety_rows(states, hits, hit_mask, human_positions, human_velocities, mover
       outside the QP, predicted at constant velocity;
     - one row per pair of robots in the QP within ``cluster_radius``, in both robots' inputs.
     """
-    states = np.asarray(states, dtype=float).reshape(-1, 4)
+    states = np.ascontiguousarray(states, dtype=float).reshape(-1, 4)
     k = len(states)
-    parts = []
-    member, ray = np.nonzero(hit_mask)
-    if len(member):
-        terms = point_barrier(states[member, :2], states[member, 2], states[member, 3],
-                              hits[member, ray], 0.0, params.safety_distance_wall)
-        parts.append(_rows(terms, (params.alpha1_wall, params.alpha2_wall), member, None, WALL, k))
-    humans = np.asarray(human_positions, dtype=float).reshape(-1, 2)
-    if len(humans):
-        member = np.repeat(np.arange(k), len(humans))
-        index = np.tile(np.arange(len(humans)), k)
-        velocities = np.asarray(human_velocities, dtype=float).reshape(-1, 2)
-        terms = point_barrier(states[member, :2], states[member, 2], states[member, 3],
-                              humans[index], velocities[index], params.safety_distance_human)
-        parts.append(_rows(terms, (params.alpha1_human, params.alpha2_human), member, None,
-                           HUMAN, k))
-    movers = np.asarray(movers, dtype=float).reshape(-1, 4)
-    if len(movers):
-        member, index = np.nonzero(np.sum((states[:, None, :2] - movers[None, :, :2]) ** 2, -1)
-                                   <= params.cluster_radius**2)
-        if len(member):
-            mv = movers[index]
-            velocity = mv[:, 3:4] * np.stack([np.cos(mv[:, 2]), np.sin(mv[:, 2])], -1)
-            terms = point_barrier(states[member, :2], states[member, 2], states[member, 3],
-                                  mv[:, :2], velocity, params.safety_distance_robot)
-            parts.append(_rows(terms, (params.alpha1_robot, params.alpha2_robot), member,
-                               None, ROBOT, k))
-    if k > 1:
-        i, j = np.triu_indices(k, 1)
-        near = np.sum((states[i, :2] - states[j, :2]) ** 2, -1) <= params.cluster_radius**2
-        i, j = i[near], j[near]
-        if len(i):
-            terms = pair_barrier(states[i], states[j], params.safety_distance_robot)
-            parts.append(_rows(terms, (params.alpha1_robot, params.alpha2_robot), i, j, ROBOT, k))
-    if not parts:
-        none = np.zeros(0, dtype=int)
-        return SafetyRows(np.zeros((0, 2 * k)), np.zeros(0), none, np.zeros(0), none, none,
-                          np.zeros((0, 2)))
-    return SafetyRows(*(np.concatenate([getattr(p, f.name) for p in parts])
-                        for f in dataclasses.fields(SafetyRows)))
+    hits = np.ascontiguousarray(hits, dtype=float).reshape(k, -1, 2)
+    mask = np.ascontiguousarray(hit_mask, dtype=bool).reshape(k, -1)
+    humans = np.ascontiguousarray(human_positions, dtype=float).reshape(-1, 2)
+    movers = np.ascontiguousarray(movers, dtype=float).reshape(-1, 4)
+    m = _count_rows(states, mask, len(humans), movers, params.cluster_radius**2)
+    rows = _empty_rows(m, k)
+    _fill_rows(states, hits, mask, humans,
+               np.ascontiguousarray(human_velocities, dtype=float).reshape(-1, 2), movers,
+               params._row_params, *rows)
+    return SafetyRows(*rows)
+
+
+@dataclass(frozen=True, eq=False)
+class TickQps:
+    """The QPs of one tick (``qp_problems``), kept as the compiled kernel made them: group g's
+    robots ``groups[g]``, rows ``G[G_start[g]:G_start[g + 1]]`` (flattened) and ``b``, ...
+    ``[row_start[g]:row_start[g + 1]]``; whether it needs a solver; the steered nominal
+    inputs, bounds and ``settled`` inputs (N, 2) of ``qp_problems``."""
+
+    groups: tuple[tuple[int, ...], ...]
+    u_nominal: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    G: np.ndarray
+    G_start: np.ndarray
+    rows: tuple[np.ndarray, ...]  # b, kind, h, member, other, normal
+    row_start: np.ndarray
+    needs_solver: np.ndarray
+    settled: np.ndarray
+
+    def problem(self, g: int) -> QpProblem:
+        group, r0, r1 = self.groups[g], self.row_start[g], self.row_start[g + 1]
+        index = list(group)
+        rows = SafetyRows(self.G[self.G_start[g]:self.G_start[g + 1]].reshape(
+            r1 - r0, 2 * len(group)), *(a[r0:r1] for a in self.rows))
+        return QpProblem(tuple(group), self.u_nominal[index], rows, self.lower[index],
+                         self.upper[index])
+
+    @property
+    def problems(self) -> tuple[QpProblem, ...]:
+        """Every group's QP."""
+        return tuple(self.problem(g) for g in range(len(self.groups)))
+
+    def to_solve(self) -> tuple[QpProblem, ...]:
+        """The QPs that need a solver."""
+        return tuple(self.problem(g) for g in np.flatnonzero(self.needs_solver))
+
+
+def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocities, movers,
+                u_nominal, lower, upper, params: CbfParams) -> TickQps:
+    """The QPs of one tick for robots ``states`` (N, 4) solved in ``groups`` (tuples of robot
+    indices), with their wall ``hits`` and ``hit_mask`` (as from ``WallRays``), the humans,
+    ``movers`` (one (q, 4) array per group as in ``safety_rows``; None: none) and hard
+    bounds ``lower``, ``upper`` (N, 2). Each group's rows are ``safety_rows``; its robots'
+    ``u_nominal`` (a float array (N, 2)) are steered in place (``steer_blocked``). A group
+    needs a solver when its clipped nominal breaks a row (or its rows are not finite: the
+    solve then fails); for the robots of the others the clipped nominal is the optimum
+    (``CbfQp.solve`` would return it): ``settled`` holds it, and zero for robots in no
+    group."""
+    groups = tuple(tuple(group) for group in groups)
+    members = np.fromiter((i for group in groups for i in group), dtype=np.int64)
+    group_start = np.cumsum([0] + [len(group) for group in groups], dtype=np.int64)
+    movers = [np.zeros((0, 4))] * len(groups) if movers is None else movers
+    mover_start = np.cumsum([0] + [len(m) for m in movers], dtype=np.int64)
+    n = len(states)
+    lower, upper = (np.ascontiguousarray(a, dtype=float) for a in (lower, upper))
+    settled = np.zeros((n, 2))
+    G, G_start, *rows, row_start, needs_solver = _group_rows(
+        *(np.ascontiguousarray(a, dtype=float).reshape(shape) for a, shape in (
+            (states, (n, 4)), (hits, (n, -1, 2)), (human_positions, (-1, 2)),
+            (human_velocities, (-1, 2)))),
+        np.ascontiguousarray(hit_mask, dtype=bool).reshape(n, -1), members, group_start,
+        np.concatenate([np.zeros((0, 4)), *movers]).reshape(-1, 4), mover_start,
+        params._row_params, params.stall_speed, params.k_theta, u_nominal, lower, upper,
+        settled)
+    return TickQps(groups, u_nominal, lower, upper, G, G_start, tuple(rows), row_start,
+                   needs_solver, settled)
+
+
+@numba.njit(cache=True)
+def _group_rows(states, hits, humans, human_velocities, mask, members, group_start, movers,
+                mover_start, params, stall_speed, k_theta, u_nominal, lower, upper, settled):
+    """``qp_problems`` for the groups ``members[group_start[g]:group_start[g + 1]]`` with
+    movers ``movers[mover_start[g]:mover_start[g + 1]]``: every group's rows (G of group g
+    flattened at ``G[G_start[g]:G_start[g + 1]]``, the other arrays at
+    ``row_start[g]:row_start[g + 1]``), steering ``u_nominal`` in place, and whether each
+    group needs its QP solved; ``settled`` gets the others' clipped nominal inputs."""
+    groups = len(group_start) - 1
+    radius2 = params[9] * params[9]
+    row_start = np.zeros(groups + 1, dtype=np.int64)
+    G_start = np.zeros(groups + 1, dtype=np.int64)
+    for g in range(groups):
+        index = members[group_start[g]:group_start[g + 1]]
+        m = _count_rows(states[index], mask[index], len(humans),
+                        movers[mover_start[g]:mover_start[g + 1]], radius2)
+        row_start[g + 1] = row_start[g] + m
+        G_start[g + 1] = G_start[g] + m * 2 * len(index)
+    G = np.zeros(G_start[groups])
+    b, kind, h, member, other, normal = _empty_rows(row_start[groups], 0)[1:]
+    needs_qp = np.zeros(groups, dtype=np.bool_)
+    for g in range(groups):
+        index = members[group_start[g]:group_start[g + 1]]
+        k, r0, r1 = len(index), row_start[g], row_start[g + 1]
+        G_g = G[G_start[g]:G_start[g + 1]].reshape((r1 - r0, 2 * k))
+        group_states = states[index]
+        _fill_rows(group_states, hits[index], mask[index], humans, human_velocities,
+                   movers[mover_start[g]:mover_start[g + 1]], params, G_g, b[r0:r1],
+                   kind[r0:r1], h[r0:r1], member[r0:r1], other[r0:r1], normal[r0:r1])
+        u = u_nominal[index]
+        _steer(u, group_states, G_g, b[r0:r1], member[r0:r1], other[r0:r1], normal[r0:r1],
+               stall_speed, k_theta)
+        u_nominal[index] = u
+        flat = u.ravel()
+        clipped = np.minimum(np.maximum(flat, lower[index].ravel()), upper[index].ravel())
+        finite, optimal = _check_nominal(G_g, b[r0:r1], flat, clipped)
+        needs_qp[g] = not (finite and optimal)
+        if not needs_qp[g]:
+            settled[index] = clipped.reshape((k, 2))
+    return G, G_start, b, kind, h, member, other, normal, row_start, needs_qp
+
+
+@numba.njit(cache=True)
+def _empty_rows(m, k):
+    return (np.zeros((m, 2 * k)), np.empty(m), np.empty(m, np.int64), np.empty(m),
+            np.empty(m, np.int64), np.full(m, -1, np.int64), np.empty((m, 2)))
+
+
+@numba.njit(cache=True)
+def _count_rows(states, mask, humans, movers, radius2):
+    """The number of rows ``safety_rows`` makes (``humans``: how many)."""
+    k = len(states)
+    m = mask.sum() + k * humans
+    for i in range(k):
+        for q in range(len(movers)):
+            m += _near(states[i], movers[q], radius2)
+        for j in range(i + 1, k):
+            m += _near(states[i], states[j], radius2)
+    return m
+
+
+@numba.njit(cache=True)
+def _near(a, b, radius2):
+    return (a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 <= radius2
+
+
+@numba.njit(cache=True)
+def _fill_rows(states, hits, mask, humans, human_velocities, movers, params, G, b, kind, h,
+               member, other, normal):
+    """Fills ``safety_rows``' arrays (``params``: ``CbfParams._row_params``; ``G`` zero).
+    Rows in order: walls, humans, movers (each robot by robot), pairs."""
+    k, rays, count = len(states), mask.shape[1], len(humans)
+    radius2 = params[9] * params[9]
+    row = 0
+    for what in (WALL, HUMAN, ROBOT):
+        base = 3 * what  # safety distance, alpha1, alpha2 of this kind in params
+        points = rays if what == WALL else count if what == HUMAN else len(movers)
+        for i in range(k):
+            x, y, theta, v = states[i, 0], states[i, 1], states[i, 2], states[i, 3]
+            for q in range(points):
+                if what == WALL:
+                    if not mask[i, q]:
+                        continue
+                    terms = _point_terms(x, y, theta, v, hits[i, q, 0], hits[i, q, 1], 0.0, 0.0,
+                                         params[base])
+                elif what == HUMAN:
+                    terms = _point_terms(x, y, theta, v, humans[q, 0], humans[q, 1],
+                                         human_velocities[q, 0], human_velocities[q, 1],
+                                         params[base])
+                else:
+                    if not _near(states[i], movers[q], radius2):
+                        continue
+                    speed, heading = movers[q, 3], movers[q, 2]
+                    terms = _point_terms(x, y, theta, v, movers[q, 0], movers[q, 1],
+                                         speed * np.cos(heading), speed * np.sin(heading),
+                                         params[base])
+                _put_row(row, terms, i, -1, 0.0, 0.0, what, params[base + 1],
+                         params[base + 2], G, b, kind, h, member, other, normal)
+                row += 1
+    for i in range(k):
+        for j in range(i + 1, k):
+            if not _near(states[i], states[j], radius2):
+                continue
+            speed, heading = states[j, 3], states[j, 2]
+            terms = _point_terms(states[i, 0], states[i, 1], states[i, 2], states[i, 3],
+                                 states[j, 0], states[j, 1], speed * np.cos(heading),
+                                 speed * np.sin(heading), params[6])
+            other_a, other_w = _pair_other(terms[5], terms[6], heading, speed)
+            _put_row(row, terms, i, j, other_a, other_w, ROBOT, params[7], params[8], G, b,
+                     kind, h, member, other, normal)
+            row += 1
+
+
+@numba.njit(cache=True)
+def _put_row(row, terms, i, j, other_a, other_w, what, alpha1, alpha2, G, b, kind, h, member,
+             other, normal):
+    """Row ``row`` for robot i (and robot j >= 0 of a pair), divided by |r| (at least
+    ``_MIN_SCALE``) so that rows near and far are equally scaled."""
+    value, h_dot, drift, own_a, own_w, rx, ry, distance = terms
+    scale = 1.0 / max(distance, _MIN_SCALE)
+    G[row, 2 * i], G[row, 2 * i + 1] = own_a * scale, own_w * scale
+    if j >= 0:
+        G[row, 2 * j], G[row, 2 * j + 1] = other_a * scale, other_w * scale
+    b[row] = _rhs(drift, h_dot, value, alpha1, alpha2) * scale
+    kind[row], h[row], member[row], other[row] = what, value, i, j
+    normal[row, 0], normal[row, 1] = rx * scale, ry * scale
 
 
 def steer_blocked(u_nominal, states, rows: SafetyRows, params: CbfParams) -> np.ndarray:
@@ -318,23 +481,40 @@ def steer_blocked(u_nominal, states, rows: SafetyRows, params: CbfParams) -> np.
     goal heading. (Beyond the paper: a standing unicycle's yaw rate does not enter any row,
     so its QP has no reason to turn, and a robot nosing into a corner would wait forever.)"""
     u = np.array(u_nominal, dtype=float).reshape(-1, 2)
-    if len(rows.b) == 0:
-        return u
-    states = np.asarray(states, dtype=float).reshape(-1, 4)
-    violation = rows.G @ u.ravel() - rows.b
-    for j in np.flatnonzero((np.abs(states[:, 3]) < params.stall_speed) & (u[:, 0] > 0.0)):
-        involved = (rows.member == j) | (rows.other == j)
-        blocking = involved & (rows.G[:, 2 * j] < 0.0) & (violation < 0.0)
-        if not np.any(blocking):
-            continue
-        row = int(np.argmin(np.where(blocking, violation, np.inf)))
-        away = rows.normal[row] if rows.member[row] == j else -rows.normal[row]
-        obstacle = math.atan2(-away[1], -away[0])
-        desired = states[j, 2] + u[j, 1] / params.k_theta
-        tangents = obstacle + np.array([0.5 * np.pi, -0.5 * np.pi])
-        best = tangents[np.argmin(np.abs(wrap_angle(tangents - desired)))]
-        u[j, 1] = params.k_theta * wrap_angle(best - states[j, 2])
+    _steer(u, np.ascontiguousarray(states, dtype=float).reshape(-1, 4),
+           *(np.ascontiguousarray(a) for a in (rows.G, rows.b, rows.member, rows.other,
+                                               rows.normal)),
+           params.stall_speed, params.k_theta)
     return u
+
+
+@numba.njit(cache=True)
+def _steer(u, states, G, b, member, other, normal, stall_speed, k_theta):
+    """``steer_blocked`` in place on ``u`` (k, 2)."""
+    violation = np.empty(len(b))
+    for row in range(len(b)):
+        value = 0.0
+        for column in range(G.shape[1]):
+            value += G[row, column] * u[column // 2, column % 2]
+        violation[row] = value - b[row]
+    for j in range(len(u)):
+        if not (abs(states[j, 3]) < stall_speed and u[j, 0] > 0.0):
+            continue
+        row, worst = -1, math.inf
+        for r in range(len(b)):
+            if ((member[r] == j or other[r] == j) and G[r, 2 * j] < 0.0
+                    and violation[r] < 0.0 and violation[r] < worst):
+                row, worst = r, violation[r]
+        if row < 0:
+            continue
+        # The unit vector away from the obstacle point (normal points away from member's).
+        sign = 1.0 if member[row] == j else -1.0
+        obstacle = math.atan2(-(sign * normal[row, 1]), -(sign * normal[row, 0]))
+        desired = states[j, 2] + u[j, 1] / k_theta
+        best = obstacle + 0.5 * math.pi
+        if abs(wrap_angle(obstacle - 0.5 * math.pi - desired)) < abs(wrap_angle(best - desired)):
+            best = obstacle - 0.5 * math.pi
+        u[j, 1] = k_theta * wrap_angle(best - states[j, 2])
 
 
 def barrier_minima(states, hits, hit_mask, human_positions,
@@ -342,15 +522,29 @@ def barrier_minima(states, hits, hit_mask, human_positions,
     """Smallest barrier value h (m^2; inf when none) over all robots ``states`` (N, 4) and
     their wall ``hits`` (N, R, 2) where ``hit_mask``, over all robot-human pairs and over all
     robot pairs."""
-    p = np.asarray(states, dtype=float).reshape(-1, 4)[:, :2]
-    wall = np.sum((hits - p[:, None, :]) ** 2, axis=-1)[hit_mask]
-    humans = np.asarray(human_positions, dtype=float).reshape(-1, 2)
-    human = np.sum((p[:, None, :] - humans[None, :, :]) ** 2, axis=-1)
-    i, j = np.triu_indices(len(p), 1)
-    robot = np.sum((p[i] - p[j]) ** 2, axis=-1)
-    return (float(np.min(wall, initial=np.inf)) - params.safety_distance_wall**2,
-            float(np.min(human, initial=np.inf)) - params.safety_distance_human**2,
-            float(np.min(robot, initial=np.inf)) - params.safety_distance_robot**2)
+    p = np.ascontiguousarray(np.asarray(states, dtype=float).reshape(-1, 4)[:, :2])
+    wall, human, robot = _min_squared_distances(
+        p, np.ascontiguousarray(hits, dtype=float).reshape(len(p), -1, 2),
+        np.ascontiguousarray(hit_mask, dtype=bool).reshape(len(p), -1),
+        np.ascontiguousarray(human_positions, dtype=float).reshape(-1, 2))
+    return (wall - params.safety_distance_wall**2, human - params.safety_distance_human**2,
+            robot - params.safety_distance_robot**2)
+
+
+@numba.njit(cache=True)
+def _min_squared_distances(p, hits, mask, humans):
+    """Smallest squared distance (m^2; inf when none) from a robot (p (N, 2)) to one of its
+    wall hits, to a human, to another robot."""
+    wall = human = robot = math.inf
+    for i in range(len(p)):
+        for r in range(mask.shape[1]):
+            if mask[i, r]:
+                wall = min(wall, (hits[i, r, 0] - p[i, 0]) ** 2 + (hits[i, r, 1] - p[i, 1]) ** 2)
+        for q in range(len(humans)):
+            human = min(human, (p[i, 0] - humans[q, 0]) ** 2 + (p[i, 1] - humans[q, 1]) ** 2)
+        for j in range(i + 1, len(p)):
+            robot = min(robot, (p[i, 0] - p[j, 0]) ** 2 + (p[i, 1] - p[j, 1]) ** 2)
+    return wall, human, robot
 
 
 @dataclass(frozen=True)
@@ -415,12 +609,13 @@ class CbfQp:
         b = np.asarray(b, dtype=float)
         k, m = len(u_nom) // 2, len(b)
         start = time.thread_time()
-        if not (np.all(np.isfinite(G)) and np.all(np.isfinite(b)) and np.all(np.isfinite(u_nom))):
-            return QpSolution(np.zeros((k, 2)), np.zeros(m), False, time.thread_time() - start)
+        clipped = np.clip(u_nom, lo, hi)
         # The clipped nominal minimizes the cost over the box; if it also meets every row it
         # is the QP's optimum and no solver call is needed.
-        clipped = np.clip(u_nom, lo, hi)
-        if m == 0 or np.all(G @ clipped >= b):
+        finite, optimal = _check_nominal(G, b, u_nom, clipped)
+        if not finite:
+            return QpSolution(np.zeros((k, 2)), np.zeros(m), False, time.thread_time() - start)
+        if optimal:
             return QpSolution(clipped.reshape(k, 2), np.zeros(m), True,
                               time.thread_time() - start, solved=False)
         # Rows that hold for every u in the box cannot change the optimum: drop them.
@@ -445,3 +640,19 @@ class CbfQp:
         slack = np.zeros(m)
         slack[kept] = np.maximum(result.GetSolution(program.s)[: len(kept)], 0.0)
         return QpSolution(u.reshape(k, 2), slack, True, elapsed)
+
+
+@numba.njit(cache=True)
+def _check_nominal(G, b, u_nominal, clipped) -> tuple[bool, bool]:
+    """Whether ``G``, ``b`` and ``u_nominal`` are all finite, and whether then ``clipped``
+    meets every row ``G u >= b``."""
+    if not (np.all(np.isfinite(G)) and np.all(np.isfinite(b))
+            and np.all(np.isfinite(u_nominal))):
+        return False, False
+    for row in range(len(b)):
+        value = 0.0
+        for column in range(len(clipped)):
+            value += G[row, column] * clipped[column]
+        if not value >= b[row]:
+            return True, False
+    return True, True

@@ -13,6 +13,7 @@ user can plug in another one.
 
 from collections.abc import Callable
 
+import numba
 import numpy as np
 
 LeaderRule = Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -34,39 +35,67 @@ LEADER_RULES: dict[str, LeaderRule] = {
 }
 
 
-def connected_groups(positions, radius: float) -> list[list[int]]:
+def register_leader_rule(name: str, rule: LeaderRule) -> None:
+    """Make ``rule`` selectable by ``name`` in the controller's ``leader_rule`` parameter
+    (in this process; for a sweep's worker processes, put the call in a module the sweep
+    spec lists under ``plugins``)."""
+    if not callable(rule):
+        raise TypeError(f"leader rule {name!r} must be a function, got {rule!r}")
+    LEADER_RULES[name] = rule
+
+
+def connected_groups(positions, radius: float, reachable=None) -> list[list[int]]:
     """Indices of robots (positions (N, 2), m) grouped by transitive closure of being at most
-    ``radius`` apart; groups and members in ascending index order."""
-    p = np.asarray(positions, dtype=float).reshape(-1, 2)
-    n = len(p)
-    d2 = np.sum((p[:, None, :] - p[None, :, :]) ** 2, axis=-1)
-    linked = d2 <= radius * radius
-    label = np.full(n, -1)
-    groups = []
-    for seed in range(n):
-        if label[seed] >= 0:
-            continue
-        label[seed] = len(groups)
-        frontier, members = [seed], [seed]
-        while frontier:
-            new = np.flatnonzero(linked[frontier].any(axis=0) & (label < 0))
-            label[new] = len(groups)
-            frontier = new.tolist()
-            members.extend(frontier)
-        groups.append(sorted(members))
+    ``radius`` apart; groups and members in ascending index order. Robots not ``reachable``
+    (N bools; None: all are), e.g. cut off from messages, are groups of their own."""
+    p = np.ascontiguousarray(positions, dtype=float).reshape(-1, 2)
+    reachable = (np.ones(len(p), dtype=bool) if reachable is None
+                 else np.ascontiguousarray(reachable, dtype=bool))
+    groups: list[list[int]] = []
+    for i, label in enumerate(_labels(p, float(radius) ** 2, reachable).tolist()):
+        if label == len(groups):
+            groups.append([])
+        groups[label].append(i)
     return groups
 
 
+@numba.njit(cache=True)
+def _labels(p, radius2, reachable):
+    """Group number of each robot, groups numbered in the order of their lowest index."""
+    n = len(p)
+    label = np.full(n, -1, dtype=np.int64)
+    stack = np.empty(n, dtype=np.int64)
+    count = 0
+    for seed in range(n):
+        if label[seed] >= 0:
+            continue
+        label[seed], stack[0], top = count, seed, 1
+        while top > 0:
+            top -= 1
+            i = stack[top]
+            if not reachable[i]:
+                continue
+            for j in range(n):
+                if (label[j] < 0 and reachable[j]
+                        and (p[i, 0] - p[j, 0]) ** 2 + (p[i, 1] - p[j, 1]) ** 2 <= radius2):
+                    label[j], stack[top] = count, j
+                    top += 1
+        count += 1
+    return label
+
+
 def form_clusters(positions, radius: float, priorities, distances_to_goal, active,
-                  rule: LeaderRule = by_priority, stalled=None) -> tuple[tuple[int, ...], ...]:
+                  rule: LeaderRule = by_priority, stalled=None,
+                  reachable=None) -> tuple[tuple[int, ...], ...]:
     """Clusters (lone robots included, as 1-tuples) in order of their lowest index, each
     ordered leader first (see the module docstring); ``stalled`` active robots (a leader
-    that could not move) rank after the other active ones."""
+    that could not move) rank after the other active ones; robots not ``reachable`` (see
+    ``connected_groups``) are clusters of their own."""
     priorities = np.asarray(priorities, dtype=float)
     keys = np.asarray(rule(priorities, np.asarray(distances_to_goal, dtype=float)), dtype=float)
     stalled = np.zeros(len(priorities), dtype=bool) if stalled is None else stalled
     clusters = []
-    for members in connected_groups(positions, radius):
+    for members in connected_groups(positions, radius, reachable):
         clusters.append(tuple(sorted(members, key=lambda i: (
             not active[i], bool(stalled[i]), keys[i], priorities[i], i))))
     return tuple(clusters)

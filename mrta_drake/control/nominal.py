@@ -28,7 +28,9 @@ Units: m, rad, s; world frame. Inputs are ``[a, omega]`` (m/s^2, rad/s).
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
+import numba
 import numpy as np
 
 from mrta_drake.payloads import PATH_OK, RobotPath
@@ -56,114 +58,37 @@ class NominalParams:
     pass_clearance: float = 0.6  # m, half width of the lane checked for bodies
     pass_range: float = 4.0  # m, how far ahead bodies are checked
 
+    @cached_property
+    def _gains(self) -> np.ndarray:
+        """The fields as one array for the compiled functions below (indices ``_K_X``...)."""
+        return np.array([self.k_x, self.k_v, self.k_theta, self.lookahead, self.heading_gate,
+                         self.heading_gate_cluster, self.max_speed, self.k_slow,
+                         self.slow_accel, self.goal_tolerance, self.brake_accel,
+                         self.pass_offset, self.pass_clearance, self.pass_range])
+
 
 def slow_down(speed: float, params: NominalParams) -> np.ndarray:
     """The slow-down nominal ``[a, omega]``."""
-    return np.array([np.clip(-params.k_slow * speed, -params.slow_accel, params.slow_accel), 0.0])
+    return np.array(_slow_down(float(speed), params.k_slow, params.slow_accel))
 
 
+@numba.njit(cache=True)
 def wrap_angle(angle):
     """Angle(s) wrapped to [-pi, pi)."""
-    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
-
-
-def local_goal(position, points: np.ndarray, lookahead: float) -> tuple[np.ndarray, bool, float]:
-    """Where to drive along a path ``points`` (k, 2), k >= 1, from ``position``.
-
-    The local goal is the first point of the path polyline at least ``lookahead`` from the
-    robot, searching on from the robot's projection onto the nearest segment (for the dense
-    paths a grid planner makes this is the paper's "first path point at least 0.5 m away"; for
-    sparse paths it stays on the polyline instead of cutting corners). Without one it is the
-    path end. Returns the goal, whether it is the path end, and the remaining path length from
-    the projection to the end (m).
-    """
-    p = np.asarray(position, dtype=float)
-    if len(points) == 1:
-        return points[0], True, math.dist(p, points[0])
-    start, seg = points[:-1], np.diff(points, axis=0)
-    length2 = np.maximum(np.sum(seg * seg, axis=1), 1e-12)
-    t = np.clip(np.sum((p - start) * seg, axis=1) / length2, 0.0, 1.0)
-    nearest = int(np.argmin(np.sum((start + t[:, None] * seg - p) ** 2, axis=1)))
-    lengths = np.sqrt(length2[nearest:])
-    remaining = float((1.0 - t[nearest]) * lengths[0] + np.sum(lengths[1:]))
-    projection = start[nearest] + t[nearest] * seg[nearest]
-    if math.dist(p, projection) >= lookahead:  # off the path: head back to it
-        return projection, remaining == 0.0, remaining
-    # Per segment from the nearest on: the larger root s of |a + s d| = lookahead, a = start - p.
-    a, d = start[nearest:] - p, seg[nearest:]
-    b = np.sum(a * d, axis=1) / length2[nearest:]
-    c = (np.sum(a * a, axis=1) - lookahead**2) / length2[nearest:]
-    with np.errstate(invalid="ignore"):
-        root = -b + np.sqrt(b * b - c)
-    found = np.flatnonzero(root <= 1.0)  # NaN (never lookahead away) compares False
-    if len(found) == 0:
-        return points[-1], True, remaining
-    i = int(found[0])
-    return start[nearest + i] + root[i] * d[i], False, remaining
-
-
-def passing_goal(position, goal, bodies, reach: float, params: NominalParams) -> np.ndarray:
-    """``goal``, or, when a body (positions (n, 2)) stands in the lane from ``position`` towards
-    ``goal`` no farther than ``reach`` (m), a point as far as ``goal`` in the direction of the
-    point ``pass_offset`` to the right of the nearest such body."""
-    if params.pass_offset <= 0.0 or len(bodies) == 0:
-        return goal
-    p = np.asarray(position, dtype=float)
-    to_goal = goal - p
-    dist = float(np.hypot(*to_goal))
-    if dist < 1e-9:
-        return goal
-    ahead = to_goal / dist
-    left = np.array([-ahead[1], ahead[0]])
-    rel = np.asarray(bodies, dtype=float) - p
-    along, lateral = rel @ ahead, rel @ left
-    blocking = ((along > 0.0) & (along < min(params.pass_range, reach))
-                & (np.abs(lateral) < params.pass_clearance))
-    if not np.any(blocking):
-        return goal
-    nearest = int(np.argmin(np.where(blocking, along, np.inf)))
-    aim = along[nearest] * ahead + (lateral[nearest] - params.pass_offset) * left
-    # As far away as ``goal``, so that passing changes the heading but not the speed.
-    return p + aim * (dist / np.hypot(*aim))
-
-
-def track(state, goal, is_end: bool, remaining: float | None, heading_gate: float,
-          params: NominalParams) -> np.ndarray:
-    """Nominal ``[a, omega]`` driving robot ``state`` ``[x, y, theta, v]`` towards ``goal``.
-    ``remaining``: path length (m) to where the robot must stop (None: no stop ahead);
-    ``is_end``: ``goal`` is that stop."""
-    x, y, theta, v = state
-    dx, dy = goal[0] - x, goal[1] - y
-    dist = math.hypot(dx, dy)
-    if is_end and dist <= params.goal_tolerance:
-        return slow_down(v, params)
-    heading_error = float(wrap_angle(math.atan2(dy, dx) - theta))
-    v_des, feedforward = min(params.k_x * dist, params.max_speed), 0.0
-    if remaining is not None:
-        # The braking profile to the stop; it governs the final approach, where k_x dist
-        # would ask for more than max_accel. Its deceleration is fed forward so the speed
-        # does not lag behind it.
-        v_stop = math.sqrt(2.0 * params.brake_accel * max(remaining, dist if is_end else 0.0))
-        if v_stop < v_des or is_end:
-            v_des, feedforward = min(v_stop, params.max_speed), -params.brake_accel
-    if abs(heading_error) > heading_gate:
-        v_des, feedforward = 0.0, 0.0
-    return np.array([params.k_v * (v_des - v) + feedforward, params.k_theta * heading_error])
+    return (angle + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def nominal_control(state, path: RobotPath | None, params: NominalParams, clustered: bool = False,
-                    bodies=()) -> np.ndarray:
+                    bodies=(), exclude: int = -1) -> np.ndarray:
     """Nominal ``[a, omega]`` of a robot in ``state`` ``[x, y, theta, v]`` following ``path``
     (slow-down without an ``ok`` path). ``bodies`` (n, 2): positions of other robots and humans,
-    used only for passing."""
+    used only for passing; ``bodies[exclude]`` is left out (e.g. the robot itself)."""
     if path is None or path.status != PATH_OK or len(path.points) == 0:
         return slow_down(state[3], params)
-    goal, is_end, remaining = local_goal(state[:2], path.points, params.lookahead)
-    passing = passing_goal(state[:2], goal, bodies, remaining, params)
-    if passing is not goal:
-        goal, is_end = passing, False
-    gate = params.heading_gate_cluster if clustered else params.heading_gate
-    return track(state, goal, is_end, remaining if path.stop_at_end else None, gate, params)
+    bodies = np.asarray(bodies, dtype=float).reshape(-1, 2)
+    return np.array(_nominal(float(state[0]), float(state[1]), float(state[2]), float(state[3]),
+                             path.points, path.stop_at_end, clustered, bodies, exclude,
+                             params._gains))
 
 
 def remaining_distance(state, path: RobotPath | None) -> float:
@@ -179,3 +104,122 @@ def is_active(state, path: RobotPath | None, arrival_radius: float) -> bool:
     if path is None or path.status != PATH_OK or len(path.points) == 0:
         return False
     return not (path.stop_at_end and remaining_distance(state, path) <= arrival_radius)
+
+
+# Compiled: a controller runs these for every robot at every tick (gains: ``_gains``).
+(_K_X, _K_V, _K_THETA, _LOOKAHEAD, _GATE, _GATE_CLUSTER, _MAX_SPEED, _K_SLOW, _SLOW_ACCEL,
+ _GOAL_TOLERANCE, _BRAKE_ACCEL, _PASS_OFFSET, _PASS_CLEARANCE, _PASS_RANGE) = range(14)
+
+
+@numba.njit(cache=True)
+def _slow_down(speed, k_slow, slow_accel):
+    return min(max(-k_slow * speed, -slow_accel), slow_accel), 0.0
+
+
+@numba.njit(cache=True)
+def _nominal(x, y, theta, v, points, stop_at_end, clustered, bodies, exclude, gains):
+    """Nominal (a, omega) along a path of at least one point (see ``nominal_control``)."""
+    gx, gy, is_end, remaining = _local_goal(x, y, points, gains[_LOOKAHEAD])
+    passing, px, py = _passing_goal(x, y, gx, gy, bodies, exclude, remaining, gains)
+    if passing:
+        gx, gy, is_end = px, py, False
+    gate = gains[_GATE_CLUSTER] if clustered else gains[_GATE]
+    return _track(x, y, theta, v, gx, gy, is_end, stop_at_end, remaining, gate, gains)
+
+
+@numba.njit(cache=True)
+def _local_goal(x, y, points, lookahead):
+    """Where to drive along a path ``points`` (k, 2), k >= 1, from (x, y).
+
+    The local goal is the first point of the path polyline at least ``lookahead`` from the
+    robot, searching on from the robot's projection onto the nearest segment (for the dense
+    paths a grid planner makes this is the paper's "first path point at least 0.5 m away"; for
+    sparse paths it stays on the polyline instead of cutting corners). Without one it is the
+    path end. Returns the goal (x, y), whether it is the path end, and the remaining path
+    length from the projection to the end (m).
+    """
+    k = len(points)
+    if k == 1:
+        return points[0, 0], points[0, 1], True, math.hypot(x - points[0, 0], y - points[0, 1])
+    nearest, best, t_nearest = 0, math.inf, 0.0
+    for i in range(k - 1):
+        sx, sy = points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1]
+        length2 = max(sx * sx + sy * sy, 1e-12)
+        t = min(max(((x - points[i, 0]) * sx + (y - points[i, 1]) * sy) / length2, 0.0), 1.0)
+        d2 = (points[i, 0] + t * sx - x) ** 2 + (points[i, 1] + t * sy - y) ** 2
+        if d2 < best:
+            nearest, best, t_nearest = i, d2, t
+    remaining = 0.0
+    for i in range(nearest, k - 1):
+        length = math.sqrt(max((points[i + 1, 0] - points[i, 0]) ** 2
+                               + (points[i + 1, 1] - points[i, 1]) ** 2, 1e-12))
+        remaining += (1.0 - t_nearest) * length if i == nearest else length
+    px = points[nearest, 0] + t_nearest * (points[nearest + 1, 0] - points[nearest, 0])
+    py = points[nearest, 1] + t_nearest * (points[nearest + 1, 1] - points[nearest, 1])
+    if math.hypot(x - px, y - py) >= lookahead:  # off the path: head back to it
+        return px, py, remaining == 0.0, remaining
+    # Per segment from the nearest on: the larger root s of |a + s d| = lookahead, a = start - p.
+    for i in range(nearest, k - 1):
+        ax, ay = points[i, 0] - x, points[i, 1] - y
+        dx, dy = points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1]
+        length2 = max(dx * dx + dy * dy, 1e-12)
+        b = (ax * dx + ay * dy) / length2
+        c = (ax * ax + ay * ay - lookahead * lookahead) / length2
+        if b * b - c >= 0.0:
+            root = -b + math.sqrt(b * b - c)
+            if root <= 1.0:
+                return points[i, 0] + root * dx, points[i, 1] + root * dy, False, remaining
+    return points[k - 1, 0], points[k - 1, 1], True, remaining
+
+
+@numba.njit(cache=True)
+def _passing_goal(x, y, gx, gy, bodies, exclude, reach, gains):
+    """Whether a body (positions (n, 2), but ``exclude``) stands in the lane from (x, y)
+    towards the goal (gx, gy) no farther than ``reach`` (m), and then a point as far as the
+    goal in the direction of the point ``pass_offset`` to the right of the nearest such
+    body."""
+    offset = gains[_PASS_OFFSET]
+    dist = math.hypot(gx - x, gy - y)
+    if offset <= 0.0 or len(bodies) == 0 or dist < 1e-9:
+        return False, gx, gy
+    ahead_x, ahead_y = (gx - x) / dist, (gy - y) / dist
+    limit = min(gains[_PASS_RANGE], reach)
+    nearest, along_min, lateral_min = -1, math.inf, 0.0
+    for j in range(len(bodies)):
+        if j == exclude:
+            continue
+        rx, ry = bodies[j, 0] - x, bodies[j, 1] - y
+        along = rx * ahead_x + ry * ahead_y
+        lateral = -rx * ahead_y + ry * ahead_x
+        if 0.0 < along < limit and abs(lateral) < gains[_PASS_CLEARANCE] and along < along_min:
+            nearest, along_min, lateral_min = j, along, lateral
+    if nearest < 0:
+        return False, gx, gy
+    aim_x = along_min * ahead_x - (lateral_min - offset) * ahead_y
+    aim_y = along_min * ahead_y + (lateral_min - offset) * ahead_x
+    # As far away as the goal, so that passing changes the heading but not the speed.
+    scale = dist / math.hypot(aim_x, aim_y)
+    return True, x + aim_x * scale, y + aim_y * scale
+
+
+@numba.njit(cache=True)
+def _track(x, y, theta, v, gx, gy, is_end, has_stop, remaining, heading_gate, gains):
+    """Nominal (a, omega) driving towards the goal (gx, gy). ``has_stop``: the robot must
+    stop ``remaining`` m ahead along the path; ``is_end``: the goal is that stop."""
+    dx, dy = gx - x, gy - y
+    dist = math.hypot(dx, dy)
+    if is_end and dist <= gains[_GOAL_TOLERANCE]:
+        return _slow_down(v, gains[_K_SLOW], gains[_SLOW_ACCEL])
+    heading_error = wrap_angle(math.atan2(dy, dx) - theta)
+    v_des, feedforward = min(gains[_K_X] * dist, gains[_MAX_SPEED]), 0.0
+    if has_stop:
+        # The braking profile to the stop; it governs the final approach, where k_x dist
+        # would ask for more than max_accel. Its deceleration is fed forward so the speed
+        # does not lag behind it.
+        brake = gains[_BRAKE_ACCEL]
+        v_stop = math.sqrt(2.0 * brake * max(remaining, dist if is_end else 0.0))
+        if v_stop < v_des or is_end:
+            v_des, feedforward = min(v_stop, gains[_MAX_SPEED]), -brake
+    if abs(heading_error) > heading_gate:
+        v_des, feedforward = 0.0, 0.0
+    return gains[_K_V] * (v_des - v) + feedforward, gains[_K_THETA] * heading_error

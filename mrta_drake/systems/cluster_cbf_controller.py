@@ -9,11 +9,11 @@ from pydrake.systems.framework import LeafSystem
 from mrta_drake.control.cbf_qp import (
     CbfParams,
     CbfQp,
-    SafetyRows,
+    QpProblem,
+    TickQps,
     WallRays,
     barrier_minima,
-    safety_rows,
-    steer_blocked,
+    qp_problems,
 )
 from mrta_drake.control.clusters import (
     LEADER_RULES,
@@ -28,10 +28,13 @@ from mrta_drake.control.nominal import (
     remaining_distance,
     slow_down,
 )
+from mrta_drake.disturbances import blockage_obstacles
 from mrta_drake.payloads import (
+    NO_DISTURBANCES,
     ROBOT_COMMAND_SIZE,
     ROBOT_STATE_SIZE,
     ControllerTelemetry,
+    Disturbances,
     FleetPaths,
     HumanStates,
     RobotPath,
@@ -45,28 +48,20 @@ _TELEMETRY_FIELDS = ("time", "min_barrier_wall", "min_barrier_human", "min_barri
 
 
 @dataclass(frozen=True)
-class QpProblem:
-    """One QP of a tick: the robots whose inputs it decides (``members``), their nominal
-    inputs and hard bounds (k, 2) ``[a, omega]``, and the safety rows."""
-
-    members: tuple[int, ...]
-    u_nominal: np.ndarray
-    rows: SafetyRows
-    lower: np.ndarray
-    upper: np.ndarray
-
-
-@dataclass(frozen=True)
 class TickPlan:
     """Everything one tick solves: clusters (leader first), which robots are active (N,),
-    every robot's nominal input (N, 2) (followers' already the slow-down), the QPs, and the
-    smallest barrier values (wall, human, robot; m^2)."""
+    every robot's nominal input (N, 2) (followers' already the slow-down), the QPs (``qps``;
+    ``problems`` lists them), and the smallest barrier values (wall, human, robot; m^2)."""
 
     clusters: tuple[tuple[int, ...], ...]
     active: np.ndarray
     u_nominal: np.ndarray
-    problems: tuple[QpProblem, ...]
+    qps: TickQps
     min_barriers: tuple[float, float, float]
+
+    @property
+    def problems(self) -> tuple[QpProblem, ...]:
+        return self.qps.problems
 
 
 class ClusterCbfController(LeafSystem):
@@ -111,6 +106,20 @@ class ClusterCbfController(LeafSystem):
     speed when the command takes effect (see Latency).
     Output ``telemetry`` (ControllerTelemetry): the last tick's account.
 
+    Input ``disturbances`` (Disturbances): optional (none). A broken-down robot is in no
+    QP and gets the command [0, 0]; the others keep clear of it as of any robot outside
+    their QP. A robot cut off from messages is in no cluster: the others form clusters and
+    solve their QPs with its state as last broadcast before the outage (constant-velocity
+    rows), and it solves its own QP alone against the others' states as it last heard them
+    (``Disturbances.seen_by``), seeing walls and people with its own sensors, with the
+    slow-down nominal: it brakes and stands until messages return. Why not drive on: with
+    stale states on both sides, a robot driving on could run into robots that do not know
+    where it is (in the example scenario, robot2 driving on through its outage overlapped
+    another robot by 0.4 m); braking keeps the others' last view of it within its braking
+    distance (v^2 / (2 slow_accel), 0.19 m at 0.75 m/s) of the truth, so their barriers
+    still protect it, the fail-safe of fleets that lose their link. The outage costs the
+    time it stands. Blockages stop the wall rays (``rays_with_blockages``).
+
     ``priorities``: per robot, smaller leads (default: robot order). ``leader_rule``: a
     function as in ``mrta_drake.control.clusters`` (default: ``params.leader_rule`` by name).
     ``obstacles``: the world's ``Obstacles`` the wall rays are cast against (None: no walls).
@@ -140,12 +149,13 @@ class ClusterCbfController(LeafSystem):
         return self._params
 
     def plan(self, states, paths: FleetPaths, humans: HumanStates | None = None,
-             stall_times=None) -> TickPlan:
+             stall_times=None, disturbances: Disturbances | None = None) -> TickPlan:
         """What one tick solves for robots in ``states`` (N, 4): clusters, nominal inputs and
         the QPs of the coordination mode (``humans`` None: no humans; ``stall_times`` (N,)
         s each robot has stood as a blocked leader, see ``clusters.leader_stall_times``;
-        None: none)."""
+        None: none; ``disturbances`` None: none, see the class docstring)."""
         humans = humans or HumanStates()
+        d = disturbances or NO_DISTURBANCES
         p, n = self._params, self._n
         states = np.asarray(states, dtype=float).reshape(n, ROBOT_STATE_SIZE)
         robot_paths = robot_paths_of(paths, n)
@@ -154,16 +164,27 @@ class ClusterCbfController(LeafSystem):
         distances = [remaining_distance(s, path) for s, path in zip(states, robot_paths,
                                                                    strict=True)]
         stalled = None if stall_times is None else np.asarray(stall_times) >= p.stall_time
+        broken, cut_off = d.broken, d.cut_off
+        alone = None  # robots in no cluster: broken down or cut off
+        if broken or cut_off:
+            alone = np.zeros(n, dtype=bool)
+            alone[list(broken + cut_off)] = True
         clusters = form_clusters(states[:, :2], p.cluster_radius, self._priorities, distances,
-                                 active, self._rule, stalled)
+                                 active, self._rule, stalled, None if alone is None else ~alone)
         cluster_size = np.zeros(n, dtype=int)
         for cluster in clusters:
             cluster_size[list(cluster)] = len(cluster)
         human_p, human_v = humans.positions.reshape(-1, 2), humans.velocities.reshape(-1, 2)
+        views = {i: d.seen_by(states, i) for i in cut_off}
+        shared = d.seen_by(states)
         u_nom = np.zeros((n, 2))
+        bodies = np.vstack([shared[:, :2], human_p])
         for i in range(n):
-            bodies = np.vstack([np.delete(states[:, :2], i, axis=0), human_p])
-            u_nom[i] = nominal_control(states[i], robot_paths[i], p, cluster_size[i] > 1, bodies)
+            view = np.vstack([views[i][:, :2], human_p]) if i in views else bodies
+            u_nom[i] = nominal_control(states[i], robot_paths[i], p, cluster_size[i] > 1, view,
+                                       exclude=i)
+        for i in cut_off:
+            u_nom[i] = slow_down(states[i, 3], p)
         if p.coordination == "clusters":
             groups = clusters
             for cluster in clusters:
@@ -171,33 +192,37 @@ class ClusterCbfController(LeafSystem):
                     u_nom[follower] = slow_down(states[follower, 3], p)
         elif p.coordination == "decentralized":
             groups = tuple((i,) for i in range(n))
-        else:
+        elif alone is None:
             groups = (tuple(range(n)),)
+        else:
+            groups = (tuple(i for i in range(n) if not alone[i]),) + tuple(
+                (i,) for i in cut_off)
+        if alone is not None:
+            groups = tuple(g for g in groups if g and not set(g) & set(broken))
         hits, mask = self._rays(states)
+        if d.blockages:
+            hits, mask = rays_with_blockages(states, hits, mask, d.blockages, p)
         lower, upper = input_bounds(states, p, self._dt)
-        problems = []
-        for group in groups:
-            members = np.array(group)
-            movers = (np.delete(states, members, axis=0) if p.coordination == "decentralized"
-                      else np.zeros((0, ROBOT_STATE_SIZE)))
-            rows = safety_rows(states[members], hits[members], mask[members], human_p, human_v,
-                               movers, p)
-            u_nom[members] = steer_blocked(u_nom[members], states[members], rows, p)
-            problems.append(QpProblem(group, u_nom[members], rows, lower[members],
-                                      upper[members]))
+        movers = ([np.delete(views.get(group[0], shared), list(group), axis=0)
+                   for group in groups]
+                  if p.coordination == "decentralized" or alone is not None else None)
+        qps = qp_problems(groups, states, hits, mask, human_p, human_v, movers, u_nom, lower,
+                          upper, p)
         wall, human, robot = barrier_minima(states, hits, mask, human_p, p)
-        return TickPlan(clusters, active, u_nom, tuple(problems), (wall, human, robot))
+        return TickPlan(clusters, active, u_nom, qps, (wall, human, robot))
 
     def control(self, time: float, states, paths: FleetPaths, humans: HumanStates | None = None,
-                stall_times=None) -> tuple[np.ndarray, ControllerTelemetry]:
+                stall_times=None, disturbances: Disturbances | None = None
+                ) -> tuple[np.ndarray, ControllerTelemetry]:
         """One tick without the systems framework: inputs ``[a, omega]`` (N, 2) for robots in
         ``states`` (N, 4), and the tick's telemetry (arguments as for ``plan``)."""
-        return self._solve(time, self.plan(states, paths, humans, stall_times))
+        return self._solve(time, self.plan(states, paths, humans, stall_times, disturbances))
 
     def _solve(self, time: float, plan: TickPlan) -> tuple[np.ndarray, ControllerTelemetry]:
-        u = np.zeros((self._n, 2))
+        # Only QPs whose clipped nominal breaks a row reach the solver (the rest are settled).
+        u = plan.qps.settled.copy()
         failures, solve_time, max_slack = 0, 0.0, 0.0
-        for problem in plan.problems:
+        for problem in plan.qps.to_solve():
             members = list(problem.members)
             solution = self._qp.solve(problem.u_nominal, problem.rows.G, problem.rows.b,
                                       problem.lower, problem.upper)
@@ -219,8 +244,8 @@ class ClusterCbfController(LeafSystem):
     def _update(self, context, discrete_state) -> None:
         p, stall = self._params, context.get_discrete_state(self._stall_index).value()
 
-        def control(time, states, paths, humans):
-            plan = self.plan(states, paths, humans, stall)
+        def control(time, states, paths, humans, disturbances):
+            plan = self.plan(states, paths, humans, stall, disturbances)
             discrete_state.set_value(self._stall_index, leader_stall_times(
                 stall, states[:, 3], plan.clusters, plan.active, self._dt, p.stall_time,
                 p.stall_speed))
@@ -256,18 +281,46 @@ def predict_states(states, commands, params: NominalParams, dt: float) -> np.nda
 def controller_update(system, context, discrete_state, control, params: CbfParams, dt: float,
                       n: int) -> None:
     """The periodic update of a controller with ``declare_controller_ports``' ports and state:
-    read the inputs, ``control(time, states, paths, humans) -> (u, telemetry)`` from the state
-    the new commands will act on, store the commands and the telemetry."""
+    read the inputs, ``control(time, states, paths, humans, disturbances) -> (u, telemetry)``
+    from the state the new commands will act on, store the commands (zero for broken-down
+    robots) and the telemetry."""
     states = system.GetInputPort("robot_state").Eval(context).reshape(n, ROBOT_STATE_SIZE)
     paths = system.GetInputPort("paths").Eval(context)
     humans_port = system.GetInputPort("humans")
     humans = humans_port.Eval(context) if humans_port.HasValue(context) else HumanStates()
+    disturbances_port = system.GetInputPort("disturbances")
+    disturbances = (disturbances_port.Eval(context) if disturbances_port.HasValue(context)
+                    else NO_DISTURBANCES)
     if params.predict_latency:
         states = predict_states(states, context.get_discrete_state(0).value(), params, dt)
-    u, telemetry = control(context.get_time(), states, paths, humans)
+    u, telemetry = control(context.get_time(), states, paths, humans, disturbances)
     commands = np.stack([states[:, 3] + u[:, 0] * dt, u[:, 1]], axis=1)
+    commands[list(disturbances.broken)] = 0.0
     discrete_state.set_value(0, commands.ravel())
     discrete_state.set_value(1, _telemetry_vector(telemetry, n))
+
+
+def rays_with_blockages(states, hits, mask, blockages, params: CbfParams
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """Wall ray ``hits`` (N, R, 2) and ``mask`` (N, R) of robots ``states`` (N, 4) (as from
+    ``WallRays``) with the rays also stopped by the boxes of ``blockages``
+    (``payloads.Blockage``), except a box the robot is in: it drives out unhindered."""
+    states = np.asarray(states, dtype=float).reshape(-1, ROBOT_STATE_SIZE)
+    origins = states[:, :2]
+    angles = np.broadcast_to(params.ray_angles(), (len(states), params.ray_count))
+    if params.rays_in_body_frame:
+        angles = angles + states[:, 2:3]
+    directions = np.stack([np.cos(angles), np.sin(angles)], -1)
+    reach = params.ray_range
+    dist = np.where(mask, np.linalg.norm(hits - origins[:, None, :], axis=-1), reach)
+    for blockage in blockages:
+        near = blockage_obstacles((blockage,)).cast_rays(origins, angles, reach)
+        near[blockage.contains(origins)] = reach
+        nearer = near < dist
+        hits = np.where(nearer[..., None], origins[:, None, :] + near[..., None] * directions,
+                        hits)
+        mask, dist = mask | nearer, np.minimum(dist, near)
+    return hits, mask
 
 
 def robot_paths_of(paths: FleetPaths, n: int) -> tuple[RobotPath | None, ...]:
@@ -285,6 +338,7 @@ def declare_controller_ports(system: LeafSystem, n: int, dt: float, update) -> N
     system.DeclareVectorInputPort("robot_state", ROBOT_STATE_SIZE * n)
     system.DeclareAbstractInputPort("paths", Value[object](FleetPaths(())))
     system.DeclareAbstractInputPort("humans", Value[object](HumanStates()))
+    system.DeclareAbstractInputPort("disturbances", Value[object](Disturbances()))
     system.DeclareStateOutputPort("commands", commands)
     system.DeclareAbstractOutputPort(
         "telemetry", lambda: Value[object](ControllerTelemetry()),

@@ -1,7 +1,9 @@
 """All humans of a run in one discrete system: the Helbing-Molnar social force model."""
 
+import math
 from collections.abc import Sequence
 
+import numba
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, LeafSystem
@@ -249,11 +251,7 @@ class SocialForceHumans(LeafSystem):
     def _taken(goal, p, radii, robot_p, robot_r) -> np.ndarray:
         """True for people within ``TAKEN_REACH`` of a target that someone else's body (a
         robot's or another person's) covers, so they cannot get closer."""
-        others = np.concatenate([p, robot_p])
-        reach = np.concatenate([radii, robot_r])[None, :] + radii[:, None]
-        covered = np.linalg.norm(goal[:, None, :] - others[None, :, :], axis=2) < reach
-        covered[np.arange(len(p)), np.arange(len(p))] = False
-        return covered.any(axis=1) & (np.linalg.norm(goal - p, axis=1) < TAKEN_REACH)
+        return _taken(goal, p, radii, np.ascontiguousarray(robot_p), robot_r)
 
     def _enter(self, time, p, v, present, robot_p, robot_r) -> None:
         """Lets waiting people whose entry time has come enter, in people order, when their
@@ -268,40 +266,10 @@ class SocialForceHumans(LeafSystem):
 
     def _repulsion(self, p, direction, radii, q, q_velocity, q_radii, same: bool) -> np.ndarray:
         """Sum over others (q) of the elliptical-potential force on each person (p), m/s^2."""
-        if len(p) == 0 or len(q) == 0:
-            return np.zeros_like(p)
-        prm = self._params
-        speed = np.linalg.norm(q_velocity, axis=1)
-        heading = q_velocity / np.maximum(speed, 1e-12)[:, None]
-        step = (speed * ELLIPSE_TIME)[None, :, None] * heading[None, :, :]
-        r1 = p[:, None, :] - q[None, :, :]  # from the other to the person
-        r2 = r1 - step  # from the other's position ELLIPSE_TIME s ahead
-        n1 = np.linalg.norm(r1, axis=2)
-        n2 = np.linalg.norm(r2, axis=2)
-        s = speed * ELLIPSE_TIME
-        b = 0.5 * np.sqrt(np.maximum((n1 + n2) ** 2 - s[None, :] ** 2, 0.0))
-        unit_sum = r1 / np.maximum(n1, 1e-12)[..., None] + r2 / np.maximum(n2, 1e-12)[..., None]
-        grad = ((n1 + n2) / (4.0 * np.maximum(b, 1e-9)))[..., None] * unit_sum
-        grad_norm = np.linalg.norm(grad, axis=2)
-        grad *= np.minimum(1.0, GRADIENT_CAP / np.maximum(grad_norm, 1e-12))[..., None]
-        surface_b = np.maximum(b - radii[:, None] - q_radii[None, :], 0.0)
-        magnitude = prm.repulsion_strength / prm.repulsion_range * np.exp(
-            -surface_b / prm.repulsion_range)
-        force = magnitude[..., None] * grad
-        force_norm = np.linalg.norm(force, axis=2)
-        # The other is in view when -force (pointing at it) is within FIELD_OF_VIEW of
-        # the person's desired direction.
-        in_view = -np.einsum("ik,ijk->ij", direction, force) >= force_norm * np.cos(
-            FIELD_OF_VIEW)
-        force *= np.where(in_view, 1.0, OUT_OF_VIEW_WEIGHT)[..., None]
-        # Keeping right breaks the symmetry of head-on encounters, which would deadlock.
-        against = np.maximum(-np.einsum("ik,ijk->ij", direction, force), 0.0)
-        right = np.column_stack([direction[:, 1], -direction[:, 0]])
-        force += KEEP_RIGHT * against[..., None] * right[:, None, :]
-        force[n1 < 1e-9] = 0.0
-        if same:
-            force[np.arange(len(p)), np.arange(len(p))] = 0.0
-        return force.sum(axis=1)
+        force = np.zeros_like(p)
+        _add_repulsion(p, direction, radii, q, q_velocity, q_radii, same,
+                       self._params.repulsion_strength, self._params.repulsion_range, force)
+        return force
 
     def _project(self, new, old, old_clearance, radii, robot_p, robot_r):
         """Hard constraints on the step ``old`` -> ``new`` (positions (a, 2)): overlapping
@@ -328,38 +296,120 @@ class SocialForceHumans(LeafSystem):
         return new, blocked
 
 
+@numba.njit(cache=True)
+def _add_repulsion(p, direction, radii, q, q_velocity, q_radii, same, strength, reach, force):
+    """Adds to ``force`` (a, 2) the elliptical-potential force (m/s^2) of every other (q) on
+    each person (p) walking in ``direction`` (a, 2) (``same``: q are the people themselves,
+    nobody repels itself); ``strength`` V0, ``reach`` sigma."""
+    cos_view = math.cos(FIELD_OF_VIEW)
+    for i in range(len(p)):
+        dx, dy = direction[i, 0], direction[i, 1]
+        for j in range(len(q)):
+            if same and i == j:
+                continue
+            r1x, r1y = p[i, 0] - q[j, 0], p[i, 1] - q[j, 1]  # from the other to the person
+            n1 = math.sqrt(r1x * r1x + r1y * r1y)
+            if n1 < 1e-9:
+                continue
+            speed = math.sqrt(q_velocity[j, 0] ** 2 + q_velocity[j, 1] ** 2)
+            s = speed * ELLIPSE_TIME
+            # From the other's position ELLIPSE_TIME s ahead.
+            r2x = r1x - s * (q_velocity[j, 0] / max(speed, 1e-12))
+            r2y = r1y - s * (q_velocity[j, 1] / max(speed, 1e-12))
+            n2 = math.sqrt(r2x * r2x + r2y * r2y)
+            b = 0.5 * math.sqrt(max((n1 + n2) ** 2 - s * s, 0.0))
+            g = (n1 + n2) / (4.0 * max(b, 1e-9))
+            gx = g * (r1x / max(n1, 1e-12) + r2x / max(n2, 1e-12))
+            gy = g * (r1y / max(n1, 1e-12) + r2y / max(n2, 1e-12))
+            cap = min(1.0, GRADIENT_CAP / max(math.sqrt(gx * gx + gy * gy), 1e-12))
+            magnitude = strength / reach * math.exp(-max(b - radii[i] - q_radii[j], 0.0) / reach)
+            fx, fy = magnitude * (gx * cap), magnitude * (gy * cap)
+            # The other is in view when -force (pointing at it) is within FIELD_OF_VIEW of
+            # the person's desired direction.
+            if not -(dx * fx + dy * fy) >= math.sqrt(fx * fx + fy * fy) * cos_view:
+                fx, fy = fx * OUT_OF_VIEW_WEIGHT, fy * OUT_OF_VIEW_WEIGHT
+            # Keeping right breaks the symmetry of head-on encounters, which would deadlock.
+            against = max(-(dx * fx + dy * fy), 0.0)
+            force[i, 0] += fx + KEEP_RIGHT * against * dy
+            force[i, 1] += fy - KEEP_RIGHT * against * dx
+
+
+@numba.njit(cache=True)
 def _gaps(p, radii, q, q_radii) -> np.ndarray:
     """Surface distances (a, b) between circles at p (a, 2) and q (b, 2)."""
-    centre = np.linalg.norm(p[:, None, :] - q[None, :, :], axis=2)
-    return centre - radii[:, None] - q_radii[None, :]
+    gaps = np.empty((len(p), len(q)))
+    for i in range(len(p)):
+        for j in range(len(q)):
+            gaps[i, j] = (math.sqrt((p[i, 0] - q[j, 0]) ** 2 + (p[i, 1] - q[j, 1]) ** 2)
+                          - radii[i] - q_radii[j])
+    return gaps
 
 
+@numba.njit(cache=True)
 def _apart(p, radii) -> np.ndarray:
     """Shifts (a, 2) that move each overlapping pair of people half the overlap apart."""
-    offset = p[:, None, :] - p[None, :, :]
-    dist = np.linalg.norm(offset, axis=2)
-    overlap = radii[:, None] + radii[None, :] - dist
-    np.fill_diagonal(overlap, 0.0)
-    push = np.where((overlap > 0) & (dist > 1e-9), 0.5 * overlap / np.maximum(dist, 1e-9), 0.0)
-    return np.einsum("ij,ijk->ik", push, offset)
+    shift = np.zeros_like(p)
+    for i in range(len(p)):
+        for j in range(len(p)):
+            ox, oy = p[i, 0] - p[j, 0], p[i, 1] - p[j, 1]
+            dist = math.sqrt(ox * ox + oy * oy)
+            overlap = radii[i] + radii[j] - dist
+            if i != j and overlap > 0 and dist > 1e-9:
+                push = 0.5 * overlap / dist
+                shift[i, 0] += push * ox
+                shift[i, 1] += push * oy
+    return shift
 
 
+@numba.njit(cache=True)
 def _away(p, radii, q, q_radii, floor) -> np.ndarray:
     """Shifts (a, 2) that move people straight away from robots q until each gap >= floor."""
-    offset = p[:, None, :] - q[None, :, :]
-    dist = np.linalg.norm(offset, axis=2)
-    deficit = np.maximum(floor - (dist - radii[:, None] - q_radii[None, :]), 0.0)
-    push = np.where(dist > 1e-9, deficit / np.maximum(dist, 1e-9), 0.0)
-    return np.einsum("ij,ijk->ik", push, offset)
+    shift = np.zeros_like(p)
+    for i in range(len(p)):
+        for j in range(len(q)):
+            ox, oy = p[i, 0] - q[j, 0], p[i, 1] - q[j, 1]
+            dist = math.sqrt(ox * ox + oy * oy)
+            deficit = max(floor[i, j] - (dist - radii[i] - q_radii[j]), 0.0)
+            if dist > 1e-9:
+                shift[i, 0] += deficit / dist * ox
+                shift[i, 1] += deficit / dist * oy
+    return shift
 
 
+@numba.njit(cache=True)
+def _taken(goal, p, radii, robot_p, robot_r) -> np.ndarray:
+    """``SocialForceHumans._taken``."""
+    taken = np.zeros(len(p), dtype=np.bool_)
+    for i in range(len(p)):
+        if not math.hypot(goal[i, 0] - p[i, 0], goal[i, 1] - p[i, 1]) < TAKEN_REACH:
+            continue
+        for j in range(len(p) + len(robot_p)):
+            other, reach = (p[j], radii[j]) if j < len(p) else (robot_p[j - len(p)],
+                                                                robot_r[j - len(p)])
+            if j != i and math.sqrt((goal[i, 0] - other[0]) ** 2
+                                    + (goal[i, 1] - other[1]) ** 2) < reach + radii[i]:
+                taken[i] = True
+                break
+    return taken
+
+
+@numba.njit(cache=True)
 def _outward(p, closest, clearance) -> np.ndarray:
     """Unit vectors (n, 2) pointing from the obstacle out to each point (zero if undefined)."""
-    offset = np.where((clearance < 0)[:, None], closest - p, p - closest)
-    norm = np.linalg.norm(offset, axis=1)
-    return np.where((norm > 1e-12)[:, None], offset / np.maximum(norm, 1e-12)[:, None], 0.0)
+    out = np.zeros_like(p)
+    for i in range(len(p)):
+        sign = -1.0 if clearance[i] < 0 else 1.0
+        ox, oy = sign * (p[i, 0] - closest[i, 0]), sign * (p[i, 1] - closest[i, 1])
+        norm = math.sqrt(ox * ox + oy * oy)
+        if norm > 1e-12:
+            out[i, 0], out[i, 1] = ox / norm, oy / norm
+    return out
 
 
+@numba.njit(cache=True)
 def _cap_speed(v, max_speed: float) -> np.ndarray:
-    speed = np.linalg.norm(v, axis=1)
-    return v * np.minimum(1.0, max_speed / np.maximum(speed, 1e-12))[:, None]
+    out = np.empty_like(v)
+    for i in range(len(v)):
+        scale = min(1.0, max_speed / max(math.sqrt(v[i, 0] ** 2 + v[i, 1] ** 2), 1e-12))
+        out[i, 0], out[i, 1] = v[i, 0] * scale, v[i, 1] * scale
+    return out

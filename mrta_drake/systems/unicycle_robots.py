@@ -1,7 +1,9 @@
 """Kinematic differential-drive robots: the fast default robot block."""
 
+import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from pydrake.systems.framework import BasicVector, LeafSystem
 
@@ -76,16 +78,28 @@ def unicycle_step(states: np.ndarray, commands: np.ndarray, params: UnicyclePara
                   dt: float) -> np.ndarray:
     """Advance unicycle ``states`` (N, 4) [x, y, theta, v] by ``dt`` s under ``commands``
     (N, 2) [v, omega], applying ``params``' limits. Returns the new (N, 4) states."""
-    x, y, theta, v = states.T
-    v_cmd = np.clip(commands[:, 0], -params.max_reverse_speed, params.max_speed)
-    omega = np.clip(commands[:, 1], -params.max_yaw_rate, params.max_yaw_rate)
-    dv_max = params.max_acceleration * dt
-    v_new = v + np.clip(v_cmd - v, -dv_max, dv_max)
-    distance = 0.5 * (v + v_new) * dt
-    turn = omega * dt
-    # Chord of the arc: length 2 R sin(turn / 2) = distance * sinc(turn / 2), along the mean
-    # heading; exact for a circular arc and well conditioned as turn -> 0.
-    chord = distance * np.sinc(turn / (2.0 * np.pi))
-    mid = theta + 0.5 * turn
-    new_theta = np.mod(theta + turn + np.pi, 2.0 * np.pi) - np.pi
-    return np.stack([x + chord * np.cos(mid), y + chord * np.sin(mid), new_theta, v_new], axis=1)
+    return _step(np.ascontiguousarray(states, dtype=float).reshape(-1, ROBOT_STATE_SIZE),
+                 np.ascontiguousarray(commands, dtype=float).reshape(-1, ROBOT_COMMAND_SIZE),
+                 params.max_reverse_speed, params.max_speed, params.max_yaw_rate,
+                 params.max_acceleration * dt, dt)
+
+
+@numba.njit(cache=True)
+def _step(states, commands, max_reverse_speed, max_speed, max_yaw_rate, dv_max, dt):
+    new = np.empty_like(states)
+    for i in range(len(states)):
+        x, y, theta, v = states[i, 0], states[i, 1], states[i, 2], states[i, 3]
+        v_cmd = min(max(commands[i, 0], -max_reverse_speed), max_speed)
+        omega = min(max(commands[i, 1], -max_yaw_rate), max_yaw_rate)
+        v_new = v + min(max(v_cmd - v, -dv_max), dv_max)
+        distance = 0.5 * (v + v_new) * dt
+        turn = omega * dt
+        # Chord of the arc: length 2 R sin(turn / 2) = distance * sinc(turn / 2), along the
+        # mean heading; exact for a circular arc and well conditioned as turn -> 0.
+        half = 0.5 * turn if turn != 0.0 else 1e-20
+        chord = distance * (math.sin(half) / half)
+        mid = theta + 0.5 * turn
+        new[i, 0], new[i, 1] = x + chord * math.cos(mid), y + chord * math.sin(mid)
+        new[i, 2] = (theta + turn + math.pi) % (2.0 * math.pi) - math.pi
+        new[i, 3] = v_new
+    return new
