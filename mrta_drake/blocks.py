@@ -19,6 +19,8 @@ humans      robot_state (4N)                      human_states (HumanStates), pl
 
 A robots block that steps the plant (``BlockType.physics``, e.g. kind ``physics``) also has
 an input ``plant_state`` and an output ``generalized_force`` (see ``mrta_drake.physics``).
+Any block may also have an input ``disturbances`` (``payloads.Disturbances``): ``add_stack``
+connects it when the scenario schedules disturbances (see ``mrta_drake.disturbances``).
 """
 
 import dataclasses
@@ -41,6 +43,15 @@ class BuildContext:
     floor_plan: object  # FloorPlan
     rates: object  # RatesConfig
     world: object = None  # World, for the blocks made after it (all but humans)
+
+    @classmethod
+    def for_scenario(cls, scenario: Scenario) -> "BuildContext":
+        """The context of ``scenario`` before its world is built: its floor plan (with any
+        Scenic objects) loaded, its location points filled in from the floor plan."""
+        from mrta_drake.world import load_floor_plan_of, resolve_locations
+
+        floor_plan = load_floor_plan_of(scenario)
+        return cls(resolve_locations(scenario, floor_plan), floor_plan, scenario.rates)
 
     @property
     def robot_names(self) -> list[str]:
@@ -168,7 +179,11 @@ class NoParams:
     """For implementations without parameters."""
 
 
-def _task_allocator(allocator_class, params_class):
+def task_allocator_block(allocator_class, params_class) -> BlockType:
+    """An allocator block: a ``TaskAllocator`` around ``allocator_class(params)``, any class
+    with ``allocate(AllocationProblem) -> Allocation`` (like ``GreedyAllocator``), whose
+    parameters are ``params_class`` (e.g. ``NoParams``)."""
+
     def make(ctx: BuildContext, params):
         from mrta_drake.systems.task_allocator import TaskAllocator
 
@@ -191,13 +206,13 @@ def _task_allocator(allocator_class, params_class):
 def _smt_allocator() -> BlockType:
     from mrta_drake.allocation import SmtAllocator, SmtAllocatorParams
 
-    return _task_allocator(SmtAllocator, SmtAllocatorParams)
+    return task_allocator_block(SmtAllocator, SmtAllocatorParams)
 
 
 def _greedy_allocator() -> BlockType:
     from mrta_drake.allocation import GreedyAllocator, GreedyAllocatorParams
 
-    return _task_allocator(GreedyAllocator, GreedyAllocatorParams)
+    return task_allocator_block(GreedyAllocator, GreedyAllocatorParams)
 
 
 def _fixed_allocator() -> BlockType:

@@ -64,6 +64,20 @@ def _parser() -> argparse.ArgumentParser:
     compare = commands.add_parser("compare", help="print two runs' results side by side")
     compare.add_argument("first", help="results folder written by `run --out`")
     compare.add_argument("second", help="another results folder")
+
+    travel = commands.add_parser("travel-times", help="measure the allocator's travel-time "
+                                 "matrix: one robot drives every ordered pair of locations")
+    travel.add_argument("scenario", help="scenario YAML file")
+    travel.add_argument("--repeats", type=int, default=1, help="runs over every leg "
+                        "(default 1)")
+    travel.add_argument("--stat", default="max", help="max or mean over repeats (default max)")
+    travel.add_argument("--robot", help="the robot that drives (default: the first)")
+    travel.add_argument("--humans", action="store_true", help="keep the scenario's people")
+    travel.add_argument("--time-limit", type=_positive, default=300.0, help="s a leg may "
+                        "take before it counts as failed (default 300)")
+    travel.add_argument("--out", metavar="FILE", help="matrix file, .yaml or .csv (default: "
+                        "travel_times/<scenario name>.yaml)")
+    travel.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
 
 
@@ -176,8 +190,33 @@ def _sweep(args) -> int:
     return 0
 
 
+def _travel_times(args) -> int:
+    import os
+
+    from mrta_drake.scenario import load_scenario
+    from mrta_drake.travel_time_collection import check_stat, measure_legs
+    from mrta_drake.travel_times import write_travel_times
+
+    stem = os.path.splitext(os.path.basename(args.scenario))[0]
+    out = args.out or os.path.join("travel_times", f"{stem}.yaml")
+    if os.path.splitext(out)[1].lower() not in (".yaml", ".yml", ".csv"):
+        raise InputError(None, "--out", f"must end in .yaml, .yml or .csv, got {out!r}")
+    check_stat(args.stat)
+    legs = measure_legs(load_scenario(args.scenario), args.repeats, args.robot, args.humans,
+                        args.time_limit, progress=not args.quiet and sys.stderr.isatty())
+    matrix = legs.matrix(args.stat)
+    write_travel_times(out, matrix, stat=args.stat, repeats=args.repeats, robot=legs.robot,
+                       humans=args.humans)
+    print("travel times (s), row = from, column = to:")
+    for row in matrix:
+        print(" ".join(f"{value:4d}" for value in row))
+    print(legs.describe(args.stat))
+    print(f"written to {out}")
+    return 0
+
+
 _COMMANDS = {"run": _run, "validate": _validate, "diagram": _diagram, "report": _report,
-             "compare": _compare, "sweep": _sweep}
+             "compare": _compare, "sweep": _sweep, "travel-times": _travel_times}
 
 
 if __name__ == "__main__":

@@ -14,25 +14,21 @@ from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 
 from mrta_drake.blocks import BuildContext, resolve_block
+from mrta_drake.disturbances import blockages, breakdowns, has_disturbances, outage_windows
 from mrta_drake.physics import add_plant_stepping
 from mrta_drake.scenario_schema import Scenario
 from mrta_drake.systems.contact_recorder import ContactRecorder
+from mrta_drake.systems.disturbance_schedule import DisturbanceSchedule
 from mrta_drake.systems.meshcat_overlay import MeshcatOverlay
 from mrta_drake.systems.run_recorder import RunRecorder
-from mrta_drake.world import (
-    Body,
-    World,
-    add_plant_posing,
-    build_world,
-    load_floor_plan_of,
-    resolve_locations,
-)
+from mrta_drake.world import Body, World, add_plant_posing, build_world
 
 
 @dataclass(eq=False)
 class Stack:
     """Handles to the systems of one scenario's diagram (``diagram`` once built);
-    ``contacts`` records the plant's contacts when a physics robots block steps it."""
+    ``contacts`` records the plant's contacts when a physics robots block steps it;
+    ``disturbances`` is the schedule of a scenario with a ``disturbances:`` section."""
 
     scenario: Scenario
     world: World
@@ -47,6 +43,7 @@ class Stack:
     visualizer: MeshcatVisualizer | None = None
     diagram: Diagram | None = None
     contacts: ContactRecorder | None = None
+    disturbances: DisturbanceSchedule | None = None
     extras: dict = field(default_factory=dict)
 
 
@@ -55,9 +52,8 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
     """Add the scenario's world and blocks to ``builder`` and connect them. With ``meshcat``
     the scene, lanes, queues and paths are drawn there; with ``out_dir`` the recorder
     streams the timeline to files as the run goes."""
-    floor_plan = load_floor_plan_of(scenario)
-    scenario = resolve_locations(scenario, floor_plan)
-    ctx = BuildContext(scenario, floor_plan, scenario.rates)
+    ctx = BuildContext.for_scenario(scenario)
+    scenario, floor_plan = ctx.scenario, ctx.floor_plan
     names = ctx.robot_names
 
     humans = None
@@ -147,8 +143,21 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
             meshcat, scenario, publish_rate=scenario.rates.meshcat))
         builder.Connect(planner.GetOutputPort("paths"), overlay.GetInputPort("paths"))
         builder.Connect(queues.GetOutputPort("queue_state"), overlay.GetInputPort("queue_state"))
+
+    schedule = None
+    if has_disturbances(scenario.disturbances):
+        schedule = builder.AddNamedSystem("disturbances", DisturbanceSchedule(
+            len(names), blockages(scenario), breakdowns(scenario), outage_windows(scenario)))
+        builder.Connect(state, schedule.GetInputPort("robot_state"))
+        readers = [controller, planner, allocator, *generators, recorder]
+        if meshcat is not None:
+            readers.append(overlay)
+        for reader in readers:  # a swapped-in block without the input ignores disturbances
+            if reader.HasInputPort("disturbances"):
+                builder.Connect(schedule.GetOutputPort("disturbances"),
+                                reader.GetInputPort("disturbances"))
     return Stack(scenario, world, robots, controller, planner, queues, allocator, generators,
-                 humans, recorder, visualizer, contacts=contacts)
+                 humans, recorder, visualizer, contacts=contacts, disturbances=schedule)
 
 
 def _look_at_floor_plan(meshcat: Meshcat, bounds) -> None:

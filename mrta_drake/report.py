@@ -28,7 +28,8 @@ def load_summary(folder: str) -> dict:
 
 
 def format_summary(summary: dict) -> str:
-    """The summary as plain-text tables: run, tasks, robots, safety, humans, deadlocks."""
+    """The summary as plain-text tables: run, tasks, robots, safety, humans, deadlocks,
+    disturbances."""
     tasks = summary["tasks"]
     lines = [
         f"scenario   {summary['scenario']}",
@@ -38,7 +39,8 @@ def format_summary(summary: dict) -> str:
         f"(real-time factor {_number(summary['real_time_factor'], '.1f')})",
         f"tasks      {tasks['total']} total, {tasks['released']} released, "
         f"{tasks['completed']} completed: {tasks['on_time']} on time, {tasks['late']} late; "
-        f"{tasks['missed']} missed deadline",
+        f"{tasks['missed']} missed deadline"
+        + (f"; {tasks['failed']} failed (items lost)" if tasks.get("failed") else ""),
     ]
     if tasks["completed"]:
         lines.append(f"lateness   mean {_number(tasks['mean_lateness'], '.1f', True)} s, "
@@ -50,7 +52,7 @@ def format_summary(summary: dict) -> str:
         lines.append(f"legs       {len(summary['legs'])} stops done; actual - predicted: mean "
                      f"{sum(errors) / len(errors):+.1f} s, max {max(errors):+.1f} s")
     if tasks["per_task"]:
-        lines += ["", _table(
+        lines += ["", text_table(
             ["task", "arrival", "robot", "pickup pred", "actual", "drop-off pred", "actual",
              "deadline", "lateness", "status"],
             [[t["id"], _number(t["arrival"], ".1f"), t["robot"] or "-",
@@ -58,7 +60,7 @@ def format_summary(summary: dict) -> str:
               _number(t["predicted_dropoff"], ".1f"), _number(t["actual_dropoff"], ".1f"),
               _number(t["deadline"], ".1f"), _number(t["lateness"], ".1f", sign=True), t["status"]]
              for t in tasks["per_task"]])]
-    lines += ["", _table(
+    lines += ["", text_table(
         ["robot", "distance m", "busy s", "queue s", "idle s", "stops", "planner failures"],
         [[name, _number(r["distance"], ".1f"), _number(r["busy_time"], ".1f"),
           _number(r["queue_time"], ".1f"), _number(r["idle_time"], ".1f"),
@@ -87,7 +89,30 @@ def format_summary(summary: dict) -> str:
                      f"space, {humans['contacts']} contacts, {humans['encounters']} "
                      f"encounters, {humans['detour_length']:.1f} m detours")
     lines.append(_format_deadlocks(summary["deadlocks"]))
+    lines += _format_disturbances(summary.get("disturbances") or [], summary["duration"])
     return "\n".join(lines)
+
+
+def _format_disturbances(disturbances: list[dict], duration: float) -> list[str]:
+    lines = ["disturbances"] if disturbances else []
+    for d in disturbances:
+        window = (f"from {d['start']:g} s" if d["end"] is None
+                  else f"{d['start']:g}-{d['end']:g} s")
+        if d["start"] >= duration:
+            what = "after the end of the run"
+        elif d["kind"] == "blockage":
+            what = (f"re-routed {', '.join(d['robots_rerouted']) or 'nobody'} "
+                    f"({d['detours']} detours)" + (
+                        f"; no lane left for {', '.join(d['robots_waited'])}"
+                        if d["robots_waited"] else ""))
+        elif d["kind"] == "breakdown":
+            what = ("never out of the fleet" if d["removed_at"] is None else
+                    f"out of the fleet at {d['removed_at']:g} s, tasks reassigned "
+                    f"{d['tasks_reassigned']}, failed {d['tasks_failed']}")
+        else:
+            what = f"closest robot {_number(d['min_robot_clearance'], '.3f')} m"
+        lines.append(f"  {d['kind']} {d.get('name') or d.get('robot')} {window}: {what}")
+    return lines
 
 
 def _format_deadlocks(deadlocks: dict) -> str:
@@ -150,7 +175,14 @@ def format_comparison(a: dict, b: dict, names: tuple[str, str] = ("A", "B")) -> 
         if name in b["robots"]:
             rows.append(_compared(f"distance m {name}", a["robots"][name]["distance"],
                                   b["robots"][name]["distance"]))
-    return _table(["", *names, f"{names[1]} - {names[0]}"], rows)
+    return text_table(["", *names, f"{names[1]} - {names[0]}"], rows)
+
+
+def format_runs(summaries: dict[str, dict]) -> str:
+    """Any number of summaries (run name -> summary) side by side: the figures of
+    ``format_comparison``, one column per run."""
+    return text_table(["", *summaries], [[label, *(_number(read(s)) for s in summaries.values())]
+                                         for label, read in _COMPARED])
 
 
 def _compared(label: str, x, y) -> list:
@@ -174,8 +206,9 @@ def _number(value, spec: str | None = None, sign: bool = False) -> str:
     return format(value, plus + spec)
 
 
-def _table(header: list[str], rows: list[list]) -> str:
-    """Columns: the first left-aligned, the others right-aligned, two spaces apart."""
+def text_table(header: list[str], rows: list[list]) -> str:
+    """``rows`` under ``header`` as plain text: the first column left-aligned, the others
+    right-aligned, two spaces apart."""
     cells = [[str(c) for c in header]] + [[str(c) for c in row] for row in rows]
     widths = [max(len(row[k]) for row in cells) for k in range(len(header))]
     return "\n".join(

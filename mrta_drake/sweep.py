@@ -11,6 +11,13 @@ A sweep spec is a YAML file::
       humans: [true, false]               # special: false drops every person
     fixed:                                # optional: fields set the same way in every run
       tasks.service_time: 2.0
+    plugins: [my_blocks.py, my_package.rules]  # optional: see below
+
+``plugins`` are Python files (relative to the spec) or importable module names that register
+your own block kinds or leader rules (``blocks.register_block``,
+``control.register_leader_rule``) when imported. They are imported when the spec is loaded
+and again in every worker process (which imports nothing of yours otherwise), so the grid
+can name your kinds: ``blocks.allocator.kind: [smt, mine]``.
 
 Dotted fields are set in the scenario before it is loaded and checked (``load_scenario``'s
 ``overrides``), so a generated task stream and a Scenic scene follow the run's seed (a scene
@@ -35,10 +42,13 @@ failures, real-time factor, wall time (s) and the error message.
 
 import csv
 import dataclasses
+import importlib
+import importlib.util
 import itertools
 import json
 import os
 import re
+import sys
 import traceback
 import typing
 import warnings
@@ -55,11 +65,13 @@ HUMANS = "humans"  # grid key: true keeps the scenario's people, false drops the
 @dataclass(frozen=True)
 class SweepSpec:
     """A sweep spec (see the module docstring). ``grid`` maps a field to its list of values;
-    ``fixed`` a field to its value; ``source`` is the spec file."""
+    ``fixed`` a field to its value; ``plugins`` are files (absolute once loaded) or module
+    names to import first; ``source`` is the spec file."""
 
     scenario: str = ""
     grid: dict = field(default_factory=dict)
     fixed: dict = field(default_factory=dict)
+    plugins: list[str] = field(default_factory=list)
     source: str = ""
 
     def runs(self) -> list["SweepRun"]:
@@ -109,6 +121,14 @@ def load_sweep(path: str) -> SweepSpec:
         raise InputError(path, "scenario", f"file not found: {spec.scenario!r}")
     if not spec.grid:
         raise InputError(path, "grid", "give at least one field with a list of values")
+    plugins = [_plugin_path(plugin, path, f"plugins[{k}]")
+               for k, plugin in enumerate(spec.plugins)]
+    for k, plugin in enumerate(plugins):
+        try:
+            import_plugin(plugin)
+        except Exception as error:  # the user's code: whatever it raises is a spec error
+            raise InputError(path, f"plugins[{k}]", f"{spec.plugins[k]!r} failed to import: "
+                             f"{type(error).__name__}: {error}") from None
     from mrta_drake.scenario import load_scenario
 
     robot_count = len(load_scenario(scenario, check_world=False).robots)
@@ -137,7 +157,8 @@ def load_sweep(path: str) -> SweepSpec:
                     except InputError as error:
                         raise InputError(path, here, f"{item!r} does not load: {error}"
                                          ) from None
-    spec = dataclasses.replace(spec, scenario=scenario, source=os.path.abspath(path))
+    spec = dataclasses.replace(spec, scenario=scenario, plugins=plugins,
+                               source=os.path.abspath(path))
     ids = [run.run_id for run in spec.runs()]
     if len(set(ids)) != len(ids):
         duplicate = next(i for i in ids if ids.count(i) > 1)
@@ -165,9 +186,9 @@ def run_sweep(spec: SweepSpec, out_dir: str, *, workers: int | None = None,
             todo.append(run)
     reused = len(rows)
     if ray_address:
-        outcomes = _on_ray(spec.scenario, todo, out_dir, plots, ray_address)
+        outcomes = _on_ray(spec.scenario, todo, out_dir, plots, spec.plugins, ray_address)
     else:
-        outcomes = _on_processes(spec.scenario, todo, out_dir, plots, workers)
+        outcomes = _on_processes(spec.scenario, todo, out_dir, plots, spec.plugins, workers)
     bar = _progress_bar(len(runs), reused, progress)
     try:
         for run, (summary, error) in outcomes:
@@ -181,18 +202,20 @@ def run_sweep(spec: SweepSpec, out_dir: str, *, workers: int | None = None,
     return SweepResult(ordered, len(todo), reused, write_table(ordered, out_dir))
 
 
-def run_one(scenario_path: str, run: SweepRun, run_dir: str,
-            plots: bool = False) -> tuple[dict | None, str | None]:
+def run_one(scenario_path: str, run: SweepRun, run_dir: str, plots: bool = False,
+            plugins: tuple[str, ...] = ()) -> tuple[dict | None, str | None]:
     """Run ``run`` of the base scenario, writing its files (with ``plots``, its PNG plots
     too) to ``run_dir``: (summary, None), or (None, the error in one line) when it fails,
-    the traceback going to ``error.txt``."""
+    the traceback going to ``error.txt``. ``plugins`` are imported first."""
     from mrta_drake.simulate import simulate
 
     os.makedirs(run_dir, exist_ok=True)
     with open(os.path.join(run_dir, "run.json"), "w", encoding="utf-8") as f:
         json.dump({"run_id": run.run_id, "scenario": scenario_path,
-                   "settings": run.settings}, f, indent=2)
+                   "settings": run.settings, "plugins": list(plugins)}, f, indent=2)
     try:
+        for plugin in plugins:
+            import_plugin(plugin)
         result = simulate(sweep_scenario(scenario_path, run.settings), out_dir=run_dir,
                           plots=plots)
     except Exception as error:  # a failed run is a row of the table, not the sweep's end
@@ -215,6 +238,38 @@ def sweep_scenario(scenario_path: str, settings: dict) -> Scenario:
         scenario = dataclasses.replace(
             scenario, humans=dataclasses.replace(scenario.humans, walkers=[], groups=[]))
     return scenario
+
+
+def import_plugin(plugin: str) -> None:
+    """Import ``plugin``, a ``.py`` file (its folder goes on ``sys.path`` for its own
+    imports) or a module name, once per process."""
+    if not plugin.endswith(".py"):
+        importlib.import_module(plugin)
+        return
+    name = "mrta_sweep_plugin_" + re.sub(r"\W", "_", os.path.splitext(plugin)[0])
+    if name in sys.modules:
+        return
+    folder = os.path.dirname(plugin)
+    if folder not in sys.path:
+        sys.path.insert(0, folder)
+    module_spec = importlib.util.spec_from_file_location(name, plugin)
+    module = importlib.util.module_from_spec(module_spec)
+    sys.modules[name] = module
+    try:
+        module_spec.loader.exec_module(module)
+    except BaseException:
+        del sys.modules[name]
+        raise
+
+
+def _plugin_path(plugin: str, spec_file: str, where: str) -> str:
+    """A plugin file made absolute (relative to the spec), or a module name as it is."""
+    if not plugin.endswith(".py"):
+        return plugin
+    found = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(spec_file)), plugin))
+    if not os.path.isfile(found):
+        raise InputError(spec_file, where, f"file not found: {plugin!r}")
+    return found
 
 
 def _plain(settings: dict) -> dict:
@@ -314,7 +369,7 @@ def _write_summary(out_dir: str, run: SweepRun, summary: dict) -> None:
 
 
 def _on_processes(scenario_path: str, runs: list[SweepRun], out_dir: str, plots: bool,
-                  workers: int | None):
+                  plugins: list[str], workers: int | None):
     """Yield (run, outcome) as runs finish, each run in a fresh spawned process."""
     if not runs:
         return
@@ -324,8 +379,8 @@ def _on_processes(scenario_path: str, runs: list[SweepRun], out_dir: str, plots:
     workers = min(workers or os.cpu_count() or 1, len(runs))
     with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
                              max_tasks_per_child=1) as pool:
-        futures = {pool.submit(run_one, scenario_path, run, _run_dir(out_dir, run), plots): run
-                   for run in runs}
+        futures = {pool.submit(run_one, scenario_path, run, _run_dir(out_dir, run), plots,
+                               tuple(plugins)): run for run in runs}
         for future in as_completed(futures):
             try:
                 outcome = future.result()
@@ -335,7 +390,7 @@ def _on_processes(scenario_path: str, runs: list[SweepRun], out_dir: str, plots:
 
 
 def _on_ray(scenario_path: str, runs: list[SweepRun], out_dir: str, plots: bool,
-            address: str):
+            plugins: list[str], address: str):
     """Yield (run, outcome) as runs finish on the Ray cluster at ``address``."""
     try:
         import ray
@@ -346,8 +401,8 @@ def _on_ray(scenario_path: str, runs: list[SweepRun], out_dir: str, plots: bool,
         return
     ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
     remote = ray.remote(num_cpus=1)(run_one)
-    pending = {remote.remote(scenario_path, run, _run_dir(out_dir, run), plots): run
-               for run in runs}
+    pending = {remote.remote(scenario_path, run, _run_dir(out_dir, run), plots,
+                             tuple(plugins)): run for run in runs}
     while pending:
         (done,), _ = ray.wait(list(pending), num_returns=1)
         run = pending.pop(done)

@@ -3,6 +3,7 @@
 import itertools
 
 import numpy as np
+import pytest
 
 from mrta_drake.control.clusters import (
     LEADER_RULES,
@@ -10,6 +11,7 @@ from mrta_drake.control.clusters import (
     connected_groups,
     form_clusters,
     leader_stall_times,
+    register_leader_rule,
 )
 from mrta_drake.payloads import PATH_IDLE, PATH_OK, FleetPaths, RobotPath, frozen_array
 from mrta_drake.systems.cluster_cbf_controller import CbfParams, ClusterCbfController
@@ -100,3 +102,20 @@ def test_controller_reports_clusters_of_twelve_robots_with_its_leader_rule():
     _, telemetry = by_goal.control(0.0, states, paths)
     # Robot 0 is idle, the rest are 5 + i m from their goals: robot 1 leads.
     assert telemetry.clusters == ((1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 0), (11,))
+
+
+def test_a_registered_leader_rule_is_chosen_by_name():
+    def last_first(priorities, distances_to_goal):
+        return -np.asarray(priorities)
+
+    register_leader_rule("last_first", last_first)
+    names = ["a", "b", "c"]
+    states = np.zeros((3, 4))
+    states[:, 0] = [0.0, 1.0, 2.0]
+    paths = FleetPaths(tuple(RobotPath(name, PATH_OK, frozen_array([s[:2], [s[0], 5.0]]))
+                             for name, s in zip(names, states, strict=True)))
+    controller = ClusterCbfController(names, params=CbfParams(leader_rule="last_first"))
+    assert controller.control(0.0, states, paths)[1].clusters == ((2, 1, 0),)
+    with pytest.raises(TypeError, match="must be a function"):
+        register_leader_rule("broken", 3)
+    assert "broken" not in LEADER_RULES

@@ -7,7 +7,7 @@ import re
 import pytest
 
 from mrta_drake.cli import main
-from mrta_drake.report import format_comparison, format_summary
+from mrta_drake.report import format_comparison, format_runs, format_summary
 from mrta_drake.scenario_schema import TaskBatch, TaskConfig
 from mrta_drake.timing import task_rows, task_totals
 
@@ -81,6 +81,17 @@ def test_compare_prints_both_runs_and_the_differences(folders, capsys):
     assert table["mean lateness s"] == ["-", "-10.00", "n/a"]
     assert table["min robot-robot m"][2] == "+0.00"
     assert "distance m robot6" in table and "real-time factor" in table
+
+
+def test_runs_side_by_side_show_each_run_in_its_column(folders):
+    first, second = (json.loads((f / "summary.json").read_text()) for f in folders)
+    header, *rows = format_runs({"a": first, "b": second, "c": first}).splitlines()
+    assert header.split() == ["a", "b", "c"]
+    table = {cells[0]: cells[1:] for cells in (re.split(r"\s{2,}", row.strip())
+                                               for row in rows)}
+    assert table["tasks completed"] == ["0", "1", "0"]
+    assert table["deadlocks"] == ["0", "1", "0"]
+    assert table["min robot-robot m"][0] == table["min robot-robot m"][2]
 
 
 def test_comparison_of_a_run_with_itself_shows_no_differences(folders):

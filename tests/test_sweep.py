@@ -130,3 +130,45 @@ def test_example_spec_loads():
     runs = spec.runs()
     assert len(runs) == 40
     assert runs[-1].settings["seed"] == 19 and runs[-1].settings["duration"] == 300.0
+
+
+PLUGIN = """
+from mrta_drake.blocks import block_type, register_block
+
+register_block("controller", "plugin_go_to_goal", block_type("controller", "go_to_goal"))
+"""
+
+
+def test_plugins_register_kinds_for_the_spec_and_for_every_worker(tmp_path):
+    (tmp_path / "my_blocks.py").write_text(PLUGIN)
+    spec = tmp_path / "spec.yaml"
+    spec.write_text(f"""
+scenario: {ROUTES}
+grid:
+  blocks.controller.kind: [plugin_go_to_goal]
+fixed:
+  duration: 2.0
+plugins: [my_blocks.py]
+""")
+    out = tmp_path / "out"
+    assert main(["sweep", str(spec), "--out", str(out), "--workers", "1", "--quiet"]) == 0
+    (row,) = read_table(out)
+    # The worker is a fresh process: the run only works if it imported the plugin too.
+    assert row["status"] == "ok", row["error"]
+    assert float(row["min_robot_robot"]) > 0
+
+
+@pytest.mark.parametrize("plugins, field, message", [
+    ("[missing.py]", "plugins[0]", "file not found: 'missing.py'"),
+    ("[broken.py]", "plugins[0]", "'broken.py' failed to import: ZeroDivisionError"),
+    ("[no_such_module_here]", "plugins[0]", "failed to import: ModuleNotFoundError"),
+])
+def test_bad_plugins_name_the_spec_file_and_entry(tmp_path, plugins, field, message):
+    (tmp_path / "broken.py").write_text("1 / 0\n")
+    spec = tmp_path / "spec.yaml"
+    spec.write_text(f"scenario: {ROUTES}\ngrid:\n  seed: [0]\nplugins: {plugins}\n")
+    with pytest.raises(InputError) as caught:
+        load_sweep(str(spec))
+    assert caught.value.file == str(spec) and caught.value.field == field
+    assert message in str(caught.value)
+
