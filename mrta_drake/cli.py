@@ -88,6 +88,10 @@ def main(argv=None) -> int:
     except InputError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
+    except OSError as error:  # the disk or the file system refused: no traceback for that
+        where = f"{error.filename}: " if error.filename else ""
+        print(f"error: {where}{error.strerror or error}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
@@ -100,6 +104,8 @@ def _run(args) -> int:
 
     scenario = load_scenario(args.scenario,
                              overrides=None if args.seed is None else {"seed": args.seed})
+    _check_writable("--out", args.out, folder=True)
+    _check_writable("--record", args.record)
     meshcat = None
     realtime = args.realtime or 0.0
     if args.meshcat:
@@ -136,6 +142,7 @@ def _diagram(args) -> int:
     from mrta_drake.diagram import build_diagram
     from mrta_drake.scenario import load_scenario
 
+    _check_writable("output", args.output)
     stack = build_diagram(load_scenario(args.scenario))
     dot = stack.diagram.GetGraphvizString(max_depth=args.depth)
     extension = os.path.splitext(args.output)[1].lstrip(".").lower()
@@ -145,10 +152,14 @@ def _diagram(args) -> int:
     else:
         try:
             subprocess.run(["dot", f"-T{extension}", "-o", args.output], input=dot.encode(),
-                           check=True)
+                           check=True, capture_output=True)
         except FileNotFoundError:
             raise InputError(None, "output", "rendering needs graphviz's `dot`; "
                              "write a .dot file instead") from None
+        except subprocess.CalledProcessError as error:
+            said = error.stderr.decode(errors="replace").strip().splitlines()
+            raise InputError(None, "output", f"graphviz cannot write {args.output!r}: "
+                             f"{said[0] if said else 'failed'}") from None
     print(f"diagram written to {args.output}")
     return 0
 
@@ -181,6 +192,7 @@ def _sweep(args) -> int:
         raise InputError(None, "--workers", f"must be >= 1, got {args.workers}")
     spec = load_sweep(args.spec)
     out = args.out or os.path.join("sweeps", os.path.splitext(os.path.basename(args.spec))[0])
+    _check_writable("--out", out, folder=True)
     result = run_sweep(spec, out, workers=args.workers, ray_address=args.ray,
                        plots=args.plots, progress=not args.quiet and sys.stderr.isatty())
     print(format_table(result.rows))
@@ -202,6 +214,7 @@ def _travel_times(args) -> int:
     if os.path.splitext(out)[1].lower() not in (".yaml", ".yml", ".csv"):
         raise InputError(None, "--out", f"must end in .yaml, .yml or .csv, got {out!r}")
     check_stat(args.stat)
+    _check_writable("--out", out)
     legs = measure_legs(load_scenario(args.scenario), args.repeats, args.robot, args.humans,
                         args.time_limit, progress=not args.quiet and sys.stderr.isatty())
     matrix = legs.matrix(args.stat)
@@ -213,6 +226,22 @@ def _travel_times(args) -> int:
     print(legs.describe(args.stat))
     print(f"written to {out}")
     return 0
+
+
+def _check_writable(flag: str, path: str | None, folder: bool = False) -> None:
+    """Make the folder ``path`` (``folder``) or the one ``path`` goes in, before a long run
+    rather than after it; InputError naming ``flag`` when that is not possible."""
+    import os
+
+    if not path:
+        return
+    target = path if folder else os.path.dirname(os.path.abspath(path))
+    try:
+        os.makedirs(target, exist_ok=True)
+    except OSError as error:
+        raise InputError(None, flag, f"cannot write to {path!r}: {error.strerror}") from None
+    if not os.access(target, os.W_OK):
+        raise InputError(None, flag, f"cannot write to {path!r}: the folder is read-only")
 
 
 _COMMANDS = {"run": _run, "validate": _validate, "diagram": _diagram, "report": _report,

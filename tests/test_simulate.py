@@ -68,3 +68,26 @@ def test_recorded_replay_page_renders_in_headless_chromium(routes_scenario, tmp_
     # Not blank: the floor plan and robots make the picture far from uniform.
     assert pixels.std() > 10.0
     assert len(np.unique(pixels.reshape(-1, 3), axis=0)) > 50
+
+
+@pytest.mark.parametrize("flags", [
+    ["run", str(ROUTES), "--out", "{blocked}/out"],
+    ["run", str(ROUTES), "--record", "{blocked}/replay.html"],
+    ["diagram", str(ROUTES), "{blocked}/diagram.dot"],
+    ["travel-times", str(ROUTES), "--out", "{blocked}/times.yaml"],
+    ["sweep", str(ROOT / "scenarios/sweeps/hospital_20_seeds.yaml"), "--out", "{blocked}/s"],
+])
+def test_output_that_cannot_be_written_is_one_line_before_any_run(tmp_path, capsys, flags):
+    blocked = tmp_path / "a_file"  # a file where a folder should be
+    blocked.write_text("")
+    code = main([flag.format(blocked=blocked) for flag in flags])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert err.startswith("error: ") and "cannot write to" in err and str(blocked) in err
+
+
+@pytest.mark.skipif(shutil.which("dot") is None, reason="graphviz is not installed")
+def test_diagram_in_a_format_graphviz_lacks_is_one_line(tmp_path, capsys):
+    assert main(["diagram", str(ROUTES), str(tmp_path / "diagram.nosuchformat")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "graphviz cannot write" in err
