@@ -51,3 +51,15 @@ def test_robots_are_independent_and_plant_positions_match():
     states = _run(starts, [[1.0, 0.0], [0.0, 0.0]], 3.0)
     assert states[0, 0] > 2.0
     np.testing.assert_allclose(states[1], [5.0, 5.0, np.pi / 2, 0.0])
+
+
+@pytest.mark.parametrize("omega", [0.0, 1e-322, -1e-322, -1e-300, 1e-9])
+def test_vanishing_turn_rates_step_straight_without_dividing_by_zero(omega):
+    # A QP can hand back a yaw rate so small that half of a turn underflows to zero
+    # (1e-322 rad/s: the turn over 0.05 s is the smallest subnormal, its half is 0).
+    state = np.array([[1.0, 2.0, 0.3, 0.5]])
+    new = unicycle_step(state, np.array([[0.5, omega]]), UnicycleParams(), 0.05)
+    distance = 0.5 * 0.05
+    np.testing.assert_allclose(new[0, :2], [1.0 + distance * np.cos(0.3),
+                                            2.0 + distance * np.sin(0.3)], rtol=0, atol=1e-12)
+    assert np.isfinite(new).all()

@@ -96,8 +96,11 @@ def _step(states, commands, max_reverse_speed, max_speed, max_yaw_rate, dv_max, 
         turn = omega * dt
         # Chord of the arc: length 2 R sin(turn / 2) = distance * sinc(turn / 2), along the
         # mean heading; exact for a circular arc and well conditioned as turn -> 0.
-        half = 0.5 * turn if turn != 0.0 else 1e-20
-        chord = distance * (math.sin(half) / half)
+        # Below 1e-8 the series 1 - h^2/6 equals sin(h)/h to double precision, and it
+        # cannot divide by a half-turn that underflowed to zero (numba raises on x / 0).
+        half = 0.5 * turn
+        chord = distance * (math.sin(half) / half if abs(half) > 1e-8
+                            else 1.0 - half * half / 6.0)
         mid = theta + 0.5 * turn
         new[i, 0], new[i, 1] = x + chord * math.cos(mid), y + chord * math.sin(mid)
         new[i, 2] = (theta + turn + math.pi) % (2.0 * math.pi) - math.pi
