@@ -93,10 +93,12 @@ class Obstacles:
         (shape (n, 2)) and the signed distance to it (shape (n,), negative inside).
         With no obstacles, distances are +inf and closest points equal the inputs."""
         p = np.ascontiguousarray(np.atleast_2d(np.asarray(points, dtype=float)))
-        best_q, best_d = p.copy(), np.full(len(p), np.inf)
-        _closest_points(p, *self._box_arrays, *self._cylinder_arrays, self._box_reach, best_q,
-                        best_d)
-        return best_q, best_d
+        return closest_points_of(p, *self.compiled)
+
+    @cached_property
+    def compiled(self) -> tuple:
+        """The obstacles as the arrays compiled code takes (``closest_points_of``)."""
+        return (*self._box_arrays, *self._cylinder_arrays, self._box_reach)
 
     def signed_distance(self, points) -> np.ndarray:
         """Signed distance (m) from each point (n, 2) to the nearest obstacle."""
@@ -114,8 +116,7 @@ class Obstacles:
         if ang.ndim == 1:
             ang = np.broadcast_to(ang, (len(o), len(ang)))
         hit = np.full(ang.shape, float(max_range))
-        _cast_rays(o, np.cos(ang), np.sin(ang), *self._box_arrays, *self._cylinder_arrays,
-                   self._box_reach, hit)
+        cast_rays_into(o, np.cos(ang), np.sin(ang), *self.compiled, hit)
         return hit
 
     @cached_property
@@ -161,6 +162,15 @@ class Obstacles:
 
 
 @numba.njit(cache=True)
+def closest_points_of(p, centers, half, cos, sin, cyl_centers, cyl_radii, reach):
+    """``Obstacles.closest_points`` of points ``p`` (n, 2) for compiled code (the other
+    arguments: ``Obstacles.compiled``)."""
+    best_q, best_d = p.copy(), np.full(len(p), np.inf)
+    _closest_points(p, centers, half, cos, sin, cyl_centers, cyl_radii, reach, best_q, best_d)
+    return best_q, best_d
+
+
+@numba.njit(cache=True)
 def _closest_points(p, centers, half, cos, sin, cyl_centers, cyl_radii, reach, best_q, best_d):
     """``Obstacles.closest_points`` into ``best_q`` (n, 2) and ``best_d`` (n,), which start
     as the points and +inf. Boxes that cannot be nearer than the best so far are skipped;
@@ -200,8 +210,10 @@ def _closest_points(p, centers, half, cos, sin, cyl_centers, cyl_radii, reach, b
 
 
 @numba.njit(cache=True)
-def _cast_rays(o, dx, dy, centers, half, cos, sin, cyl_centers, cyl_radii, reach, hit):
-    """``Obstacles.cast_rays`` into ``hit`` (n, k), which starts at the maximum range: slab
+def cast_rays_into(o, dx, dy, centers, half, cos, sin, cyl_centers, cyl_radii, reach, hit):
+    """``Obstacles.cast_rays`` from origins ``o`` (n, 2) along unit vectors (``dx``, ``dy``)
+    (n, k), for compiled code (``centers`` ... ``reach``: ``Obstacles.compiled``), into
+    ``hit`` (n, k), which starts at the maximum range: slab
     test per box in its own frame, quadratic per cylinder. Boxes whose bounding circle (of
     radius ``reach``) the ray misses, or that cannot be hit nearer than the nearest hit so
     far, are skipped."""

@@ -49,6 +49,7 @@ import numpy as np
 from pydrake.solvers import ClarabelSolver, MathematicalProgram, OsqpSolver, SolverOptions
 
 from mrta_drake.control.nominal import NominalParams, wrap_angle
+from mrta_drake.obstacles import cast_rays_into
 
 SOLVERS = ("clarabel", "osqp")
 COORDINATION_MODES = ("clusters", "decentralized", "centralized")
@@ -216,15 +217,33 @@ class WallRays:
 
     def __call__(self, states) -> tuple[np.ndarray, np.ndarray]:
         p = self._params
-        states = np.asarray(states, dtype=float).reshape(-1, 4)
-        angles = np.broadcast_to(self._angles, (len(states), p.ray_count))
-        if p.rays_in_body_frame:
-            angles = angles + states[:, 2:3]
+        states = np.ascontiguousarray(states, dtype=float).reshape(-1, 4)
+        shape = (len(states), p.ray_count)
         if self._obstacles is None or p.ray_count == 0:
-            return np.zeros(angles.shape + (2,)), np.zeros(angles.shape, dtype=bool)
-        dist = self._obstacles.cast_rays(states[:, :2], angles, p.ray_range)
-        directions = np.stack([np.cos(angles), np.sin(angles)], -1)
-        return states[:, None, :2] + dist[..., None] * directions, dist < p.ray_range
+            return np.zeros(shape + (2,)), np.zeros(shape, dtype=bool)
+        hits, mask = np.empty(shape + (2,)), np.empty(shape, dtype=bool)
+        _wall_hits(states, self._angles, p.rays_in_body_frame, float(p.ray_range),
+                   self._obstacles.compiled, hits, mask)
+        return hits, mask
+
+
+@numba.njit(cache=True)
+def _wall_hits(states, angles, in_body_frame, ray_range, obstacles, hits, mask):
+    """``WallRays`` into ``hits`` (N, R, 2) and ``mask`` (N, R) (``obstacles``:
+    ``Obstacles.compiled``)."""
+    n, rays = len(states), len(angles)
+    dx, dy = np.empty((n, rays)), np.empty((n, rays))
+    for i in range(n):
+        for r in range(rays):
+            angle = angles[r] + states[i, 2] if in_body_frame else angles[r]
+            dx[i, r], dy[i, r] = np.cos(angle), np.sin(angle)
+    dist = np.full((n, rays), ray_range)
+    cast_rays_into(states[:, :2].copy(), dx, dy, *obstacles, dist)
+    for i in range(n):
+        for r in range(rays):
+            hits[i, r, 0] = states[i, 0] + dist[i, r] * dx[i, r]
+            hits[i, r, 1] = states[i, 1] + dist[i, r] * dy[i, r]
+            mask[i, r] = dist[i, r] < ray_range
 
 
 @dataclass(frozen=True)
@@ -298,21 +317,29 @@ class TickQps:
     settled: np.ndarray
 
     def problem(self, g: int) -> QpProblem:
+        r0, r1 = self.row_start[g], self.row_start[g + 1]
+        u_nominal, G, b, lower, upper = self.arrays(g)
+        rows = SafetyRows(G, b, *(a[r0:r1] for a in self.rows[1:]))
+        return QpProblem(self.groups[g], u_nominal, rows, lower, upper)
+
+    def arrays(self, g: int) -> tuple[np.ndarray, ...]:
+        """Group g's QP as ``CbfQp.solve`` takes it: nominal inputs, ``G``, ``b``, bounds."""
         group, r0, r1 = self.groups[g], self.row_start[g], self.row_start[g + 1]
         index = list(group)
-        rows = SafetyRows(self.G[self.G_start[g]:self.G_start[g + 1]].reshape(
-            r1 - r0, 2 * len(group)), *(a[r0:r1] for a in self.rows))
-        return QpProblem(tuple(group), self.u_nominal[index], rows, self.lower[index],
-                         self.upper[index])
+        return (self.u_nominal[index], self.G[self.G_start[g]:self.G_start[g + 1]].reshape(
+            r1 - r0, 2 * len(group)), self.rows[0][r0:r1], self.lower[index], self.upper[index])
 
     @property
     def problems(self) -> tuple[QpProblem, ...]:
         """Every group's QP."""
         return tuple(self.problem(g) for g in range(len(self.groups)))
 
-    def to_solve(self) -> tuple[QpProblem, ...]:
-        """The QPs that need a solver."""
-        return tuple(self.problem(g) for g in np.flatnonzero(self.needs_solver))
+    def to_solve(self) -> tuple[int, ...]:
+        """The groups whose QPs need a solver."""
+        return tuple(np.flatnonzero(self.needs_solver).tolist())
+
+
+_NO_MOVERS = np.zeros((0, 4))
 
 
 def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocities, movers,
@@ -327,10 +354,13 @@ def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocitie
     (``CbfQp.solve`` would return it): ``settled`` holds it, and zero for robots in no
     group."""
     groups = tuple(tuple(group) for group in groups)
-    members = np.fromiter((i for group in groups for i in group), dtype=np.int64)
-    group_start = np.cumsum([0] + [len(group) for group in groups], dtype=np.int64)
-    movers = [np.zeros((0, 4))] * len(groups) if movers is None else movers
-    mover_start = np.cumsum([0] + [len(m) for m in movers], dtype=np.int64)
+    members = np.array([i for group in groups for i in group], dtype=np.int64)
+    group_start = np.array([0] + [len(group) for group in groups], dtype=np.int64).cumsum()
+    if movers is None:
+        movers, mover_start = _NO_MOVERS, np.zeros(len(groups) + 1, dtype=np.int64)
+    else:
+        mover_start = np.array([0] + [len(m) for m in movers], dtype=np.int64).cumsum()
+        movers = np.concatenate([np.zeros((0, 4)), *movers]).reshape(-1, 4)
     n = len(states)
     lower, upper = (np.ascontiguousarray(a, dtype=float) for a in (lower, upper))
     settled = np.zeros((n, 2))
@@ -339,9 +369,8 @@ def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocitie
             (states, (n, 4)), (hits, (n, -1, 2)), (human_positions, (-1, 2)),
             (human_velocities, (-1, 2)))),
         np.ascontiguousarray(hit_mask, dtype=bool).reshape(n, -1), members, group_start,
-        np.concatenate([np.zeros((0, 4)), *movers]).reshape(-1, 4), mover_start,
-        params._row_params, params.stall_speed, params.k_theta, u_nominal, lower, upper,
-        settled)
+        movers, mover_start, params._row_params, params.stall_speed, params.k_theta,
+        u_nominal, lower, upper, settled)
     return TickQps(groups, u_nominal, lower, upper, G, G_start, tuple(rows), row_start,
                    needs_solver, settled)
 
@@ -579,6 +608,9 @@ class _Program:
         self.prog.AddBoundingBoxConstraint(np.zeros(m), self.upper, self.s)
         self.rows = self.prog.AddLinearConstraint(self.A, self.lower, self.upper,
                                                   np.concatenate([self.u, self.s]))
+        # The decision variables are u, then s: a solution vector reads [u, s].
+        self.cost_evaluator, self.box_evaluator, self.rows_evaluator = (
+            binding.evaluator() for binding in (self.cost, self.box, self.rows))
 
 
 class CbfQp:
@@ -609,37 +641,115 @@ class CbfQp:
         b = np.asarray(b, dtype=float)
         k, m = len(u_nom) // 2, len(b)
         start = time.thread_time()
-        clipped = np.clip(u_nom, lo, hi)
-        # The clipped nominal minimizes the cost over the box; if it also meets every row it
-        # is the QP's optimum and no solver call is needed.
-        finite, optimal = _check_nominal(G, b, u_nom, clipped)
+        clipped, finite, optimal, kept = _prepare(u_nom, G, b, lo, hi)
         if not finite:
             return QpSolution(np.zeros((k, 2)), np.zeros(m), False, time.thread_time() - start)
         if optimal:
             return QpSolution(clipped.reshape(k, 2), np.zeros(m), True,
                               time.thread_time() - start, solved=False)
-        # Rows that hold for every u in the box cannot change the optimum: drop them.
-        kept = np.flatnonzero(np.where(G > 0.0, G * lo, G * hi).sum(axis=1) < b)
         size = -(-len(kept) // _PAD) * _PAD
         program = self._programs.get((k, size))
         if program is None:
             program = self._programs[(k, size)] = _Program(k, size, self.slack_weight)
-        np.multiply(u_nom, -2.0, out=program.linear)
-        program.cost.evaluator().UpdateCoefficients(program.hessian, program.linear, 0.0, True)
-        program.box.evaluator().set_bounds(lo, hi)
-        program.A[:, : 2 * k] = 0.0
-        program.A[: len(kept), : 2 * k] = G[kept]
-        program.lower[:] = -1.0  # padding rows read 0 >= -1
-        program.lower[: len(kept)] = b[kept]
-        program.rows.evaluator().UpdateCoefficients(program.A, program.lower, program.upper)
+        _load_program(u_nom, G, b, kept, program.linear, program.A, program.lower)
+        program.cost_evaluator.UpdateCoefficients(program.hessian, program.linear, 0.0, True)
+        program.box_evaluator.set_bounds(lo, hi)
+        program.rows_evaluator.UpdateCoefficients(program.A, program.lower, program.upper)
         result = self._solver.Solve(program.prog, None, self._options)
         elapsed = time.thread_time() - start
         if not result.is_success():
             return QpSolution(np.zeros((k, 2)), np.zeros(m), False, elapsed)
-        u = np.clip(result.GetSolution(program.u), lo, hi)
+        x = result.GetSolution()
+        u = np.minimum(np.maximum(x[: 2 * k], lo), hi)
         slack = np.zeros(m)
-        slack[kept] = np.maximum(result.GetSolution(program.s)[: len(kept)], 0.0)
+        slack[kept] = np.maximum(x[2 * k: 2 * k + len(kept)], 0.0)
         return QpSolution(u.reshape(k, 2), slack, True, elapsed)
+
+
+@numba.njit(cache=True)
+def _prepare(u_nominal, G, b, lower, upper):
+    """The nominal clipped to the box [``lower``, ``upper``]; whether ``G``, ``b`` and
+    ``u_nominal`` are finite; whether the clipped nominal then meets every row (it minimizes
+    the cost over the box, so it is the QP's optimum and no solver call is needed); and the
+    rows that some u in the box breaks (the others cannot change the optimum)."""
+    clipped = np.minimum(np.maximum(u_nominal, lower), upper)
+    finite, optimal = _check_nominal(G, b, u_nominal, clipped)
+    kept = np.empty(len(b), np.int64)
+    count = 0
+    if finite and not optimal:
+        least = np.empty(G.shape[1])  # each term's minimum over the box
+        for row in range(len(b)):
+            for c in range(G.shape[1]):
+                least[c] = G[row, c] * (lower[c] if G[row, c] > 0.0 else upper[c])
+            if _pairwise_sum(least) < b[row]:
+                kept[count] = row
+                count += 1
+    return clipped, finite, optimal, kept[:count]
+
+
+@numba.njit(cache=True)
+def _pairwise_sum(a):
+    """The sum of ``a`` exactly as numpy's ``sum`` adds it, so that decisions match numpy's
+    to the bit: blocks of at most 128 with eight accumulators; a longer range is split in
+    two (the first part a multiple of 8 long) and the parts' sums added."""
+    if len(a) <= 128:
+        return _block_sum(a, 0, len(a))
+    tasks = np.empty((128, 3), np.int64)  # start, length, halves already queued
+    sums = np.empty(128)
+    tasks[0, 0], tasks[0, 1], tasks[0, 2] = 0, len(a), 0
+    top, done = 1, 0
+    while top > 0:
+        top -= 1
+        start, n, queued = tasks[top, 0], tasks[top, 1], tasks[top, 2]
+        if n <= 128:
+            sums[done] = _block_sum(a, start, n)
+            done += 1
+        elif queued:
+            done -= 1
+            sums[done - 1] += sums[done]
+        else:
+            half = n // 2 - (n // 2) % 8
+            tasks[top, 2] = 1
+            tasks[top + 1, 0], tasks[top + 1, 1], tasks[top + 1, 2] = start + half, n - half, 0
+            tasks[top + 2, 0], tasks[top + 2, 1], tasks[top + 2, 2] = start, half, 0
+            top += 3
+    return sums[0]
+
+
+@numba.njit(cache=True)
+def _block_sum(a, start, n):
+    if n < 8:
+        total = -0.0
+        for i in range(start, start + n):
+            total += a[i]
+        return total
+    r0, r1, r2, r3 = a[start], a[start + 1], a[start + 2], a[start + 3]
+    r4, r5, r6, r7 = a[start + 4], a[start + 5], a[start + 6], a[start + 7]
+    i = 8
+    while i < n - n % 8:
+        j = start + i
+        r0, r1, r2, r3 = r0 + a[j], r1 + a[j + 1], r2 + a[j + 2], r3 + a[j + 3]
+        r4, r5, r6, r7 = r4 + a[j + 4], r5 + a[j + 5], r6 + a[j + 6], r7 + a[j + 7]
+        i += 8
+    total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        total += a[start + i]
+        i += 1
+    return total
+
+
+@numba.njit(cache=True)
+def _load_program(u_nominal, G, b, kept, linear, A, lower):
+    """A ``_Program``'s data for rows ``G`` u >= ``b`` of which those ``kept`` are the
+    first rows of ``A`` (the rest read 0 >= -1), and the linear cost of ``u_nominal``."""
+    columns = len(u_nominal)
+    for c in range(columns):
+        linear[c] = u_nominal[c] * -2.0
+    for row in range(len(lower)):
+        keep = row < len(kept)
+        for c in range(columns):
+            A[row, c] = G[kept[row], c] if keep else 0.0
+        lower[row] = b[kept[row]] if keep else -1.0
 
 
 @numba.njit(cache=True)

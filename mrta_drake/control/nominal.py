@@ -67,9 +67,12 @@ class NominalParams:
                          self.pass_offset, self.pass_clearance, self.pass_range])
 
 
-def slow_down(speed: float, params: NominalParams) -> np.ndarray:
-    """The slow-down nominal ``[a, omega]``."""
-    return np.array(_slow_down(float(speed), params.k_slow, params.slow_accel))
+def slow_down(speed, params: NominalParams) -> np.ndarray:
+    """The slow-down nominal ``[a, omega]`` at ``speed`` (m/s); (k, 2) for k speeds."""
+    speeds = np.asarray(speed, dtype=float)
+    u = np.empty(speeds.shape + (2,))
+    _slow_downs(speeds.reshape(-1), params.k_slow, params.slow_accel, u.reshape(-1, 2))
+    return u
 
 
 @numba.njit(cache=True)
@@ -83,7 +86,7 @@ def nominal_control(state, path: RobotPath | None, params: NominalParams, cluste
     """Nominal ``[a, omega]`` of a robot in ``state`` ``[x, y, theta, v]`` following ``path``
     (slow-down without an ``ok`` path). ``bodies`` (n, 2): positions of other robots and humans,
     used only for passing; ``bodies[exclude]`` is left out (e.g. the robot itself)."""
-    if path is None or path.status != PATH_OK or len(path.points) == 0:
+    if not has_path(path):
         return slow_down(state[3], params)
     bodies = np.asarray(bodies, dtype=float).reshape(-1, 2)
     return np.array(_nominal(float(state[0]), float(state[1]), float(state[2]), float(state[3]),
@@ -91,19 +94,59 @@ def nominal_control(state, path: RobotPath | None, params: NominalParams, cluste
                              params._gains))
 
 
+def nominal_controls(states, paths, params: NominalParams, clustered, bodies) -> np.ndarray:
+    """``nominal_control`` (N, 2) of the robots ``states`` (N, 4) on their ``paths`` (N,),
+    ``clustered`` (N,) bools, with ``bodies`` (n, 2) whose first N are the robots (each
+    robot leaves itself out), in one compiled call."""
+    states = np.ascontiguousarray(states, dtype=float).reshape(-1, 4)
+    ok = [has_path(path) for path in paths]
+    start = np.zeros(len(states) + 1, dtype=np.int64)
+    start[1:] = np.cumsum([len(path.points) if good else 0
+                           for path, good in zip(paths, ok, strict=True)])
+    points = np.concatenate([np.zeros((0, 2))] + [
+        path.points for path, good in zip(paths, ok, strict=True) if good])
+    stop_at_end = np.array([good and path.stop_at_end
+                            for path, good in zip(paths, ok, strict=True)], dtype=bool)
+    u = np.empty((len(states), 2))
+    _nominals(states, points, start, np.array(ok, dtype=bool), stop_at_end,
+              np.asarray(clustered, dtype=bool), np.asarray(bodies, dtype=float).reshape(-1, 2),
+              params._gains, u)
+    return u
+
+
+@numba.njit(cache=True)
+def _nominals(states, points, start, ok, stop_at_end, clustered, bodies, gains, u):
+    for i in range(len(states)):
+        x, y, theta, v = states[i, 0], states[i, 1], states[i, 2], states[i, 3]
+        if ok[i]:
+            u[i] = _nominal(x, y, theta, v, points[start[i]:start[i + 1]], stop_at_end[i],
+                            clustered[i], bodies, i, gains)
+        else:
+            u[i] = _slow_down(v, gains[_K_SLOW], gains[_SLOW_ACCEL])
+
+
+def has_path(path: RobotPath | None) -> bool:
+    """Whether ``path`` is an ``ok`` path of at least one point (else: slow down)."""
+    return path is not None and path.status == PATH_OK and len(path.points) > 0
+
+
 def remaining_distance(state, path: RobotPath | None) -> float:
     """Straight-line distance (m) from the robot to its path end; inf without an ``ok`` path."""
-    if path is None or path.status != PATH_OK or len(path.points) == 0:
+    if not has_path(path):
         return math.inf
     return math.dist(state[:2], path.points[-1])
 
 
-def is_active(state, path: RobotPath | None, arrival_radius: float) -> bool:
+def is_active(state, path: RobotPath | None, arrival_radius: float,
+              distance: float | None = None) -> bool:
     """Whether the robot still has somewhere to go: an ``ok`` path, and unless the path lets
-    it drive on, more than ``arrival_radius`` (m) from the path end."""
-    if path is None or path.status != PATH_OK or len(path.points) == 0:
+    it drive on, more than ``arrival_radius`` (m) from the path end (``distance``: its
+    ``remaining_distance`` if known)."""
+    if not has_path(path):
         return False
-    return not (path.stop_at_end and remaining_distance(state, path) <= arrival_radius)
+    if distance is None:
+        distance = remaining_distance(state, path)
+    return not (path.stop_at_end and distance <= arrival_radius)
 
 
 # Compiled: a controller runs these for every robot at every tick (gains: ``_gains``).
@@ -114,6 +157,12 @@ def is_active(state, path: RobotPath | None, arrival_radius: float) -> bool:
 @numba.njit(cache=True)
 def _slow_down(speed, k_slow, slow_accel):
     return min(max(-k_slow * speed, -slow_accel), slow_accel), 0.0
+
+
+@numba.njit(cache=True)
+def _slow_downs(speeds, k_slow, slow_accel, u):
+    for i in range(len(speeds)):
+        u[i] = _slow_down(speeds[i], k_slow, slow_accel)
 
 
 @numba.njit(cache=True)

@@ -24,7 +24,7 @@ from mrta_drake.control.clusters import (
 from mrta_drake.control.nominal import (
     NominalParams,
     is_active,
-    nominal_control,
+    nominal_controls,
     remaining_distance,
     slow_down,
 )
@@ -159,10 +159,11 @@ class ClusterCbfController(LeafSystem):
         p, n = self._params, self._n
         states = np.asarray(states, dtype=float).reshape(n, ROBOT_STATE_SIZE)
         robot_paths = robot_paths_of(paths, n)
-        active = np.array([is_active(s, path, p.arrival_radius)
-                           for s, path in zip(states, robot_paths, strict=True)], dtype=bool)
         distances = [remaining_distance(s, path) for s, path in zip(states, robot_paths,
                                                                    strict=True)]
+        active = np.array([is_active(s, path, p.arrival_radius, distance)
+                           for s, path, distance in zip(states, robot_paths, distances,
+                                                        strict=True)], dtype=bool)
         stalled = None if stall_times is None else np.asarray(stall_times) >= p.stall_time
         broken, cut_off = d.broken, d.cut_off
         alone = None  # robots in no cluster: broken down or cut off
@@ -177,19 +178,13 @@ class ClusterCbfController(LeafSystem):
         human_p, human_v = humans.positions.reshape(-1, 2), humans.velocities.reshape(-1, 2)
         views = {i: d.seen_by(states, i) for i in cut_off}
         shared = d.seen_by(states)
-        u_nom = np.zeros((n, 2))
-        bodies = np.vstack([shared[:, :2], human_p])
-        for i in range(n):
-            view = np.vstack([views[i][:, :2], human_p]) if i in views else bodies
-            u_nom[i] = nominal_control(states[i], robot_paths[i], p, cluster_size[i] > 1, view,
-                                       exclude=i)
-        for i in cut_off:
-            u_nom[i] = slow_down(states[i, 3], p)
+        # Cut-off robots' nominal inputs are replaced by the slow-down below.
+        u_nom = nominal_controls(states, robot_paths, p, cluster_size > 1,
+                                 np.vstack([shared[:, :2], human_p]))
+        slowed = list(cut_off)
         if p.coordination == "clusters":
             groups = clusters
-            for cluster in clusters:
-                for follower in cluster[1:]:
-                    u_nom[follower] = slow_down(states[follower, 3], p)
+            slowed += [follower for cluster in clusters for follower in cluster[1:]]
         elif p.coordination == "decentralized":
             groups = tuple((i,) for i in range(n))
         elif alone is None:
@@ -199,6 +194,7 @@ class ClusterCbfController(LeafSystem):
                 (i,) for i in cut_off)
         if alone is not None:
             groups = tuple(g for g in groups if g and not set(g) & set(broken))
+        u_nom[slowed] = slow_down(states[slowed, 3], p)
         hits, mask = self._rays(states)
         if d.blockages:
             hits, mask = rays_with_blockages(states, hits, mask, d.blockages, p)
@@ -222,16 +218,16 @@ class ClusterCbfController(LeafSystem):
         # Only QPs whose clipped nominal breaks a row reach the solver (the rest are settled).
         u = plan.qps.settled.copy()
         failures, solve_time, max_slack = 0, 0.0, 0.0
-        for problem in plan.qps.to_solve():
-            members = list(problem.members)
-            solution = self._qp.solve(problem.u_nominal, problem.rows.G, problem.rows.b,
-                                      problem.lower, problem.upper)
+        for g in plan.qps.to_solve():
+            members = list(plan.qps.groups[g])
+            u_nominal, G, b, lower, upper = plan.qps.arrays(g)
+            solution = self._qp.solve(u_nominal, G, b, lower, upper)
             solve_time += solution.solve_time
             if solution.success:
                 u[members] = solution.u
                 max_slack = max(max_slack, float(np.max(solution.slack, initial=0.0)))
             else:
-                u[members] = np.stack([problem.lower[:, 0], np.zeros(len(members))], axis=1)
+                u[members] = np.stack([lower[:, 0], np.zeros(len(members))], axis=1)
                 failures += len(members)
         wall, human, robot = plan.min_barriers
         deviation = float(np.max(np.linalg.norm(u - plan.u_nominal, axis=1), initial=0.0))
@@ -260,11 +256,14 @@ def input_bounds(states, params: NominalParams, dt: float) -> tuple[np.ndarray, 
     [min_speed, max_speed] as far as the acceleration limit allows."""
     v = np.asarray(states, dtype=float).reshape(-1, ROBOT_STATE_SIZE)[:, 3]
     a_max = params.max_accel
-    a_lo = np.clip((params.min_speed - v) / dt, -a_max, a_max)
-    a_hi = np.clip((params.max_speed - v) / dt, -a_max, a_max)
-    a_lo = np.minimum(a_lo, a_hi)
-    w = np.full_like(v, params.max_yaw_rate)
-    return np.stack([a_lo, -w], axis=1), np.stack([a_hi, w], axis=1)
+    lower, upper = np.empty((len(v), 2)), np.empty((len(v), 2))
+    # np.minimum(np.maximum(...)) is np.clip, without its overhead.
+    a_hi = np.minimum(np.maximum((params.max_speed - v) / dt, -a_max), a_max)
+    np.minimum(np.minimum(np.maximum((params.min_speed - v) / dt, -a_max), a_max), a_hi,
+               out=lower[:, 0])
+    upper[:, 0] = a_hi
+    lower[:, 1], upper[:, 1] = -params.max_yaw_rate, params.max_yaw_rate
+    return lower, upper
 
 
 def predict_states(states, commands, params: NominalParams, dt: float) -> np.ndarray:

@@ -92,6 +92,9 @@ class RunRecorder(LeafSystem):
         self.DeclareVectorInputPort("human_active", len(self.human_names))
         self.DeclareAbstractInputPort("allocator_events", _value(()))
         self.DeclareAbstractInputPort("disturbances", _value(Disturbances()))
+        # Looked up once: by name, a lookup scans all (2N + 9) ports.
+        self._ports = {port.get_name(): port for port in
+                       (self.get_input_port(i) for i in range(self.num_input_ports()))}
         self.DeclarePeriodicPublishEvent(1.0 / rate_hz, 0.0, self._sample)
         self.DeclareForcedPublishEvent(self._sample)
         self.clear()
@@ -140,23 +143,23 @@ class RunRecorder(LeafSystem):
             return  # the forced publish at the end of a run repeats the last periodic one
         if self._out_dir is not None and self._timeline is None:
             self._open_files()
-        states = self.GetInputPort("robot_state").Eval(context).reshape(self._n, -1).copy()
+        states = self._ports["robot_state"].Eval(context).reshape(self._n, -1).copy()
         self.times.append(t)
         self.robot_states.append(states)
-        humans_port = self.GetInputPort("human_states")
+        humans_port = self._ports["human_states"]
         if humans_port.HasValue(context):
             positions = np.array(humans_port.Eval(context).positions, dtype=float)
-            active_port = self.GetInputPort("human_active")
+            active_port = self._ports["human_active"]
             if active_port.HasValue(context):
                 positions[active_port.Eval(context) < 0.5] = np.nan
             self.human_positions.append(positions)
-        telemetry = self.GetInputPort("telemetry").Eval(context)
+        telemetry = self._ports["telemetry"].Eval(context)
         self.telemetry.append(telemetry)
         if self._timeline is not None:
             for name, row in zip(self.robot_names, states, strict=True):
                 self._csv.writerow([f"{t:.3f}", name] + [f"{v:.4f}" for v in row])
             self._timeline.flush()
-        queues = self.GetInputPort("queue_state").Eval(context)
+        queues = self._ports["queue_state"].Eval(context)
         self.modes.append(self._modes(context, states, queues))
         self._note_plan(context, t)
         self._note_progress(context, t)
@@ -185,7 +188,7 @@ class RunRecorder(LeafSystem):
         return modes
 
     def _note_plan(self, context, t: float) -> None:
-        plan = self.GetInputPort("plan").Eval(context)
+        plan = self._ports["plan"].Eval(context)
         if not plan.plans or plan.revision == self._last_revision:
             return
         self._last_revision = plan.revision
@@ -225,7 +228,7 @@ class RunRecorder(LeafSystem):
                              "holder": queue.holder, "waiting": list(queue.waiting)})
 
     def _note_failures(self, context, t: float, telemetry: ControllerTelemetry) -> None:
-        paths = self.GetInputPort("paths").Eval(context)
+        paths = self._ports["paths"].Eval(context)
         if paths.failures > self._last_failures:
             failed = [p.robot for p in paths.paths if p.status == PATH_FAILED]
             self._event({"time": t, "type": "planner_failure", "robots": failed,
@@ -236,7 +239,7 @@ class RunRecorder(LeafSystem):
                          "failures": int(telemetry.failures)})
 
     def _note_allocator_events(self, context, t: float) -> None:
-        port = self.GetInputPort("allocator_events")
+        port = self._ports["allocator_events"]
         if not port.HasValue(context):
             return
         events = tuple(port.Eval(context))
@@ -250,7 +253,7 @@ class RunRecorder(LeafSystem):
         self._allocator_events = events
 
     def _note_disturbances(self, context, t: float) -> None:
-        port = self.GetInputPort("disturbances")
+        port = self._ports["disturbances"]
         if not port.HasValue(context):
             return
         active = port.Eval(context)

@@ -9,7 +9,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, LeafSystem
 
 from mrta_drake.humans import Person
-from mrta_drake.obstacles import Obstacles
+from mrta_drake.obstacles import Obstacles, closest_points_of
 from mrta_drake.payloads import (
     PLANAR_POSITION_SIZE,
     ROBOT_STATE_SIZE,
@@ -108,6 +108,7 @@ class SocialForceHumans(LeafSystem):
 
         self._names = tuple(p.name for p in self._people)
         self._radii = np.full(m, float(params.radius))
+        self._frozen_radii = frozen_array(self._radii)
         self._speeds = np.array([p.desired_speed for p in self._people], dtype=float)
         self._entry = np.array([p.entry_time for p in self._people], dtype=float)
         self._starts = np.array([p.start for p in self._people], dtype=float).reshape(m, 2)
@@ -116,6 +117,10 @@ class SocialForceHumans(LeafSystem):
         for i, p in enumerate(self._people):
             self._waypoints[i, : len(p.waypoints)] = p.waypoints
         self._parking = self._parking_spots(parking)
+        self._constants = np.array([self._dt, params.waypoint_tolerance, params.relaxation_time,
+                                    params.repulsion_strength, params.repulsion_range,
+                                    params.wall_strength, params.wall_range, params.max_speed],
+                                   dtype=float)
 
         first = self._waypoints[:, 0] - self._starts
         present = self._entry <= 0.0
@@ -183,8 +188,9 @@ class SocialForceHumans(LeafSystem):
 
     def _calc_human_states(self, context, output):
         p, v, _, _ = self._placed(context)
-        output.set_value(HumanStates(names=self._names, positions=frozen_array(p),
-                                     velocities=frozen_array(v), radii=frozen_array(self._radii)))
+        p.flags.writeable = v.flags.writeable = False  # new arrays: frozen without a copy
+        output.set_value(HumanStates(names=self._names, positions=p, velocities=v,
+                                     radii=self._frozen_radii))
 
     def _calc_plant_positions(self, context, output):
         p, _, heading, _ = self._placed(context)
@@ -204,54 +210,18 @@ class SocialForceHumans(LeafSystem):
         return x[:, :2], velocity, self._robot_radii
 
     def _update(self, context, discrete_state):
-        prm = self._params
-        dt = self._dt
         p, v, heading, present = (a.copy() for a in self._read(context))
         targets = context.get_discrete_state(self._targets).value().astype(int)
         robot_p, robot_v, robot_r = self._robots(context)
         self._enter(context.get_time(), p, v, present, robot_p, robot_r)
-
-        a = np.flatnonzero(present)
-        pa, va, radii = p[a], v[a], self._radii[a]
-        count = self._counts[a]
-        goal = self._waypoints[a, targets[a]]
-        reached = np.linalg.norm(goal - pa, axis=1) < prm.waypoint_tolerance
-        reached |= self._taken(goal, pa, radii, robot_p, robot_r)
-        targets[a] = np.where(reached, (targets[a] + 1) % count, targets[a])
-        to_goal = self._waypoints[a, targets[a]] - pa
-        distance = np.linalg.norm(to_goal, axis=1)
-        walking = (distance > 1e-9) & ~((count == 1) & (distance < prm.waypoint_tolerance))
-        direction = np.where(walking[:, None], to_goal / np.maximum(distance, 1e-9)[:, None], 0)
-
-        accel = (self._speeds[a, None] * direction - va) / prm.relaxation_time
-        accel += self._repulsion(pa, direction, radii, pa, va, radii, same=True)
-        accel += self._repulsion(pa, direction, radii, robot_p, robot_v, robot_r, same=False)
-        closest, clearance = self._obstacles.closest_points(pa)
-        accel += (prm.wall_strength / prm.wall_range
-                  * np.exp(-np.maximum(clearance, 0.0) / prm.wall_range)[:, None]
-                  * _outward(pa, closest, clearance))
-
-        va_new = _cap_speed(va + dt * accel, prm.max_speed)
-        free_step = pa + dt * va_new
-        pa_new, blocked = self._project(free_step, pa, clearance, radii, robot_p, robot_r)
-        va_new = _cap_speed(va_new + (pa_new - free_step) / dt, prm.max_speed)
-        va_new[blocked] = 0.0
-
-        p[a], v[a] = pa_new, va_new
-        speed = np.linalg.norm(va_new, axis=1)
-        heading[a] = np.where(speed > STOPPED_SPEED,
-                              np.arctan2(va_new[:, 1], va_new[:, 0]), heading[a])
+        _step_people(p, v, heading, targets, np.flatnonzero(present), robot_p, robot_v, robot_r,
+                     self._radii, self._speeds, self._counts, self._waypoints,
+                     self._obstacles.compiled, self._constants)
         discrete_state.get_mutable_vector(self._positions).SetFromVector(p.reshape(-1))
         discrete_state.get_mutable_vector(self._velocities).SetFromVector(v.reshape(-1))
         discrete_state.get_mutable_vector(self._targets).SetFromVector(targets.astype(float))
         discrete_state.get_mutable_vector(self._headings).SetFromVector(heading)
         discrete_state.get_mutable_vector(self._present).SetFromVector(present.astype(float))
-
-    @staticmethod
-    def _taken(goal, p, radii, robot_p, robot_r) -> np.ndarray:
-        """True for people within ``TAKEN_REACH`` of a target that someone else's body (a
-        robot's or another person's) covers, so they cannot get closer."""
-        return _taken(goal, p, radii, np.ascontiguousarray(robot_p), robot_r)
 
     def _enter(self, time, p, v, present, robot_p, robot_r) -> None:
         """Lets waiting people whose entry time has come enter, in people order, when their
@@ -264,36 +234,101 @@ class SocialForceHumans(LeafSystem):
                 present[i] = True
                 p[i], v[i] = self._starts[i], 0.0
 
-    def _repulsion(self, p, direction, radii, q, q_velocity, q_radii, same: bool) -> np.ndarray:
-        """Sum over others (q) of the elliptical-potential force on each person (p), m/s^2."""
-        force = np.zeros_like(p)
-        _add_repulsion(p, direction, radii, q, q_velocity, q_radii, same,
-                       self._params.repulsion_strength, self._params.repulsion_range, force)
-        return force
 
-    def _project(self, new, old, old_clearance, radii, robot_p, robot_r):
-        """Hard constraints on the step ``old`` -> ``new`` (positions (a, 2)): overlapping
-        people are pushed apart; nobody steps closer to a robot (surface to surface) than
-        min(``ROBOT_STANDOFF``, its gap before the step), so only a robot's own motion can
-        cause contact; everyone ends at clearance >= radius from obstacles. Returns the new
-        positions and the mask of people blocked, who would still break a robot floor or lose
-        clearance below min(radius, old clearance), and so stay at ``old``."""
-        new = new.copy()
-        floor = np.minimum(ROBOT_STANDOFF, _gaps(old, radii, robot_p, robot_r))
-        for _ in range(PROJECTION_ITERATIONS):
-            shift = _apart(new, radii) + _away(new, radii, robot_p, robot_r, floor)
-            new += shift
-            closest, clearance = self._obstacles.closest_points(new)
-            depth = np.maximum(radii - clearance, 0.0)
-            new += depth[:, None] * _outward(new, closest, clearance)
-            if not shift.any() and not depth.any():
-                break
-        if depth.any():
-            clearance = self._obstacles.signed_distance(new)
-        blocked = clearance < np.minimum(radii, old_clearance) - 1e-9
-        blocked |= (_gaps(new, radii, robot_p, robot_r) < floor - 1e-9).any(axis=1)
-        new[blocked] = old[blocked]
-        return new, blocked
+# The update, compiled: indices of ``SocialForceHumans._constants``.
+_DT, _TOLERANCE, _RELAXATION, _STRENGTH, _RANGE, _WALL_STRENGTH, _WALL_RANGE, _MAX_SPEED = \
+    range(8)
+
+
+@numba.njit(cache=True)
+def _step_people(p, v, heading, targets, a, robot_p, robot_v, robot_r, radii_all, speeds,
+                 counts, waypoints, obstacles, constants):
+    """Steps 1-4 of the class docstring for the people present (indices ``a``), in place on
+    positions ``p`` (M, 2), velocities ``v`` (M, 2), ``heading`` (M,) and ``targets`` (M,);
+    robots at ``robot_p`` (N, 2) moving at ``robot_v`` (N, 2); ``obstacles``:
+    ``Obstacles.compiled``."""
+    dt, tolerance = constants[_DT], constants[_TOLERANCE]
+    k = len(a)
+    pa, va, radii, goal = np.empty((k, 2)), np.empty((k, 2)), radii_all[a], np.empty((k, 2))
+    for j in range(k):
+        i = a[j]
+        pa[j], va[j], goal[j] = p[i], v[i], waypoints[i, targets[i]]
+    reached = _taken(goal, pa, radii, robot_p, robot_r)
+    direction, accel = np.zeros((k, 2)), np.empty((k, 2))
+    for j in range(k):
+        i = a[j]
+        gx, gy = goal[j, 0] - pa[j, 0], goal[j, 1] - pa[j, 1]
+        if reached[j] or math.sqrt(gx * gx + gy * gy) < tolerance:
+            targets[i] = (targets[i] + 1) % counts[i]
+        tx, ty = waypoints[i, targets[i], 0] - pa[j, 0], waypoints[i, targets[i], 1] - pa[j, 1]
+        distance = math.sqrt(tx * tx + ty * ty)
+        if distance > 1e-9 and not (counts[i] == 1 and distance < tolerance):
+            direction[j, 0], direction[j, 1] = tx / distance, ty / distance
+        for c in range(2):
+            accel[j, c] = (speeds[i] * direction[j, c] - va[j, c]) / constants[_RELAXATION]
+    force = np.zeros((k, 2))
+    _add_repulsion(pa, direction, radii, pa, va, radii, True, constants[_STRENGTH],
+                   constants[_RANGE], force)
+    accel += force
+    force = np.zeros((k, 2))
+    _add_repulsion(pa, direction, radii, robot_p, robot_v, robot_r, False, constants[_STRENGTH],
+                   constants[_RANGE], force)
+    accel += force
+    closest, clearance = closest_points_of(pa, *obstacles)
+    outward = _outward(pa, closest, clearance)
+    for j in range(k):
+        wall = constants[_WALL_STRENGTH] / constants[_WALL_RANGE] * np.exp(
+            -max(clearance[j], 0.0) / constants[_WALL_RANGE])
+        accel[j, 0] += wall * outward[j, 0]
+        accel[j, 1] += wall * outward[j, 1]
+
+    va_new = _cap_speed(va + dt * accel, constants[_MAX_SPEED])
+    free_step = pa + dt * va_new
+    pa_new, blocked = _project(free_step, pa, clearance, radii, robot_p, robot_r, obstacles)
+    va_new = _cap_speed(va_new + (pa_new - free_step) / dt, constants[_MAX_SPEED])
+    for j in range(k):
+        i = a[j]
+        if blocked[j]:
+            va_new[j] = 0.0
+        p[i], v[i] = pa_new[j], va_new[j]
+        if math.sqrt(va_new[j, 0] ** 2 + va_new[j, 1] ** 2) > STOPPED_SPEED:
+            heading[i] = np.arctan2(va_new[j, 1], va_new[j, 0])
+
+
+@numba.njit(cache=True)
+def _project(new, old, old_clearance, radii, robot_p, robot_r, obstacles):
+    """Hard constraints on the step ``old`` -> ``new`` (positions (a, 2)): overlapping
+    people are pushed apart; nobody steps closer to a robot (surface to surface) than
+    min(``ROBOT_STANDOFF``, its gap before the step), so only a robot's own motion can
+    cause contact; everyone ends at clearance >= radius from obstacles. Returns the new
+    positions and the mask of people blocked, who would still break a robot floor or lose
+    clearance below min(radius, old clearance), and so stay at ``old``."""
+    new = new.copy()
+    floor = np.minimum(ROBOT_STANDOFF, _gaps(old, radii, robot_p, robot_r))
+    depth = np.zeros(len(new))
+    clearance = old_clearance
+    for _ in range(PROJECTION_ITERATIONS):
+        shift = _apart(new, radii) + _away(new, radii, robot_p, robot_r, floor)
+        new += shift
+        closest, clearance = closest_points_of(new, *obstacles)
+        depth = np.maximum(radii - clearance, 0.0)
+        outward = _outward(new, closest, clearance)
+        for i in range(len(new)):
+            new[i, 0] += depth[i] * outward[i, 0]
+            new[i, 1] += depth[i] * outward[i, 1]
+        if not shift.any() and not depth.any():
+            break
+    if depth.any():
+        clearance = closest_points_of(new, *obstacles)[1]
+    blocked = clearance < np.minimum(radii, old_clearance) - 1e-9
+    gaps = _gaps(new, radii, robot_p, robot_r)
+    for i in range(len(new)):
+        for j in range(len(robot_p)):
+            if gaps[i, j] < floor[i, j] - 1e-9:
+                blocked[i] = True
+        if blocked[i]:
+            new[i] = old[i]
+    return new, blocked
 
 
 @numba.njit(cache=True)
@@ -378,7 +413,8 @@ def _away(p, radii, q, q_radii, floor) -> np.ndarray:
 
 @numba.njit(cache=True)
 def _taken(goal, p, radii, robot_p, robot_r) -> np.ndarray:
-    """``SocialForceHumans._taken``."""
+    """True for people within ``TAKEN_REACH`` of a target that someone else's body (a
+    robot's or another person's) covers, so they cannot get closer."""
     taken = np.zeros(len(p), dtype=np.bool_)
     for i in range(len(p)):
         if not math.hypot(goal[i, 0] - p[i, 0], goal[i, 1] - p[i, 1]) < TAKEN_REACH:

@@ -65,6 +65,14 @@ class _Drive:
         return self  # immutable: Drake's copies of the state can share it
 
 
+def _changed(s: _Drive, **changes) -> _Drive:
+    """``replace(s, **changes)``, or ``s`` itself when they change nothing (the hot path:
+    most updates change nothing)."""
+    if all(getattr(s, name) == value for name, value in changes.items()):
+        return s
+    return replace(s, **changes)
+
+
 def _point(xy) -> tuple[float, float]:
     return (float(xy[0]), float(xy[1]))
 
@@ -222,7 +230,6 @@ class WaypointGenerator(LeafSystem):
         t = context.get_time()
         states = self._robot_state.Eval(context).reshape(-1, ROBOT_STATE_SIZE)
         xy = _point(states[self._index])
-        others = np.delete(states[:, :2], self._index, axis=0)
         queues = self._queue_state.Eval(context)
         disturbances = (self._disturbances.Eval(context) if self._disturbances.HasValue(context)
                         else NO_DISTURBANCES)
@@ -235,9 +242,9 @@ class WaypointGenerator(LeafSystem):
         else:
             done = {visit.key for visit in s.visits}
             remaining = [stop for stop in self._stops(context) if stop.key not in done]
-            s = self._follow_plan(s, remaining[0] if remaining else None, xy, others, lanes, t)
+            s = self._follow_plan(s, remaining[0] if remaining else None, xy, states, lanes, t)
             s = self._advance(s, xy, t, queues, remaining, lanes)
-        s = replace(s, release=self._release(s, xy, queues))
+        s = _changed(s, release=self._release(s, xy, queues))
         state.get_mutable_abstract_state(self._state_index).set_value(s)
 
     def _stops(self, context) -> tuple[Stop, ...]:
@@ -246,7 +253,7 @@ class WaypointGenerator(LeafSystem):
             return plans[self._index].stops
         return next((plan.stops for plan in plans if plan.robot == self._robot), ())
 
-    def _follow_plan(self, s: _Drive, stop: Stop | None, xy, others, lanes: Roadways,
+    def _follow_plan(self, s: _Drive, stop: Stop | None, xy, states, lanes: Roadways,
                      t: float) -> _Drive:
         if stop is None:
             if s.phase == PARK:
@@ -255,12 +262,13 @@ class WaypointGenerator(LeafSystem):
             if (place is None or not len(place.parking)
                     or _distance(xy, place.point) > self._params.reach_tolerance):
                 return replace(s, phase=IDLE, stop=None, route=(), index=0, since=None)
+            others = np.delete(states[:, :2], self._index, axis=0)
             return replace(s, phase=PARK, stop=None, route=(), since=None,
                            index=self._free_parking(place, others))
         if s.stop is None:
             return self._start(s, stop, xy, lanes, t)
         if stop.location == s.stop.location:
-            return replace(s, stop=stop)
+            return _changed(s, stop=stop)
         old = self._roadways.place(s.stop.location)
         if s.phase == DRIVE:
             def route(roadways):
@@ -388,7 +396,7 @@ class WaypointGenerator(LeafSystem):
         if s.phase == DRIVE and holding:
             s = replace(s, phase=ENTER, route=(_point(place.point),), index=0)
         if s.phase == DRIVE:
-            s = replace(s, index=self._reached(s, xy))
+            s = _changed(s, index=self._reached(s, xy))
             if (
                 s.index == len(s.route) - 1
                 and _distance(xy, s.route[-1]) <= params.request_distance
@@ -401,7 +409,7 @@ class WaypointGenerator(LeafSystem):
             elif queue is not None and queue.slot_of(self._robot) is not None:
                 s = replace(s, index=min(queue.slot_of(self._robot), len(place.queue) - 1))
         if s.phase == ENTER:
-            s = replace(s, index=self._reached(s, xy))
+            s = _changed(s, index=self._reached(s, xy))
             if s.index == len(s.route) - 1:
                 s = replace(s, phase=SERVE, route=(), index=0)
         if s.phase == SERVE and holding and _distance(xy, place.point) <= params.reach_tolerance:
