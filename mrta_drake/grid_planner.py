@@ -106,6 +106,11 @@ class GridPlanner:
     def costmap(self) -> Costmap:
         return self._costmap
 
+    @property
+    def base_costmap(self) -> Costmap:
+        """The costmap the planner was made with (``use_costmap`` may only raise its costs)."""
+        return self._landmark_costmap
+
     def use_costmap(self, costmap: Costmap) -> None:
         """Plan on ``costmap`` from now on (e.g. ``Costmap.with_obstacles`` of the one the
         planner was made with). Its costs must be nowhere below those of the costmap the

@@ -24,7 +24,7 @@ from mrta_drake.payloads import (
     frozen_array,
 )
 
-STOPPED_SPEED = 0.05  # m/s: a broken-down robot slower than this has come to rest
+STOPPED_SPEED = 0.05  # m/s: a robot slower than this is at rest
 _COSTMAP_CACHE = 16  # costmaps with closures kept for reuse
 
 
@@ -70,14 +70,21 @@ class PlannerService(LeafSystem):
     ``current``. Each failed leg adds one to ``FleetPaths.failures``. A path ends with a stop
     (``stop_at_end``) at ``next``, or at ``current`` when the target says so.
 
+    Robots at rest: at each periodic re-plan (and when the disturbances change), every robot
+    slower than ``STOPPED_SPEED`` that has an active target or is broken down makes the
+    cells within the costmap's robot radius plus inflation radius of it (its position
+    rounded to the costmap's cells) cost ``MAX_NON_OBSTACLE``: paths go around a robot
+    standing in the way where there is room rather than run into it, and still reach a
+    place it stands on or next to (the controller keeps the distance). Why: the controller
+    only keeps robots apart; two robots whose paths run through each other (e.g. head-on
+    along a wall) stop nose to nose and, with paths that never leave that line, stay there.
+    A standing robot's own cells cost the same in every direction, so they do not bend its
+    own path.
+
     Optional input ``disturbances`` (abstract ``Disturbances``): while blockages are in force
     their boxes are obstacles of the costmap (``Costmap.with_obstacles``, recomputed around
-    them only). A broken-down robot at rest (slower than ``STOPPED_SPEED``) makes the cells
-    within the costmap's robot radius plus inflation radius of it (its position rounded to
-    the costmap's cells) cost ``MAX_NON_OBSTACLE``: paths go around it where there is room
-    rather than queue behind it, and still reach a place it stands on or next to (the
-    controller keeps the distance). When these change, every robot is re-planned at the
-    next check tick. A robot caught inside a blockage has no path (failed) until it opens.
+    them only). When the costs change, every robot is re-planned at the next check tick. A
+    robot caught inside a blockage has no path (failed) until it opens.
     """
 
     def __init__(self, planner: GridPlanner, robots: Sequence[str], replan_rate: float = 2.0,
@@ -86,8 +93,8 @@ class PlannerService(LeafSystem):
         if replan_rate <= 0.0 or target_check_rate <= 0.0:
             raise ValueError("replan_rate and target_check_rate must be positive")
         self._planner = planner
-        self._open_costmap = planner.costmap
-        self._costmaps = {(): planner.costmap}  # by closures (``_closures``)
+        self._open_costmap = planner.base_costmap
+        self._costmaps = {(): self._open_costmap}  # by closures (``_closures``)
         self._robots = tuple(robots)
         self._replan_period = 1.0 / replan_rate
         n = len(self._robots)
@@ -141,8 +148,9 @@ class PlannerService(LeafSystem):
         targets = tuple(port.Eval(context) for port in self._targets)
         disturbances = (self._disturbances.Eval(context) if self._disturbances.HasValue(context)
                         else NO_DISTURBANCES)
-        closed = self._closures(context, disturbances)
-        replan_all = now >= old.next_replan - 1e-9 or closed != old.closed
+        periodic = now >= old.next_replan - 1e-9
+        closed = self._closures(context, disturbances, targets, old.closed, periodic)
+        replan_all = periodic or closed != old.closed
         due = [k for k in range(len(self._robots))
                if replan_all or targets[k] != old.targets[k]]
         if not due:
@@ -156,23 +164,30 @@ class PlannerService(LeafSystem):
             paths[k], failed = self._plan(self._robots[k], xy, targets[k], now)
             failures += failed
         next_replan = old.next_replan
-        if now >= old.next_replan - 1e-9:
+        if periodic:
             # Keep the period's phase, but never fall behind the clock.
             next_replan = max(next_replan + self._replan_period, now + 0.5 * self._replan_period)
         state.get_mutable_abstract_state(self._state_index).set_value(
             _ServiceState(FleetPaths(tuple(paths), failures), targets, next_replan, closed))
         return EventStatus.Succeeded()
 
-    def _closures(self, context, disturbances: Disturbances) -> tuple:
-        """What closes cells now: the blockages' names and (index, x, y) of each broken-down
-        robot at rest, its position rounded to the costmap's cells (m); () for nothing."""
-        if not disturbances.blockages and not disturbances.breakdowns:
-            return ()
+    def _closures(self, context, disturbances: Disturbances, targets, old: tuple,
+                  periodic: bool) -> tuple:
+        """What raises costs now: the blockages' names, the broken-down robots' indices and
+        (index, x, y) of each robot at rest (see the class docstring; taken anew at periodic
+        re-plans and when the other two change, else kept from ``old``), its position
+        rounded to the costmap's cells (m); () for nothing."""
+        disturbed = tuple(b.name for b in disturbances.blockages), disturbances.broken
+        if not periodic and disturbed == (old[:2] if old else ((), ())):
+            return old
         states = self._robot_state.Eval(context).reshape(-1, ROBOT_STATE_SIZE)
         res = self._open_costmap.resolution
         resting = tuple((k, round(states[k, 0] / res) * res, round(states[k, 1] / res) * res)
-                        for k in disturbances.broken if abs(states[k, 3]) < STOPPED_SPEED)
-        return tuple(b.name for b in disturbances.blockages), resting
+                        for k in range(len(self._robots))
+                        if abs(states[k, 3]) < STOPPED_SPEED
+                        and (targets[k].active or k in disturbances.broken))
+        closed = (*disturbed, resting)
+        return closed if any(closed) else ()
 
     def _close(self, blockages, closed: tuple) -> None:
         """Make the planner's costmap the open one with the ``closed`` cells (``_closures``,
@@ -183,10 +198,10 @@ class PlannerService(LeafSystem):
             costmap = self._open_costmap
             if blockages:
                 costmap = costmap.with_obstacles(blockage_obstacles(blockages))
-            if closed[1]:
+            if closed[2]:
                 reach = costmap.params.robot_radius + costmap.params.inflation_radius
                 costmap = costmap.with_obstacles(Obstacles(cylinders=tuple(
-                    Cylinder(f"broken_{k}", (x, y), reach) for k, x, y in closed[1])),
+                    Cylinder(f"resting_{k}", (x, y), reach) for k, x, y in closed[2])),
                     MAX_NON_OBSTACLE)
             if len(self._costmaps) > _COSTMAP_CACHE:
                 self._costmaps = {(): self._open_costmap}
