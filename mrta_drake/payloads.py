@@ -22,6 +22,7 @@ import numpy as np
 
 ROBOT_STATE_SIZE = 4  # x, y, theta, v
 ROBOT_COMMAND_SIZE = 2  # v, omega
+ROBOT_STOPPED_SPEED = 0.05  # m/s: a robot slower than this is at rest
 PLANAR_POSITION_SIZE = 3  # x, y, theta
 
 

@@ -7,12 +7,24 @@ from pydrake.common.value import Value
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
-from mrta_drake.payloads import FleetPlan, RobotPlan, Stop, WaypointTarget
+from mrta_drake.payloads import (
+    FleetPlan,
+    QueueState,
+    RobotPlan,
+    RoomQueue,
+    Stop,
+    WaypointTarget,
+)
 from mrta_drake.roadways import Roadways
 from mrta_drake.scenario_schema import LocationConfig, RoadwaysConfig, RobotConfig
 from mrta_drake.systems.fixed_sequence_allocator import FixedSequenceAllocator
 from mrta_drake.systems.room_queues import RoomQueues
-from mrta_drake.systems.waypoint_generator import WaypointGenerator, WaypointParams
+from mrta_drake.systems.waypoint_generator import (
+    QUEUE,
+    WaypointGenerator,
+    WaypointParams,
+    _Drive,
+)
 
 A, B, C = 0, 1, 2
 
@@ -272,3 +284,79 @@ def test_a_robot_done_at_a_room_parks_off_the_point_and_frees_the_room():
     handover = [t for t, q, _, _ in world.log if q.room(B).holder == "r1"]
     assert handover and handover[0] < r1.visits[1].time
     assert final.room(B).holder is None
+
+
+def fleet(*routes) -> FleetPlan:
+    """Robot ``r<i>`` gets the stops ``routes[i]`` ((key, location) pairs)."""
+    return FleetPlan(tuple(RobotPlan(f"r{i}", tuple(Stop(k, loc) for k, loc in stops))
+                           for i, stops in enumerate(routes)))
+
+
+def test_a_robot_parked_in_a_room_waits_for_the_holder_before_serving_there():
+    # r0 serves B and parks beside its point; r1 then comes to B and stands on its point for
+    # 10 s. Meanwhile r0 is given another stop at B: it must not drive onto r1.
+    params = WaypointParams(service_time=10.0)
+    first = [(0.0, fleet([("a", B)], [("b", A), ("c", B)]))]
+    alone = World([C, C], ScriptedPlan(first), params=params, parking=True)
+    alone.run(until=120.0)
+    serving = [t for t, q, positions, _ in alone.log
+               if q.room(B).holder == "r1" and alone.distance(positions, 1, B) < 0.1]
+    assert serving, "r1 never stood on B's point holding it"
+    again = serving[0] + 1.0
+    world = World([C, C], ScriptedPlan(first + [(again, fleet(
+        [("a", B), ("d", B)], [("b", A), ("c", B)]))]), params=params, parking=True)
+    world.run(until=again + 40.0)
+    while_held = [(positions, targets) for t, q, positions, targets in world.log
+                  if again + 0.2 <= t and q.room(B).holder == "r1"]
+    assert while_held
+    # r0 stands where it parked (no target) while r1 holds the room ...
+    assert all(not targets[0].active for _, targets in while_held)
+    assert all(world.distance(positions, 0, B) > 1.5 for positions, _ in while_held)
+    # ... then gets the room and serves its second stop at B.
+    assert [v.key for v in world.progress(0).visits] == ["a", "d"]
+
+
+def test_a_holder_waits_at_its_slot_while_another_robot_moves_in_the_doorway():
+    # r0 queues first at B's door slot; r1, who had parked in B, drives out through the door
+    # just as r0 is granted B. Entering then would stand both in the doorway.
+    roadways = loop_world(parking=True)
+    place = roadways.place(B)
+    generator = WaypointGenerator("r0", 0, 2, roadways, A, WaypointParams())
+    context = generator.CreateDefaultContext()
+    generator.GetInputPort("plan").FixValue(context, plan(("a", B)))
+    generator.GetInputPort("queue_state").FixValue(context, QueueState((
+        RoomQueue(B, holder="r0"),)))
+    slot = place.queue[0]
+    context.SetAbstractState(0, _Drive(phase=QUEUE, stop=Stop("a", B), index=0,
+                                       last_location=A))
+    simulator = Simulator(generator, context)
+
+    def step(r1_xy, r1_speed):
+        generator.GetInputPort("robot_state").FixValue(
+            context, [*slot, 0.0, 0.0, *r1_xy, -1.57, r1_speed])
+        simulator.AdvanceTo(context.get_time() + 0.1)
+        return generator.GetOutputPort("target").Eval(context).current
+
+    entry = place.entry[0]
+    # r1 moving 0.6 m from the entry: r0 keeps to its slot, tick after tick.
+    assert step((entry[0], entry[1] + 0.6), 0.5) == tuple(slot)
+    assert step((entry[0] - 0.6, entry[1] - 0.2), 0.5) == tuple(slot)
+    # r1 standing there is no reason to wait (the planner routes around a standing robot).
+    assert step((entry[0] - 0.6, entry[1] - 0.2), 0.0) == tuple(entry)
+
+
+def test_queued_robots_move_up_without_entering_while_another_holds_the_room():
+    # The door rule only holds back the holder: a robot waiting behind it still moves up.
+    roadways = loop_world(parking=True)
+    place = roadways.place(B)
+    generator = WaypointGenerator("r0", 0, 2, roadways, A, WaypointParams())
+    context = generator.CreateDefaultContext()
+    generator.GetInputPort("plan").FixValue(context, plan(("a", B)))
+    generator.GetInputPort("queue_state").FixValue(context, QueueState((
+        RoomQueue(B, holder="r1", waiting=("r0",)),)))
+    generator.GetInputPort("robot_state").FixValue(
+        context, [*place.queue[2], 0.0, 0.0, *place.point, 0.0, 0.5])
+    context.SetAbstractState(0, _Drive(phase=QUEUE, stop=Stop("a", B), index=2,
+                                       last_location=A))
+    Simulator(generator, context).AdvanceTo(0.05)
+    assert generator.GetOutputPort("target").Eval(context).current == tuple(place.queue[0])

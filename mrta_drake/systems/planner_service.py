@@ -17,6 +17,7 @@ from mrta_drake.payloads import (
     PATH_IDLE,
     PATH_OK,
     ROBOT_STATE_SIZE,
+    ROBOT_STOPPED_SPEED,
     Disturbances,
     FleetPaths,
     RobotPath,
@@ -24,7 +25,6 @@ from mrta_drake.payloads import (
     frozen_array,
 )
 
-STOPPED_SPEED = 0.05  # m/s: a robot slower than this is at rest
 _COSTMAP_CACHE = 16  # costmaps with closures kept for reuse
 
 
@@ -71,7 +71,7 @@ class PlannerService(LeafSystem):
     (``stop_at_end``) at ``next``, or at ``current`` when the target says so.
 
     Robots at rest: at each periodic re-plan (and when the disturbances change), every robot
-    slower than ``STOPPED_SPEED`` that has an active target or is broken down makes the
+    slower than ``ROBOT_STOPPED_SPEED`` that has an active target or is broken down makes the
     cells within the costmap's robot radius plus inflation radius of it (its position
     rounded to the costmap's cells) cost ``MAX_NON_OBSTACLE``: paths go around a robot
     standing in the way where there is room rather than run into it, and still reach a
@@ -184,7 +184,7 @@ class PlannerService(LeafSystem):
         res = self._open_costmap.resolution
         resting = tuple((k, round(states[k, 0] / res) * res, round(states[k, 1] / res) * res)
                         for k in range(len(self._robots))
-                        if abs(states[k, 3]) < STOPPED_SPEED
+                        if abs(states[k, 3]) < ROBOT_STOPPED_SPEED
                         and (targets[k].active or k in disturbances.broken))
         closed = (*disturbed, resting)
         return closed if any(closed) else ()

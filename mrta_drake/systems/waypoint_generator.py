@@ -10,6 +10,7 @@ from pydrake.systems.framework import BasicVector, LeafSystem
 from mrta_drake.payloads import (
     NO_DISTURBANCES,
     ROBOT_STATE_SIZE,
+    ROBOT_STOPPED_SPEED,
     Detour,
     Disturbances,
     FleetPlan,
@@ -41,6 +42,8 @@ class WaypointParams:
     request_distance: float = 3.0  # ask for a place in the queue this close to its tail slot
     release_distance: float = 5.0  # give a room back this far from its point
     parking_clearance: float = 0.8  # a parking spot is taken with another robot this close
+    door_clearance: float = 1.0  # a holder waits at its slot while another robot moves this
+    # close to the room's entry path or point
 
 
 @dataclass(frozen=True)
@@ -48,7 +51,9 @@ class _Drive:
     """The generator's whole state. ``index`` is the route waypoint being driven to (drive,
     enter) or the queue slot being waited at (queue); ``since`` the time service began;
     ``release`` the room the robot asks to release; ``closed`` the blockages (names) in
-    force at the last update; ``detours`` the route changes they forced."""
+    force at the last update; ``detours`` the route changes they forced; ``waiting``: to
+    serve at a point whose room another robot still holds (e.g. parked in that room), so
+    standing still rather than driving onto the holder."""
 
     phase: str = IDLE
     stop: Stop | None = None
@@ -60,6 +65,7 @@ class _Drive:
     last_location: int | None = None
     closed: tuple[str, ...] = ()
     detours: tuple[Detour, ...] = ()
+    waiting: bool = False
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the state can share it
@@ -111,10 +117,15 @@ class WaypointGenerator(LeafSystem):
       (sent back to it) drives straight to the point instead.
     - queue: request the room and wait at slot ``min(place, slots - 1)``, moving up as the
       queue advances; robots beyond the last slot all wait at the tail slot.
-    - enter: once holding the room, drive through the remaining slots and the entry path.
+    - enter: once holding the room, drive through the remaining slots and the entry path;
+      but while another robot moves within ``door_clearance`` of the entry path or the point
+      (e.g. one that had parked in the room, leaving), wait at the slot: two robots in a
+      doorway cannot pass.
     - serve: within ``reach_tolerance`` of the point and holding the room, stand for
       ``service_time``; the stop is then done (a ``Visit`` at that time) and the next begins.
-      A stop at the location the robot is already at starts here (requesting the room).
+      A stop at the location the robot is already at starts here (requesting the room);
+      until it holds the room its target is inactive, so a robot parked in the room does not
+      drive onto the holder standing at the point.
 
     The robot's stops are the plan's stops whose keys it has not completed, re-read every
     update: a new plan with the same first stop location changes nothing (only the stop);
@@ -198,7 +209,7 @@ class WaypointGenerator(LeafSystem):
             parking = _point(self._roadways.place(s.last_location).parking[s.index])
             output.set_value(WaypointTarget(self._robot, True, parking, None, True))
             return
-        if s.stop is None or s.phase == WAIT:
+        if s.stop is None or s.phase == WAIT or s.waiting:
             output.set_value(WaypointTarget(self._robot))
             return
         place = self._roadways.place(s.stop.location)
@@ -243,7 +254,7 @@ class WaypointGenerator(LeafSystem):
             done = {visit.key for visit in s.visits}
             remaining = [stop for stop in self._stops(context) if stop.key not in done]
             s = self._follow_plan(s, remaining[0] if remaining else None, xy, states, lanes, t)
-            s = self._advance(s, xy, t, queues, remaining, lanes)
+            s = self._advance(s, states, t, queues, remaining, lanes)
         s = _changed(s, release=self._release(s, xy, queues))
         state.get_mutable_abstract_state(self._state_index).set_value(s)
 
@@ -385,10 +396,11 @@ class WaypointGenerator(LeafSystem):
                 return ahead
         return _points_or_none(lanes.route_from_point(xy, location))
 
-    def _advance(self, s: _Drive, xy, t: float, queues: QueueState, remaining,
+    def _advance(self, s: _Drive, states: np.ndarray, t: float, queues: QueueState, remaining,
                  lanes: Roadways) -> _Drive:
         if s.stop is None:
             return s
+        xy = _point(states[self._index])
         params = self._params
         place = self._roadways.place(s.stop.location)
         queue = queues.room(place.id)
@@ -403,15 +415,17 @@ class WaypointGenerator(LeafSystem):
             ):
                 s = replace(s, phase=QUEUE, route=(), index=len(place.queue) - 1)
         if s.phase == QUEUE:
-            if holding:
+            # Entering while another robot comes out would stand both in the doorway.
+            if holding and not self._door_busy(place, states):
                 route = _points(place.queue[s.index::-1]) + _points(place.entry)
                 s = replace(s, phase=ENTER, route=route + (_point(place.point),), index=0)
-            elif queue is not None and queue.slot_of(self._robot) is not None:
+            elif not holding and queue is not None and queue.slot_of(self._robot) is not None:
                 s = replace(s, index=min(queue.slot_of(self._robot), len(place.queue) - 1))
         if s.phase == ENTER:
             s = _changed(s, index=self._reached(s, xy))
             if s.index == len(s.route) - 1:
                 s = replace(s, phase=SERVE, route=(), index=0)
+        s = _changed(s, waiting=s.phase == SERVE and not holding)
         if s.phase == SERVE and holding and _distance(xy, place.point) <= params.reach_tolerance:
             since = t if s.since is None else s.since
             if t - since < params.service_time - 1e-9:
@@ -426,6 +440,17 @@ class WaypointGenerator(LeafSystem):
             if following:
                 s = self._start(s, following[0], xy, lanes, t)
         return s
+
+    def _door_busy(self, place, states: np.ndarray) -> bool:
+        """Whether another robot is moving (faster than ``ROBOT_STOPPED_SPEED``) within
+        ``door_clearance`` of ``place``'s entry path or point."""
+        others = np.delete(states, self._index, axis=0)
+        moving = others[np.abs(others[:, 3]) > ROBOT_STOPPED_SPEED, :2]
+        if not len(moving):
+            return False
+        door = np.array([*place.entry, place.point], dtype=float).reshape(-1, 2)
+        gaps = np.linalg.norm(moving[:, None, :] - door[None, :, :], axis=-1)
+        return bool((gaps <= self._params.door_clearance).any())
 
     def _reached(self, s: _Drive, xy) -> int:
         """The first route index not yet reached, at most the last."""
