@@ -316,19 +316,24 @@ def test_a_robot_parked_in_a_room_waits_for_the_holder_before_serving_there():
     assert [v.key for v in world.progress(0).visits] == ["a", "d"]
 
 
-def test_a_holder_waits_at_its_slot_while_another_robot_moves_in_the_doorway():
-    # r0 queues first at B's door slot; r1, who had parked in B, drives out through the door
-    # just as r0 is granted B. Entering then would stand both in the doorway.
+def queueing_at_b(queue: RoomQueue, slot: int):
+    """Robot r0 alone (of two), in the queue phase for its stop at B at ``slot``, with B's
+    ``queue``: (generator, context, B's place)."""
     roadways = loop_world(parking=True)
-    place = roadways.place(B)
     generator = WaypointGenerator("r0", 0, 2, roadways, A, WaypointParams())
     context = generator.CreateDefaultContext()
     generator.GetInputPort("plan").FixValue(context, plan(("a", B)))
-    generator.GetInputPort("queue_state").FixValue(context, QueueState((
-        RoomQueue(B, holder="r0"),)))
-    slot = place.queue[0]
-    context.SetAbstractState(0, _Drive(phase=QUEUE, stop=Stop("a", B), index=0,
+    generator.GetInputPort("queue_state").FixValue(context, QueueState((queue,)))
+    context.SetAbstractState(0, _Drive(phase=QUEUE, stop=Stop("a", B), index=slot,
                                        last_location=A))
+    return generator, context, roadways.place(B)
+
+
+def test_a_holder_waits_at_its_slot_while_another_robot_moves_in_the_doorway():
+    # r0 queues first at B's door slot; r1, who had parked in B, drives out through the door
+    # just as r0 is granted B. Entering then would stand both in the doorway.
+    generator, context, place = queueing_at_b(RoomQueue(B, holder="r0"), slot=0)
+    slot = place.queue[0]
     simulator = Simulator(generator, context)
 
     def step(r1_xy, r1_speed):
@@ -347,16 +352,9 @@ def test_a_holder_waits_at_its_slot_while_another_robot_moves_in_the_doorway():
 
 def test_queued_robots_move_up_without_entering_while_another_holds_the_room():
     # The door rule only holds back the holder: a robot waiting behind it still moves up.
-    roadways = loop_world(parking=True)
-    place = roadways.place(B)
-    generator = WaypointGenerator("r0", 0, 2, roadways, A, WaypointParams())
-    context = generator.CreateDefaultContext()
-    generator.GetInputPort("plan").FixValue(context, plan(("a", B)))
-    generator.GetInputPort("queue_state").FixValue(context, QueueState((
-        RoomQueue(B, holder="r1", waiting=("r0",)),)))
+    generator, context, place = queueing_at_b(RoomQueue(B, holder="r1", waiting=("r0",)),
+                                              slot=2)
     generator.GetInputPort("robot_state").FixValue(
         context, [*place.queue[2], 0.0, 0.0, *place.point, 0.0, 0.5])
-    context.SetAbstractState(0, _Drive(phase=QUEUE, stop=Stop("a", B), index=2,
-                                       last_location=A))
     Simulator(generator, context).AdvanceTo(0.05)
     assert generator.GetOutputPort("target").Eval(context).current == tuple(place.queue[0])
