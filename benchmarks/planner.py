@@ -38,7 +38,7 @@ from mrta_drake.grid_planner import GridPlanner  # noqa: E402
 from mrta_drake.occupancy_grid import OccupancyGrid  # noqa: E402
 
 FLOOR_PLAN = ROOT / "models" / "hospital" / "floor_plan.yaml"
-REFERENCE_MAP = Path("/work/shared/reference/hospital_map/hospital_floor1.yaml")
+REFERENCE_MAP = ROOT.parent / "shared" / "reference" / "hospital_map" / "hospital_floor1.yaml"
 RESOLUTION = 0.05
 
 
