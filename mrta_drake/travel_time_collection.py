@@ -8,7 +8,8 @@ the L locations, so that one run drives every ordered pair ``(a, b)`` once as co
 stops, L(L-1) legs. It starts standing on the circuit's first location, heading as a robot
 that has just driven in. Repeat ``r`` drives the circuit with location ids shifted by ``r``
 (mod L): each leg comes after another leg and at another point of the run. People are left
-out unless asked for (then they walk as in the scenario, with its seed).
+out unless asked for (then they walk as in the scenario, with its seed); scheduled
+disturbances always are.
 
 A leg's time is measured as the allocator predicts it: it completes stop ``k`` at
 ``c_k = c_{k-1} + travel[a, b] + service_time`` (``allocation/problem.py``), so
@@ -28,11 +29,10 @@ import networkx as nx
 import numpy as np
 from pydrake.systems.analysis import Simulator
 
-from mrta_drake.blocks import replace_block
+from mrta_drake.blocks import BuildContext, replace_block
 from mrta_drake.errors import InputError
 from mrta_drake.roadways import Roadways
-from mrta_drake.scenario_schema import HumansConfig, Scenario
-from mrta_drake.world import load_floor_plan_of, resolve_locations
+from mrta_drake.scenario_schema import DisturbancesConfig, HumansConfig, Scenario
 
 STATS = ("max", "mean")
 _SLICE = 1.0  # s of simulation between looks at the robot's progress
@@ -119,13 +119,13 @@ def measure_legs(scenario: Scenario, repeats: int = 1, robot: str | None = None,
         raise InputError(scenario.source, "robot",
                          f"unknown robot {robot!r} (robots: {', '.join(names)})")
     index = 0 if robot is None else names.index(robot)
-    scenario = resolve_locations(scenario, load_floor_plan_of(scenario))
+    context = BuildContext.for_scenario(scenario)
+    scenario, roadways = context.scenario, context.roadways
     ids = sorted(location.id for location in scenario.locations)
     count = len(ids)
     if count < 2 or ids != list(range(count)):
         raise InputError(scenario.source, "locations", "travel times need at least two "
                          f"locations with ids 0..L-1 (they index the matrix), got {ids}")
-    roadways = Roadways(scenario.roadways, scenario.locations, scenario.source)
     samples = np.full((repeats, count, count), np.nan)
     for r in range(repeats):
         np.fill_diagonal(samples[r], 0.0)
@@ -157,7 +157,9 @@ def _one_robot(scenario: Scenario, index: int, route: list[int], roadways: Roadw
                humans: bool) -> Scenario:
     """``scenario`` with only robot ``index``, standing on ``route[0]``'s point heading as
     if it had just driven in (from the last entry point, or the head queue slot), given
-    ``route`` by the ``fixed`` allocator; without people unless ``humans``."""
+    ``route`` by the ``fixed`` allocator; without people unless ``humans``, and without
+    scheduled disturbances (travel times are the nominal ones; a breakdown or outage may
+    also name a robot left out here)."""
     place = roadways.place(route[0])
     came_from = place.entry[-1] if len(place.entry) else place.queue[0]
     dx, dy = place.point - came_from
@@ -166,7 +168,8 @@ def _one_robot(scenario: Scenario, index: int, route: list[int], roadways: Roadw
         scenario.robots[index], start=[float(place.point[0]), float(place.point[1]), heading],
         start_location=route[0], route=list(route))
     alone = dataclasses.replace(scenario, robots=[robot],
-                                humans=scenario.humans if humans else HumansConfig())
+                                humans=scenario.humans if humans else HumansConfig(),
+                                disturbances=DisturbancesConfig())
     return replace_block(alone, "allocator", "fixed")
 
 

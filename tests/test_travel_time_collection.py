@@ -3,23 +3,29 @@ room with a lane loop; the matrix, repeats and stats, failed legs, files and the
 
 import dataclasses
 import math
+import pathlib
 
 import numpy as np
 import pytest
 import yaml
 
 from mrta_drake import load_scenario, simulate
-from mrta_drake.blocks import replace_block, resolve_block
+from mrta_drake.blocks import BuildContext, replace_block, resolve_block
 from mrta_drake.cli import main
 from mrta_drake.errors import InputError
 from mrta_drake.roadways import Roadways
+from mrta_drake.scenario_schema import DisturbancesConfig
 from mrta_drake.timing import leg_rows
 from mrta_drake.travel_time_collection import (
+    _drive,
+    _one_robot,
     collect_travel_times,
     eulerian_circuit,
     measure_legs,
 )
 from mrta_drake.travel_times import load_travel_times, write_travel_times
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
 
 # A 9 m x 6 m room; a counterclockwise one-way loop (eastbound at y = 2.2, westbound at
 # y = 3.8); three locations: west and east below the loop, north above it.
@@ -177,3 +183,14 @@ def test_cli_writes_the_matrix_and_refuses_bad_flags(tmp_path, tiny, legs, capsy
 def test_collect_checks_the_stat_before_driving(tiny):
     with pytest.raises(InputError, match="stat"):
         collect_travel_times(load_scenario(tiny), stat="median")
+
+
+def test_scheduled_disturbances_are_left_out_of_the_measuring_run():
+    # Its breakdown and outage name robots the one-robot run does not have; its blockage
+    # would make the times not the nominal ones.
+    scenario = load_scenario(ROOT / "scenarios/hospital_disturbances.yaml")
+    context = BuildContext.for_scenario(scenario)
+    alone = _one_robot(context.scenario, 0, [0, 1], context.roadways, humans=False)
+    assert alone.disturbances == DisturbancesConfig()
+    ((origin, destination, seconds),) = _drive(alone, [0, 1], time_limit=120.0)
+    assert (origin, destination) == (0, 1) and 0.0 < seconds < 120.0
