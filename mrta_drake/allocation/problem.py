@@ -132,9 +132,6 @@ class AllocationProblem:
     def task(self, task_id: int) -> Task:
         return self._task_index[task_id]
 
-    def has_task(self, task_id: int) -> bool:
-        return task_id in self._task_index
-
     def location(self, action: Action) -> int:
         task = self._task_index[action.task]
         return task.pickup if action.kind == PICKUP else task.dropoff
