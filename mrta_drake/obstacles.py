@@ -223,11 +223,13 @@ def cast_rays_into(o, dx, dy, centers, half, cos, sin, cyl_centers, cyl_radii, r
         for k in range(len(centers)):
             ddx, ddy = o[i, 0] - centers[k, 0], o[i, 1] - centers[k, 1]
             nearest[k] = math.sqrt(ddx * ddx + ddy * ddy) - reach[k]
+        # Nearest boxes first: a ray stops looking at the first box beyond its hit so far.
+        by_distance = np.argsort(nearest)
         for r in range(hit.shape[1]):
             ux_w, uy_w = dx[i, r], dy[i, r]
-            for k in range(len(centers)):
+            for k in by_distance:
                 if nearest[k] >= hit[i, r]:
-                    continue
+                    break
                 ddx, ddy = o[i, 0] - centers[k, 0], o[i, 1] - centers[k, 1]
                 # A ray that misses the box's bounding circle misses the box.
                 if (ddx * ux_w + ddy * uy_w > reach[k]

@@ -223,6 +223,9 @@ class HumanStates:
     radii: np.ndarray = field(default_factory=lambda: frozen_array(np.zeros(0)))
 
 
+NO_HUMANS = HumanStates()
+
+
 # --- Control telemetry: controller -> results -----------------------------------------------
 
 

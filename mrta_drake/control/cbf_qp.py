@@ -343,7 +343,8 @@ _NO_MOVERS = np.zeros((0, 4))
 
 
 def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocities, movers,
-                u_nominal, lower, upper, params: CbfParams) -> TickQps:
+                u_nominal, lower, upper, params: CbfParams, members=None,
+                group_start=None) -> TickQps:
     """The QPs of one tick for robots ``states`` (N, 4) solved in ``groups`` (tuples of robot
     indices), with their wall ``hits`` and ``hit_mask`` (as from ``WallRays``), the humans,
     ``movers`` (one (q, 4) array per group as in ``safety_rows``; None: none) and hard
@@ -352,10 +353,12 @@ def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocitie
     needs a solver when its clipped nominal breaks a row (or its rows are not finite: the
     solve then fails); for the robots of the others the clipped nominal is the optimum
     (``CbfQp.solve`` would return it): ``settled`` holds it, and zero for robots in no
-    group."""
+    group. ``members`` and ``group_start``: the groups as arrays (group g is
+    ``members[group_start[g]:group_start[g + 1]]``), if the caller has them."""
     groups = tuple(tuple(group) for group in groups)
-    members = np.array([i for group in groups for i in group], dtype=np.int64)
-    group_start = np.array([0] + [len(group) for group in groups], dtype=np.int64).cumsum()
+    if members is None:
+        members = np.array([i for group in groups for i in group], dtype=np.int64)
+        group_start = np.cumsum([0] + [len(group) for group in groups], dtype=np.int64)
     if movers is None:
         movers, mover_start = _NO_MOVERS, np.zeros(len(groups) + 1, dtype=np.int64)
     else:

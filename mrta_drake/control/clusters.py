@@ -91,14 +91,60 @@ def form_clusters(positions, radius: float, priorities, distances_to_goal, activ
     ordered leader first (see the module docstring); ``stalled`` active robots (a leader
     that could not move) rank after the other active ones; robots not ``reachable`` (see
     ``connected_groups``) are clusters of their own."""
-    priorities = np.asarray(priorities, dtype=float)
-    keys = np.asarray(rule(priorities, np.asarray(distances_to_goal, dtype=float)), dtype=float)
-    stalled = np.zeros(len(priorities), dtype=bool) if stalled is None else stalled
-    clusters = []
-    for members in connected_groups(positions, radius, reachable):
-        clusters.append(tuple(sorted(members, key=lambda i: (
-            not active[i], bool(stalled[i]), keys[i], priorities[i], i))))
+    priorities = np.ascontiguousarray(priorities, dtype=float)
+    n = len(priorities)
+    keys = np.ascontiguousarray(rule(priorities, np.asarray(distances_to_goal, dtype=float)),
+                                dtype=float)
+    p = np.ascontiguousarray(positions, dtype=float).reshape(-1, 2)
+    labels = _labels(p, float(radius) ** 2, np.ones(n, dtype=bool) if reachable is None
+                     else np.ascontiguousarray(reachable, dtype=bool))
+    order = _cluster_order(labels, np.ascontiguousarray(active, dtype=bool),
+                           np.zeros(n, dtype=bool) if stalled is None
+                           else np.ascontiguousarray(stalled, dtype=bool), keys, priorities)
+    return clusters_of(order, labels)
+
+
+def clusters_of(order, labels) -> tuple[tuple[int, ...], ...]:
+    """The clusters of robots ``order`` (N,) (sorted by cluster, as ``_cluster_order``
+    sorts them) with cluster ``labels`` (N,) per robot."""
+    clusters, members, label = [], order.tolist(), labels[order].tolist()
+    first = 0
+    for k in range(1, len(members) + 1):
+        if k == len(members) or label[k] != label[first]:
+            clusters.append(tuple(members[first:k]))
+            first = k
     return tuple(clusters)
+
+
+@numba.njit(cache=True)
+def _cluster_order(labels, active, stalled, keys, priorities):
+    """Robot indices sorted by cluster label, then leader first: active before inactive,
+    not stalled before stalled, then by key, priority and index (insertion sort: clusters
+    are small)."""
+    order = np.arange(len(labels))
+    for k in range(1, len(order)):
+        i, j = order[k], k - 1
+        while j >= 0 and _ranks_before(i, order[j], labels, active, stalled, keys, priorities):
+            order[j + 1] = order[j]
+            j -= 1
+        order[j + 1] = i
+    return order
+
+
+@numba.njit(cache=True)
+def _ranks_before(i, j, labels, active, stalled, keys, priorities):
+    """Whether robot i comes strictly before robot j."""
+    if labels[i] != labels[j]:
+        return labels[i] < labels[j]
+    if active[i] != active[j]:
+        return active[i]
+    if stalled[i] != stalled[j]:
+        return stalled[j]
+    if keys[i] != keys[j]:
+        return keys[i] < keys[j]
+    if priorities[i] != priorities[j]:
+        return priorities[i] < priorities[j]
+    return i < j
 
 
 def leader_stall_times(stall_times, speeds, clusters, active, dt: float, stall_time: float,
@@ -109,15 +155,41 @@ def leader_stall_times(stall_times, speeds, clusters, active, dt: float, stall_t
     active member of a cluster has stalled (>= ``stall_time``), all start again. A cluster
     whose leader is blocked (e.g. by a follower that must move first) thus passes the lead on
     instead of waiting forever."""
-    new = np.where((np.abs(speeds) < stall_speed) & np.asarray(active, dtype=bool),
-                   np.asarray(stall_times, dtype=float), 0.0)
-    for cluster in clusters:
-        if len(cluster) == 1:
-            new[cluster[0]] = 0.0
-            continue
-        if active[cluster[0]] and np.abs(speeds[cluster[0]]) < stall_speed:
-            new[cluster[0]] += dt
-        candidates = [i for i in cluster if active[i]]
-        if candidates and all(new[i] >= stall_time for i in candidates):
-            new[candidates] = 0.0
+    members = np.array([i for cluster in clusters for i in cluster], dtype=np.int64)
+    starts = np.cumsum([0] + [len(cluster) for cluster in clusters], dtype=np.int64)
+    return stall_times_of(stall_times, speeds, members, starts, active, dt, stall_time,
+                          stall_speed)
+
+
+def stall_times_of(stall_times, speeds, members, starts, active, dt: float,
+                   stall_time: float, stall_speed: float) -> np.ndarray:
+    """``leader_stall_times`` of the clusters ``members[starts[c]:starts[c + 1]]``."""
+    new = np.empty(len(speeds))
+    _stall_times(np.ascontiguousarray(stall_times, dtype=float),
+                 np.ascontiguousarray(speeds, dtype=float), members, starts,
+                 np.ascontiguousarray(active, dtype=bool), dt, stall_time, stall_speed, new)
     return new
+
+
+@numba.njit(cache=True)
+def _stall_times(stall_times, speeds, members, starts, active, dt, stall_time, stall_speed,
+                 new):
+    for i in range(len(speeds)):
+        new[i] = stall_times[i] if abs(speeds[i]) < stall_speed and active[i] else 0.0
+    for c in range(len(starts) - 1):
+        cluster = members[starts[c]:starts[c + 1]]
+        leader = cluster[0]
+        if len(cluster) == 1:
+            new[leader] = 0.0
+            continue
+        if active[leader] and abs(speeds[leader]) < stall_speed:
+            new[leader] += dt
+        candidates, stalled = 0, True
+        for i in cluster:
+            if active[i]:
+                candidates += 1
+                stalled = stalled and new[i] >= stall_time
+        if candidates and stalled:
+            for i in cluster:
+                if active[i]:
+                    new[i] = 0.0

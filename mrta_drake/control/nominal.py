@@ -94,22 +94,63 @@ def nominal_control(state, path: RobotPath | None, params: NominalParams, cluste
                              params._gains))
 
 
-def nominal_controls(states, paths, params: NominalParams, clustered, bodies) -> np.ndarray:
-    """``nominal_control`` (N, 2) of the robots ``states`` (N, 4) on their ``paths`` (N,),
+@dataclass(frozen=True, eq=False)
+class PathArrays:
+    """N robots' paths for compiled code: the points of the ``ok`` ones (``has_path``)
+    concatenated in ``points`` (P, 2), robot i's at ``points[start[i]:start[i + 1]]`` (none
+    without an ok path); ``ok`` and ``stop_at_end`` (N,) bools."""
+
+    points: np.ndarray
+    start: np.ndarray
+    ok: np.ndarray
+    stop_at_end: np.ndarray
+
+    @staticmethod
+    def of(paths) -> "PathArrays":
+        """The arrays of ``paths`` (N ``RobotPath`` or None)."""
+        ok = [has_path(path) for path in paths]
+        start = np.zeros(len(ok) + 1, dtype=np.int64)
+        start[1:] = np.cumsum([len(path.points) if good else 0
+                               for path, good in zip(paths, ok, strict=True)])
+        points = np.concatenate([np.zeros((0, 2))] + [
+            path.points for path, good in zip(paths, ok, strict=True) if good])
+        stop_at_end = np.array([good and path.stop_at_end
+                                for path, good in zip(paths, ok, strict=True)], dtype=bool)
+        return PathArrays(np.ascontiguousarray(points, dtype=float), start,
+                          np.array(ok, dtype=bool), stop_at_end)
+
+    def progress(self, states, arrival_radius: float) -> tuple[np.ndarray, np.ndarray]:
+        """Per robot of ``states`` (N, 4): the straight-line distance (m) to its path end
+        (inf without an ``ok`` path), and whether it still has somewhere to go: an ``ok``
+        path, and unless the path lets it drive on, more than ``arrival_radius`` (m) from
+        its end."""
+        distances, active = np.empty(len(self.ok)), np.empty(len(self.ok), dtype=bool)
+        _progress(np.ascontiguousarray(states, dtype=float).reshape(-1, 4), self.points,
+                  self.start, self.ok, self.stop_at_end, float(arrival_radius), distances,
+                  active)
+        return distances, active
+
+
+@numba.njit(cache=True)
+def _progress(states, points, start, ok, stop_at_end, arrival_radius, distances, active):
+    for i in range(len(ok)):
+        if not ok[i]:
+            distances[i], active[i] = math.inf, False
+            continue
+        end = start[i + 1] - 1
+        distances[i] = math.hypot(states[i, 0] - points[end, 0], states[i, 1] - points[end, 1])
+        active[i] = not (stop_at_end[i] and distances[i] <= arrival_radius)
+
+
+def nominal_controls(states, paths: PathArrays, params: NominalParams, clustered,
+                     bodies) -> np.ndarray:
+    """``nominal_control`` (N, 2) of the robots ``states`` (N, 4) on their ``paths``,
     ``clustered`` (N,) bools, with ``bodies`` (n, 2) whose first N are the robots (each
     robot leaves itself out), in one compiled call."""
     states = np.ascontiguousarray(states, dtype=float).reshape(-1, 4)
-    ok = [has_path(path) for path in paths]
-    start = np.zeros(len(states) + 1, dtype=np.int64)
-    start[1:] = np.cumsum([len(path.points) if good else 0
-                           for path, good in zip(paths, ok, strict=True)])
-    points = np.concatenate([np.zeros((0, 2))] + [
-        path.points for path, good in zip(paths, ok, strict=True) if good])
-    stop_at_end = np.array([good and path.stop_at_end
-                            for path, good in zip(paths, ok, strict=True)], dtype=bool)
     u = np.empty((len(states), 2))
-    _nominals(states, points, start, np.array(ok, dtype=bool), stop_at_end,
-              np.asarray(clustered, dtype=bool), np.asarray(bodies, dtype=float).reshape(-1, 2),
+    _nominals(states, paths.points, paths.start, paths.ok, paths.stop_at_end,
+              np.asarray(clustered, dtype=bool), np.ascontiguousarray(bodies, dtype=float),
               params._gains, u)
     return u
 
@@ -128,25 +169,6 @@ def _nominals(states, points, start, ok, stop_at_end, clustered, bodies, gains, 
 def has_path(path: RobotPath | None) -> bool:
     """Whether ``path`` is an ``ok`` path of at least one point (else: slow down)."""
     return path is not None and path.status == PATH_OK and len(path.points) > 0
-
-
-def remaining_distance(state, path: RobotPath | None) -> float:
-    """Straight-line distance (m) from the robot to its path end; inf without an ``ok`` path."""
-    if not has_path(path):
-        return math.inf
-    return math.dist(state[:2], path.points[-1])
-
-
-def is_active(state, path: RobotPath | None, arrival_radius: float,
-              distance: float | None = None) -> bool:
-    """Whether the robot still has somewhere to go: an ``ok`` path, and unless the path lets
-    it drive on, more than ``arrival_radius`` (m) from the path end (``distance``: its
-    ``remaining_distance`` if known)."""
-    if not has_path(path):
-        return False
-    if distance is None:
-        distance = remaining_distance(state, path)
-    return not (path.stop_at_end and distance <= arrival_radius)
 
 
 # Compiled: a controller runs these for every robot at every tick (gains: ``_gains``).

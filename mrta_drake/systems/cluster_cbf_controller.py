@@ -1,7 +1,10 @@
 """Safe control of a fleet of dynamic unicycles with clustered CBF-QPs (the paper's controller)."""
 
+import functools
+import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from pydrake.common.value import Value
 from pydrake.systems.framework import LeafSystem
@@ -12,25 +15,29 @@ from mrta_drake.control.cbf_qp import (
     QpProblem,
     TickQps,
     WallRays,
-    barrier_minima,
+    _min_squared_distances,
     qp_problems,
 )
 from mrta_drake.control.clusters import (
     LEADER_RULES,
     LeaderRule,
-    form_clusters,
-    leader_stall_times,
+    _cluster_order,
+    _labels,
+    clusters_of,
+    stall_times_of,
 )
 from mrta_drake.control.nominal import (
+    _K_SLOW,
+    _SLOW_ACCEL,
     NominalParams,
-    is_active,
-    nominal_controls,
-    remaining_distance,
-    slow_down,
+    PathArrays,
+    _nominals,
+    _slow_down,
 )
 from mrta_drake.disturbances import blockage_obstacles
 from mrta_drake.payloads import (
     NO_DISTURBANCES,
+    NO_HUMANS,
     ROBOT_COMMAND_SIZE,
     ROBOT_STATE_SIZE,
     ControllerTelemetry,
@@ -58,6 +65,8 @@ class TickPlan:
     u_nominal: np.ndarray
     qps: TickQps
     min_barriers: tuple[float, float, float]
+    cluster_order: np.ndarray  # the clusters as arrays: cluster c is
+    cluster_start: np.ndarray  # cluster_order[cluster_start[c]:cluster_start[c + 1]]
 
     @property
     def problems(self) -> tuple[QpProblem, ...]:
@@ -143,6 +152,9 @@ class ClusterCbfController(LeafSystem):
         self._qp = CbfQp(params.solver, params.slack_weight)
         declare_controller_ports(self, self._n, self._dt, self._update)
         self._stall_index = self.DeclareDiscreteState(self._n)  # s stood as a blocked leader
+        self._paths_seen: tuple[FleetPaths | None, PathArrays | None] = (None, None)
+        self._bounds = np.array([params.max_accel, params.max_speed, params.min_speed,
+                                 params.max_yaw_rate, self._dt])
 
     @property
     def params(self) -> CbfParams:
@@ -154,58 +166,68 @@ class ClusterCbfController(LeafSystem):
         the QPs of the coordination mode (``humans`` None: no humans; ``stall_times`` (N,)
         s each robot has stood as a blocked leader, see ``clusters.leader_stall_times``;
         None: none; ``disturbances`` None: none, see the class docstring)."""
-        humans = humans or HumanStates()
+        humans = humans or NO_HUMANS
         d = disturbances or NO_DISTURBANCES
         p, n = self._params, self._n
-        states = np.asarray(states, dtype=float).reshape(n, ROBOT_STATE_SIZE)
-        robot_paths = robot_paths_of(paths, n)
-        distances = [remaining_distance(s, path) for s, path in zip(states, robot_paths,
-                                                                   strict=True)]
-        active = np.array([is_active(s, path, p.arrival_radius, distance)
-                           for s, path, distance in zip(states, robot_paths, distances,
-                                                        strict=True)], dtype=bool)
-        stalled = None if stall_times is None else np.asarray(stall_times) >= p.stall_time
+        states = np.ascontiguousarray(states, dtype=float).reshape(n, ROBOT_STATE_SIZE)
+        path_arrays = self._path_arrays(paths)
+        distances, active = path_arrays.progress(states, p.arrival_radius)
+        keys = np.ascontiguousarray(self._rule(self._priorities, distances), dtype=float)
+        stalled = (np.zeros(n, dtype=bool) if stall_times is None
+                   else np.asarray(stall_times) >= p.stall_time)
         broken, cut_off = d.broken, d.cut_off
-        alone = None  # robots in no cluster: broken down or cut off
-        if broken or cut_off:
-            alone = np.zeros(n, dtype=bool)
-            alone[list(broken + cut_off)] = True
-        clusters = form_clusters(states[:, :2], p.cluster_radius, self._priorities, distances,
-                                 active, self._rule, stalled, None if alone is None else ~alone)
-        cluster_size = np.zeros(n, dtype=int)
-        for cluster in clusters:
-            cluster_size[list(cluster)] = len(cluster)
-        human_p, human_v = humans.positions.reshape(-1, 2), humans.velocities.reshape(-1, 2)
-        views = {i: d.seen_by(states, i) for i in cut_off}
+        alone = np.zeros(n, dtype=bool)  # robots in no cluster: broken down or cut off
+        alone[list(broken + cut_off)] = True
+        slowed = np.zeros(n, dtype=bool)  # cut-off robots get the slow-down nominal
+        slowed[list(cut_off)] = True
+        human_p = np.ascontiguousarray(humans.positions, dtype=float).reshape(-1, 2)
+        human_v = np.ascontiguousarray(humans.velocities, dtype=float).reshape(-1, 2)
         shared = d.seen_by(states)
-        # Cut-off robots' nominal inputs are replaced by the slow-down below.
-        u_nom = nominal_controls(states, robot_paths, p, cluster_size > 1,
-                                 np.vstack([shared[:, :2], human_p]))
-        slowed = list(cut_off)
+        hits, mask = self._rays(states)
+        if d.blockages:
+            hits, mask = rays_with_blockages(states, hits, mask, d.blockages, p)
+        order, labels = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+        starts = np.empty(n + 1, dtype=np.int64)
+        u_nom, lower, upper = np.empty((n, 2)), np.empty((n, 2)), np.empty((n, 2))
+        minima = np.empty(3)
+        _plan_inputs(states, np.ascontiguousarray(shared[:, :2]), human_p, path_arrays.points,
+                     path_arrays.start, path_arrays.ok, path_arrays.stop_at_end, keys,
+                     self._priorities, active, stalled, ~alone, slowed,
+                     p.coordination == "clusters", p.cluster_radius ** 2, p._gains,
+                     self._bounds, hits, mask, order, labels, starts, u_nom, lower, upper,
+                     minima)
+        clusters = clusters_of(order, labels)
+        starts = starts[:len(clusters) + 1]
+        members, group_start = None, None
         if p.coordination == "clusters":
-            groups = clusters
-            slowed += [follower for cluster in clusters for follower in cluster[1:]]
+            groups, members, group_start = clusters, order, starts
         elif p.coordination == "decentralized":
             groups = tuple((i,) for i in range(n))
-        elif alone is None:
+        elif not (broken or cut_off):
             groups = (tuple(range(n)),)
         else:
             groups = (tuple(i for i in range(n) if not alone[i]),) + tuple(
                 (i,) for i in cut_off)
-        if alone is not None:
+        if broken or cut_off:
             groups = tuple(g for g in groups if g and not set(g) & set(broken))
-        u_nom[slowed] = slow_down(states[slowed, 3], p)
-        hits, mask = self._rays(states)
-        if d.blockages:
-            hits, mask = rays_with_blockages(states, hits, mask, d.blockages, p)
-        lower, upper = input_bounds(states, p, self._dt)
-        movers = ([np.delete(views.get(group[0], shared), list(group), axis=0)
-                   for group in groups]
-                  if p.coordination == "decentralized" or alone is not None else None)
+            members, group_start = None, None
+        movers = None
+        if p.coordination == "decentralized" or broken or cut_off:
+            views = {i: d.seen_by(states, i) for i in cut_off}
+            movers = [np.delete(views.get(group[0], shared), list(group), axis=0)
+                      for group in groups]
         qps = qp_problems(groups, states, hits, mask, human_p, human_v, movers, u_nom, lower,
-                          upper, p)
-        wall, human, robot = barrier_minima(states, hits, mask, human_p, p)
-        return TickPlan(clusters, active, u_nom, qps, (wall, human, robot))
+                          upper, p, members, group_start)
+        safety = p._row_params
+        wall, human, robot = (minima - safety[[0, 3, 6]] ** 2).tolist()
+        return TickPlan(clusters, active, u_nom, qps, (wall, human, robot), order, starts)
+
+    def _path_arrays(self, paths: FleetPaths) -> PathArrays:
+        # Paths change at the planner's rate, not every tick; payloads are immutable, so the
+        # arrays of the last FleetPaths seen are reused while it is the same object.
+        if paths is not self._paths_seen[0]:
+            self._paths_seen = (paths, PathArrays.of(robot_paths_of(paths, self._n)))
+        return self._paths_seen[1]
 
     def control(self, time: float, states, paths: FleetPaths, humans: HumanStates | None = None,
                 stall_times=None, disturbances: Disturbances | None = None
@@ -218,19 +240,20 @@ class ClusterCbfController(LeafSystem):
         # Only QPs whose clipped nominal breaks a row reach the solver (the rest are settled).
         u = plan.qps.settled.copy()
         failures, solve_time, max_slack = 0, 0.0, 0.0
-        for g in plan.qps.to_solve():
+        for g in plan.qps.to_solve() if plan.qps.needs_solver.any() else ():
             members = list(plan.qps.groups[g])
             u_nominal, G, b, lower, upper = plan.qps.arrays(g)
             solution = self._qp.solve(u_nominal, G, b, lower, upper)
             solve_time += solution.solve_time
             if solution.success:
                 u[members] = solution.u
-                max_slack = max(max_slack, float(np.max(solution.slack, initial=0.0)))
+                max_slack = max(max_slack, max(solution.slack.tolist(), default=0.0))
             else:
                 u[members] = np.stack([lower[:, 0], np.zeros(len(members))], axis=1)
                 failures += len(members)
         wall, human, robot = plan.min_barriers
-        deviation = float(np.max(np.linalg.norm(u - plan.u_nominal, axis=1), initial=0.0))
+        change = u - plan.u_nominal
+        deviation = math.sqrt(float(np.max((change * change).sum(axis=1), initial=0.0)))
         telemetry = ControllerTelemetry(
             time=float(time), min_barrier_wall=wall, min_barrier_human=human,
             min_barrier_robot=robot, max_slack=max_slack, control_deviation=deviation,
@@ -242,9 +265,9 @@ class ClusterCbfController(LeafSystem):
 
         def control(time, states, paths, humans, disturbances):
             plan = self.plan(states, paths, humans, stall, disturbances)
-            discrete_state.set_value(self._stall_index, leader_stall_times(
-                stall, states[:, 3], plan.clusters, plan.active, self._dt, p.stall_time,
-                p.stall_speed))
+            discrete_state.set_value(self._stall_index, stall_times_of(
+                stall, states[:, 3], plan.cluster_order, plan.cluster_start, plan.active,
+                self._dt, p.stall_time, p.stall_speed))
             return self._solve(time, plan)
 
         controller_update(self, context, discrete_state, control, p, self._dt, self._n)
@@ -254,27 +277,72 @@ def input_bounds(states, params: NominalParams, dt: float) -> tuple[np.ndarray, 
     """Hard bounds (N, 2) on ``[a, omega]`` for robots ``states`` (N, 4): |a| <= max_accel,
     |omega| <= max_yaw_rate, and the speed after one step of dt s within
     [min_speed, max_speed] as far as the acceleration limit allows."""
-    v = np.asarray(states, dtype=float).reshape(-1, ROBOT_STATE_SIZE)[:, 3]
-    a_max = params.max_accel
-    lower, upper = np.empty((len(v), 2)), np.empty((len(v), 2))
-    # np.minimum(np.maximum(...)) is np.clip, without its overhead.
-    a_hi = np.minimum(np.maximum((params.max_speed - v) / dt, -a_max), a_max)
-    np.minimum(np.minimum(np.maximum((params.min_speed - v) / dt, -a_max), a_max), a_hi,
-               out=lower[:, 0])
-    upper[:, 0] = a_hi
-    lower[:, 1], upper[:, 1] = -params.max_yaw_rate, params.max_yaw_rate
+    states = np.ascontiguousarray(states, dtype=float).reshape(-1, ROBOT_STATE_SIZE)
+    lower, upper = np.empty((len(states), 2)), np.empty((len(states), 2))
+    _input_bounds(states, params.max_accel, params.max_speed, params.min_speed,
+                  params.max_yaw_rate, dt, lower, upper)
     return lower, upper
+
+
+@numba.njit(cache=True)
+def _input_bounds(states, a_max, max_speed, min_speed, max_yaw_rate, dt, lower, upper):
+    for i in range(len(states)):
+        v = states[i, 3]
+        a_hi = min(max((max_speed - v) / dt, -a_max), a_max)
+        lower[i, 0] = min(min(max((min_speed - v) / dt, -a_max), a_max), a_hi)
+        upper[i, 0] = a_hi
+        lower[i, 1], upper[i, 1] = -max_yaw_rate, max_yaw_rate
+
+
+@numba.njit(cache=True)
+def _plan_inputs(states, shared, humans, points, start, ok, stop_at_end, keys, priorities,
+                 active, stalled, reachable, slowed, slow_followers, radius2, gains, bounds,
+                 hits, mask, order, labels, starts, u_nom, lower, upper, minima):
+    """The compiled part of ``ClusterCbfController.plan``: cluster ``labels`` and ``order``
+    (``clusters.form_clusters``; cluster c is ``order[starts[c]:starts[c + 1]]``), nominal
+    inputs ``u_nom`` (cluster members with the cluster gate, around ``shared`` robot
+    positions and ``humans``; slow-down for the ``slowed`` robots and, with
+    ``slow_followers``, every cluster member but the leader), input bounds
+    (``input_bounds``; ``bounds``: ``_bounds``) and the smallest squared distances to walls,
+    humans and robots (``minima``)."""
+    n = len(states)
+    labels[:] = _labels(states[:, :2].copy(), radius2, reachable)
+    order[:] = _cluster_order(labels, active, stalled, keys, priorities)
+    size = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        size[labels[i]] += 1
+    starts[0] = 0
+    for c in range(n):
+        starts[c + 1] = starts[c] + size[c]
+    clustered = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        clustered[i] = size[labels[i]] > 1
+    bodies = np.concatenate((shared, humans))
+    _nominals(states, points, start, ok, stop_at_end, clustered, bodies, gains, u_nom)
+    for k in range(n):
+        i = order[k]
+        follower = k > 0 and labels[order[k - 1]] == labels[i]
+        if slowed[i] or (slow_followers and follower):
+            u_nom[i] = _slow_down(states[i, 3], gains[_K_SLOW], gains[_SLOW_ACCEL])
+    _input_bounds(states, bounds[0], bounds[1], bounds[2], bounds[3], bounds[4], lower, upper)
+    minima[0], minima[1], minima[2] = _min_squared_distances(states[:, :2].copy(), hits, mask,
+                                                             humans)
 
 
 def predict_states(states, commands, params: NominalParams, dt: float) -> np.ndarray:
     """Robot ``states`` (N, 4) one tick of ``dt`` s later under ``commands`` (N, 2)
     ``[v, omega]``, by the robot block's own exact arc step with the controller's limits."""
-    limits = UnicycleParams(max_speed=params.max_speed,
-                            max_reverse_speed=max(0.0, -params.min_speed),
-                            max_acceleration=params.max_accel, max_yaw_rate=params.max_yaw_rate)
     return unicycle_step(np.asarray(states, dtype=float).reshape(-1, ROBOT_STATE_SIZE),
                          np.asarray(commands, dtype=float).reshape(-1, ROBOT_COMMAND_SIZE),
-                         limits, dt)
+                         _robot_limits(params), dt)
+
+
+@functools.cache
+def _robot_limits(params: NominalParams) -> UnicycleParams:
+    """The controller's limits as a robot block's parameters (``predict_states``)."""
+    return UnicycleParams(max_speed=params.max_speed,
+                          max_reverse_speed=max(0.0, -params.min_speed),
+                          max_acceleration=params.max_accel, max_yaw_rate=params.max_yaw_rate)
 
 
 def controller_update(system, context, discrete_state, control, params: CbfParams, dt: float,
@@ -283,18 +351,22 @@ def controller_update(system, context, discrete_state, control, params: CbfParam
     read the inputs, ``control(time, states, paths, humans, disturbances) -> (u, telemetry)``
     from the state the new commands will act on, store the commands (zero for broken-down
     robots) and the telemetry."""
-    states = system.GetInputPort("robot_state").Eval(context).reshape(n, ROBOT_STATE_SIZE)
-    paths = system.GetInputPort("paths").Eval(context)
-    humans_port = system.GetInputPort("humans")
-    humans = humans_port.Eval(context) if humans_port.HasValue(context) else HumanStates()
-    disturbances_port = system.GetInputPort("disturbances")
+    # The ports in the order declare_controller_ports declares them.
+    state_port, paths_port, humans_port, disturbances_port = (
+        system.get_input_port(k) for k in range(4))
+    states = state_port.Eval(context).reshape(n, ROBOT_STATE_SIZE)
+    paths = paths_port.Eval(context)
+    humans = humans_port.Eval(context) if humans_port.HasValue(context) else NO_HUMANS
     disturbances = (disturbances_port.Eval(context) if disturbances_port.HasValue(context)
                     else NO_DISTURBANCES)
     if params.predict_latency:
         states = predict_states(states, context.get_discrete_state(0).value(), params, dt)
     u, telemetry = control(context.get_time(), states, paths, humans, disturbances)
-    commands = np.stack([states[:, 3] + u[:, 0] * dt, u[:, 1]], axis=1)
-    commands[list(disturbances.broken)] = 0.0
+    commands = np.empty((n, ROBOT_COMMAND_SIZE))
+    commands[:, 0] = states[:, 3] + u[:, 0] * dt
+    commands[:, 1] = u[:, 1]
+    if disturbances.broken:
+        commands[list(disturbances.broken)] = 0.0
     discrete_state.set_value(0, commands.ravel())
     discrete_state.set_value(1, _telemetry_vector(telemetry, n))
 

@@ -6,6 +6,7 @@ from pydrake.systems.framework import LeafSystem
 from mrta_drake.control.cbf_qp import CbfParams, WallRays, barrier_minima
 from mrta_drake.control.nominal import nominal_control
 from mrta_drake.payloads import (
+    NO_HUMANS,
     ROBOT_STATE_SIZE,
     ControllerTelemetry,
     Disturbances,
@@ -60,7 +61,7 @@ class GoToGoalController(LeafSystem):
         """One tick without the systems framework: inputs ``[a, omega]`` (N, 2) for robots in
         ``states`` (N, 4), and the tick's telemetry (``humans``, ``disturbances`` None:
         none)."""
-        humans = humans or HumanStates()
+        humans = humans or NO_HUMANS
         p = self._params
         states = np.asarray(states, dtype=float).reshape(self._n, ROBOT_STATE_SIZE)
         u = np.array([nominal_control(s, path, p)
