@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from mrta_drake.obstacles import Obstacles
+from mrta_drake.obstacles import Box, Cylinder, Obstacles
 from mrta_drake.occupancy_grid import OccupancyGrid
 
 FREE = 0
@@ -23,6 +23,7 @@ INSCRIBED = 253
 LETHAL = 254
 
 DEFAULT_RESOLUTION = 0.05  # m per cell, as the original Nav2 costmap
+_FOOTPRINTS = 256  # obstacle footprints remembered per costmap (all dropped when full)
 
 
 @dataclass(frozen=True)
@@ -69,6 +70,7 @@ class Costmap:
     params: CostmapParams
     cost: np.ndarray  # uint8, grid.shape, read-only
     distance: np.ndarray = field(repr=False)  # m to the nearest obstacle cell centre, read-only
+    _footprints: dict = field(default_factory=dict, init=False, repr=False)  # ``_footprint``
 
     @classmethod
     def from_grid(cls, grid: OccupancyGrid, params: CostmapParams = CostmapParams()
@@ -101,31 +103,20 @@ class Costmap:
         there. Costs equal those of a costmap built with the obstacles from the start;
         ``distance`` is exact within the inflation reach of them and may overstate beyond.
         With a ``cost`` below ``LETHAL`` the obstacles' cells only cost at least that much
-        (not inflated, not occupied): e.g. ``MAX_NON_OBSTACLE`` for a region paths avoid
-        where they can but may cross."""
+        (not inflated, not occupied: the new costmap shares this one's grid and distances):
+        e.g. ``MAX_NON_OBSTACLE`` for a region paths avoid where they can but may cross."""
         grid, params = self.grid, self.params
         res = grid.resolution
-        rows, cols = self.shape
-        reach = math.ceil(params.inflation_radius / res - 1e-9) + 1
-        occupied, distance = grid.occupied.copy(), self.distance.copy()
+        soft = cost < LETHAL
+        occupied = grid.occupied if soft else grid.occupied.copy()
+        distance = self.distance if soft else self.distance.copy()
         cost_map = self.cost.copy()
-        parts = ([Obstacles(boxes=(box,)) for box in obstacles.boxes]
-                 + [Obstacles(cylinders=(cyl,)) for cyl in obstacles.cylinders])
-        for part in parts:
-            x_min, x_max, y_min, y_max = part.bounds()
-            i0, j0 = grid.world_to_cell((x_min, y_min))
-            i1, j1 = grid.world_to_cell((x_max, y_max))
-            i0, j0 = max(int(i0) - reach, 0), max(int(j0) - reach, 0)
-            i1, j1 = min(int(i1) + reach, rows - 1), min(int(j1) + reach, cols - 1)
-            if i0 > i1 or j0 > j1:
-                continue  # off the grid
-            x0, y0 = grid.origin[0] + j0 * res, grid.origin[1] + i0 * res
-            raster = part.rasterize((x0, x0 + (j1 + 1 - j0) * res, y0,
-                                     y0 + (i1 + 1 - i0) * res), res).occupied
-            if not raster.any():
+        for obstacle in (*obstacles.boxes, *obstacles.cylinders):
+            footprint = self._footprint(obstacle)
+            if footprint is None:
                 continue
-            window = (slice(i0, i1 + 1), slice(j0, j1 + 1))
-            if cost < LETHAL:
+            window, raster = footprint
+            if soft:
                 cost_map[window] = np.where(raster, np.maximum(cost_map[window], cost),
                                             cost_map[window])
                 continue
@@ -134,9 +125,43 @@ class Costmap:
                        out=distance[window])
             cost_map[window] = inflation_cost(distance[window], params.robot_radius,
                                               params.inflation_radius, params.cost_scaling, res)
-        for array in (occupied, distance, cost_map):
-            array.flags.writeable = False
+        cost_map.flags.writeable = False
+        if soft:
+            return Costmap(grid, params, cost_map, distance)
+        occupied.flags.writeable = False
+        distance.flags.writeable = False
         return Costmap(OccupancyGrid(occupied, res, grid.origin), params, cost_map, distance)
+
+    def _footprint(self, obstacle: Box | Cylinder):
+        """The window (row and column slices) of cells reaching one cell beyond the
+        inflation radius around ``obstacle``, and which of them it covers (read-only,
+        ``Obstacles.rasterize`` over the window); None if it covers no cell. Remembered, as
+        the same obstacles (robots at rest) come again and again."""
+        if obstacle in self._footprints:
+            return self._footprints[obstacle]
+        grid = self.grid
+        res = grid.resolution
+        rows, cols = self.shape
+        reach = math.ceil(self.params.inflation_radius / res - 1e-9) + 1
+        part = (Obstacles(boxes=(obstacle,)) if isinstance(obstacle, Box)
+                else Obstacles(cylinders=(obstacle,)))
+        x_min, x_max, y_min, y_max = part.bounds()
+        i0, j0 = grid.world_to_cell((x_min, y_min))
+        i1, j1 = grid.world_to_cell((x_max, y_max))
+        i0, j0 = max(int(i0) - reach, 0), max(int(j0) - reach, 0)
+        i1, j1 = min(int(i1) + reach, rows - 1), min(int(j1) + reach, cols - 1)
+        footprint = None
+        if i0 <= i1 and j0 <= j1:  # else off the grid
+            x0, y0 = grid.origin[0] + j0 * res, grid.origin[1] + i0 * res
+            raster = part.rasterize((x0, x0 + (j1 + 1 - j0) * res, y0,
+                                     y0 + (i1 + 1 - i0) * res), res).occupied
+            if raster.any():
+                raster.flags.writeable = False
+                footprint = (slice(i0, i1 + 1), slice(j0, j1 + 1)), raster
+        if len(self._footprints) == _FOOTPRINTS:
+            self._footprints.clear()
+        self._footprints[obstacle] = footprint
+        return footprint
 
     @property
     def shape(self) -> tuple[int, int]:

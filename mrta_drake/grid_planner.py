@@ -11,8 +11,9 @@ taking a straight segment only where it touches no cell of cost ``INSCRIBED`` or
 costs no more than the grid path it replaces, and resampled into world-frame points. Only a
 start inside the inscribed zone (moved out by ``snap_radius``) has a first leg within it.
 
-Search, landmark distances and shortcutting run in Numba-compiled kernels. A ``GridPlanner``
-keeps per-query scratch arrays: it is not thread-safe.
+Search, landmark distances, shortcutting and resampling run in Numba-compiled kernels. A
+``GridPlanner`` keeps per-query scratch arrays and its answers on the current costmap: it is
+not thread-safe.
 """
 
 import math
@@ -29,6 +30,7 @@ _SQRT2 = math.sqrt(2.0)
 # Favour cells nearer the goal among equal-cost candidates; bounds the excess path cost by
 # this fraction.
 _TIE_BREAK = 1e-7
+_ANSWERS = 256  # answers kept per costmap (all dropped when full)
 
 START_OFF_GRID = "start off the grid"
 START_IN_OBSTACLE = "start in an obstacle"
@@ -89,8 +91,11 @@ class GridPlanner:
 
     def __init__(self, costmap: Costmap, params: PlannerParams = PlannerParams()):
         self._params = params
-        self._set_costmap(costmap)
-        self._landmark_costmap = costmap
+        self._costmap = self._landmark_costmap = costmap
+        self._factor = self._factors(costmap.cost.ravel())
+        # Without corner cutting, cells connect as 4-neighbours.
+        self._component, _ = ndimage.label(costmap.traversable)
+        self._answers = {}  # PlanResult by (start, goal) bytes, on ``_costmap``
         rows, cols = costmap.shape
         n = rows * cols
         self._g = np.empty(n)
@@ -114,20 +119,28 @@ class GridPlanner:
     def use_costmap(self, costmap: Costmap) -> None:
         """Plan on ``costmap`` from now on (e.g. ``Costmap.with_obstacles`` of the one the
         planner was made with). Its costs must be nowhere below those of the costmap the
-        planner was made with, whose landmark distances it keeps: they stay lower bounds."""
+        planner was made with, whose landmark distances it keeps: they stay lower bounds.
+        Only the cells whose cost differs from the current costmap's are looked at (the
+        others passed the check before), and the components are found again only if one of
+        them changed traversability."""
         base = self._landmark_costmap
-        if costmap.shape != base.shape or np.any(costmap.cost < base.cost):
-            raise ValueError("the new costmap must cover the same grid with costs nowhere "
-                             "below the planner's own")
-        self._set_costmap(costmap)
-
-    def _set_costmap(self, costmap: Costmap) -> None:
+        if costmap.shape != base.shape:
+            raise ValueError("the new costmap must cover the planner's grid")
+        old, new = self._costmap.cost.ravel(), costmap.cost.ravel()
+        changed = np.flatnonzero(old != new)
+        if np.any(new[changed] < base.cost.ravel()[changed]):
+            raise ValueError("the new costmap's costs must be nowhere below the planner's own")
+        self._factor[changed] = self._factors(new[changed])
+        if np.any((old[changed] < INSCRIBED) != (new[changed] < INSCRIBED)):
+            self._component, _ = ndimage.label(costmap.traversable)
         self._costmap = costmap
-        traversable = costmap.traversable
-        factor = 1.0 + self._params.cost_weight * costmap.cost.astype(float) / MAX_NON_OBSTACLE
-        self._factor = np.where(traversable, factor, np.inf).ravel()
-        # Without corner cutting, cells connect as 4-neighbours.
-        self._component, _ = ndimage.label(traversable)
+        self._answers.clear()
+
+    def _factors(self, cost: np.ndarray) -> np.ndarray:
+        """Traversal factors (see the module docstring) of cells of ``cost``; inf where not
+        traversable."""
+        factor = 1.0 + self._params.cost_weight * cost.astype(float) / MAX_NON_OBSTACLE
+        return np.where(cost < INSCRIBED, factor, np.inf)
 
     @property
     def params(self) -> PlannerParams:
@@ -135,9 +148,19 @@ class GridPlanner:
 
     def plan(self, start, goal) -> PlanResult:
         """A path from world point ``start`` to world point ``goal`` (m); never raises for
-        a point off the grid, in an obstacle or cut off from the other."""
+        a point off the grid, in an obstacle or cut off from the other. Recent answers are
+        kept until the costmap changes: a repeated query gets the same ``PlanResult``."""
         start = np.asarray(start, dtype=float)
         goal = np.asarray(goal, dtype=float)
+        key = (start.tobytes(), goal.tobytes())
+        result = self._answers.get(key)
+        if result is None:
+            if len(self._answers) == _ANSWERS:
+                self._answers.clear()
+            result = self._answers[key] = self._plan(start, goal)
+        return result
+
+    def _plan(self, start: np.ndarray, goal: np.ndarray) -> PlanResult:
         start_cell = self._snap(start)
         if start_cell is None:
             return PlanResult.failed(START_OFF_GRID)
@@ -150,31 +173,40 @@ class GridPlanner:
             return PlanResult.failed(GOAL_IN_OBSTACLE)
         if self._component[start_cell] != self._component[goal_cell]:
             return PlanResult.failed(UNREACHABLE)
-        cols = self._costmap.shape[1]
+        rows, cols = self._costmap.shape
         start_index = start_cell[0] * cols + start_cell[1]
         goal_index = goal_cell[0] * cols + goal_cell[1]
         if not self._search(start_index, goal_index):
             return PlanResult.failed(UNREACHABLE)
-        cells = np.stack(np.divmod(_trace(self._parent, goal_index), cols), axis=1)
-        cost = self._g[goal_index] * self._costmap.resolution
-        points = self._points(start, goal, cells)
-        return PlanResult(frozen_array(points), frozen_array(cells, dtype=int), float(cost))
+        cells = _trace(self._parent, goal_index, cols)
+        grid = self._costmap.grid
+        cost = self._g[goal_index] * grid.resolution
+        points = _path_points(self._factor, rows, cols, cells, start, goal,
+                              np.asarray(grid.origin, dtype=float), grid.resolution,
+                              self._params.point_spacing)
+        points.flags.writeable = False
+        cells.flags.writeable = False
+        return PlanResult(points, cells, float(cost))
 
-    def _snap(self, xy):
+    def _snap(self, xy: np.ndarray):
         """The cell (row, col) to plan from for world point ``xy``: its own cell if
         traversable, else the nearest traversable cell within the snap radius; None off the
         grid, ``_BLOCKED`` in an obstacle or with no such cell."""
-        grid = self._costmap.grid
-        if not np.all(np.isfinite(xy)) or not grid.contains(xy):
+        if not (math.isfinite(xy[0]) and math.isfinite(xy[1])):
             return None
-        i, j = self._cell(xy)
+        grid = self._costmap.grid
+        # As ``OccupancyGrid.world_to_cell``, on scalars.
+        i = math.floor((xy[1] - grid.origin[1]) / grid.resolution)
+        j = math.floor((xy[0] - grid.origin[0]) / grid.resolution)
         cost = self._costmap.cost
+        rows, cols = cost.shape
+        if not (0 <= i < rows and 0 <= j < cols):
+            return None
         if cost[i, j] < INSCRIBED:
             return i, j
         if cost[i, j] == LETHAL:
             return _BLOCKED
         reach = int(self._params.snap_radius / grid.resolution)
-        rows, cols = cost.shape
         i0, i1 = max(i - reach, 0), min(i + reach + 1, rows)
         j0, j1 = max(j - reach, 0), min(j + reach + 1, cols)
         ii, jj = np.mgrid[i0:i1, j0:j1]
@@ -184,10 +216,6 @@ class GridPlanner:
             return _BLOCKED
         k = np.argmin(np.where(candidate, d2, np.iinfo(d2.dtype).max))
         return int(ii.flat[k]), int(jj.flat[k])
-
-    def _cell(self, xy) -> tuple[int, int]:
-        i, j = self._costmap.grid.world_to_cell(xy)
-        return int(i), int(j)
 
     def _search(self, start: int, goal: int) -> bool:
         """Runs A* (or, with ``goal`` < 0, Dijkstra over the whole component) into the
@@ -225,36 +253,6 @@ class GridPlanner:
 
     def _closed_distances(self) -> np.ndarray:
         return np.where(self._stamp == -self._query, self._g, np.inf)
-
-    def _points(self, start, goal, cells) -> np.ndarray:
-        """World points of the shortcut, resampled path (see the module docstring)."""
-        grid = self._costmap.grid
-        res = grid.resolution
-        origin = np.asarray(grid.origin, dtype=float)
-        # Continuous cell coordinates (u, v) = (column, row); cell (i, j) spans [j, j + 1).
-        uv = cells[:, ::-1] + 0.5
-        start_uv = (start - origin) / res
-        if self._cell(goal) == tuple(cells[-1]):
-            uv = np.vstack([uv, (goal - origin) / res])
-        rows, cols = self._costmap.shape
-        if self._cell(start) == tuple(cells[0]):
-            uv = _shortcut(self._factor, rows, cols, np.vstack([start_uv, uv]))
-        else:
-            # The first leg leaves the inscribed zone; only what follows it is shortcut.
-            uv = np.vstack([start_uv, _shortcut(self._factor, rows, cols, uv)])
-        return origin + _resample(uv * res, self._params.point_spacing)
-
-
-def _resample(points: np.ndarray, spacing: float) -> np.ndarray:
-    """``points`` (k, 2) with evenly spaced points added on each segment so that no gap
-    exceeds ``spacing``; the vertices are kept."""
-    step = np.diff(points, axis=0)
-    pieces = np.maximum(np.ceil(np.hypot(step[:, 0], step[:, 1]) / spacing - 1e-9), 1).astype(int)
-    segment = np.repeat(np.arange(len(step)), pieces)
-    fraction = (np.arange(len(segment)) - np.repeat(np.cumsum(pieces) - pieces, pieces))
-    fraction = fraction / np.repeat(pieces, pieces)
-    inner = points[segment] + fraction[:, None] * step[segment]
-    return np.vstack([inner, points[-1:]])
 
 
 @numba.njit(cache=True, inline="always")
@@ -367,17 +365,19 @@ def _search(factor, rows, cols, start, goal, landmark, g, parent, stamp, query, 
 
 
 @numba.njit(cache=True)
-def _trace(parent, goal):
-    """Cell indices from the search's start to ``goal``, following ``parent``."""
+def _trace(parent, goal, cols):
+    """(count, 2) cells (row, col) from the search's start to cell index ``goal`` of a grid
+    of ``cols`` columns, following ``parent``."""
     count = 1
     k = goal
     while parent[k] >= 0:
         k = parent[k]
         count += 1
-    path = np.empty(count, dtype=np.int64)
+    path = np.empty((count, 2), dtype=np.int64)
     k = goal
     for m in range(count - 1, -1, -1):
-        path[m] = k
+        path[m, 0] = k // cols
+        path[m, 1] = k % cols
         k = parent[k]
     return path
 
@@ -475,4 +475,61 @@ def _shortcut(factor, rows, cols, uv):
     out = np.empty((len(keep), 2))
     for m in range(len(keep)):
         out[m] = uv[keep[m]]
+    return out
+
+
+@numba.njit(cache=True)
+def _path_points(factor, rows, cols, cells, start, goal, origin, resolution, spacing):
+    """World points (m) of grid path ``cells`` (row, col) from world point ``start`` to
+    ``goal`` (see the module docstring): the start, the cells' centres and, if it lies in
+    the last cell, the goal, shortcut in continuous cell coordinates (u, v) = (column, row),
+    where cell (i, j) spans [j, j + 1) x [i, i + 1), then resampled."""
+    count = cells.shape[0]
+    uv = np.empty((count + 2, 2))
+    uv[0, 0] = (start[0] - origin[0]) / resolution
+    uv[0, 1] = (start[1] - origin[1]) / resolution
+    for m in range(count):
+        uv[m + 1, 0] = cells[m, 1] + 0.5
+        uv[m + 1, 1] = cells[m, 0] + 0.5
+    end = count + 1
+    goal_u = (goal[0] - origin[0]) / resolution
+    goal_v = (goal[1] - origin[1]) / resolution
+    if math.floor(goal_v) == cells[count - 1, 0] and math.floor(goal_u) == cells[count - 1, 1]:
+        uv[end, 0] = goal_u
+        uv[end, 1] = goal_v
+        end += 1
+    if math.floor(uv[0, 1]) == cells[0, 0] and math.floor(uv[0, 0]) == cells[0, 1]:
+        kept = _shortcut(factor, rows, cols, uv[:end])
+    else:
+        # The first leg leaves the inscribed zone; only what follows it is shortcut.
+        rest = _shortcut(factor, rows, cols, uv[1:end])
+        kept = np.empty((rest.shape[0] + 1, 2))
+        kept[0] = uv[0]
+        kept[1:] = rest
+    return _resample(kept * resolution, spacing, origin)
+
+
+@numba.njit(cache=True)
+def _resample(points, spacing, origin):
+    """``points`` (k, 2) with evenly spaced points added on each segment so that no gap
+    exceeds ``spacing``, the vertices kept, all shifted by ``origin``."""
+    segments = points.shape[0] - 1
+    pieces = np.empty(segments, dtype=np.int64)
+    total = 1
+    for s in range(segments):
+        length = math.hypot(points[s + 1, 0] - points[s, 0], points[s + 1, 1] - points[s, 1])
+        pieces[s] = max(math.ceil(length / spacing - 1e-9), 1)
+        total += pieces[s]
+    out = np.empty((total, 2))
+    k = 0
+    for s in range(segments):
+        du = points[s + 1, 0] - points[s, 0]
+        dv = points[s + 1, 1] - points[s, 1]
+        for q in range(pieces[s]):
+            fraction = q / pieces[s]
+            out[k, 0] = origin[0] + (points[s, 0] + fraction * du)
+            out[k, 1] = origin[1] + (points[s, 1] + fraction * dv)
+            k += 1
+    out[k, 0] = origin[0] + points[segments, 0]
+    out[k, 1] = origin[1] + points[segments, 1]
     return out

@@ -9,11 +9,12 @@ from mrta_drake.costmap import (
     FREE,
     INSCRIBED,
     LETHAL,
+    MAX_NON_OBSTACLE,
     Costmap,
     CostmapParams,
     inflation_cost,
 )
-from mrta_drake.obstacles import Box, Obstacles
+from mrta_drake.obstacles import Box, Cylinder, Obstacles
 from mrta_drake.occupancy_grid import OccupancyGrid
 
 
@@ -86,6 +87,27 @@ def test_from_obstacles_marks_boxes_lethal_and_queries_world_points():
     np.testing.assert_array_equal(costmap.is_traversable([(1.0, 1.3), (1.9, 1.9)]),
                                   [False, True])
     assert not costmap.cost.flags.writeable
+
+
+def test_added_obstacles_cost_the_same_with_their_footprints_remembered():
+    """``with_obstacles`` remembers each obstacle's footprint; a soft one shares the grid."""
+    walls = Obstacles(boxes=(Box("wall", (1.0, 0.5), (2.0, 0.1)),))
+    bounds = (0.0, 2.0, 0.0, 2.0)
+    added = Obstacles(boxes=(Box("crate", (0.5, 1.4), (0.3, 0.3)),),
+                      cylinders=(Cylinder("robot", (1.4, 1.2), 0.4),
+                                 Cylinder("away", (9.0, 9.0), 0.4)))  # off the grid
+    base = Costmap.from_obstacles(walls, bounds)
+    soft = base.with_obstacles(added, MAX_NON_OBSTACLE)
+    hard = base.with_obstacles(added)  # from the footprints the soft one left
+
+    def fresh(cost=LETHAL):
+        return Costmap.from_obstacles(walls, bounds).with_obstacles(added, cost)
+
+    for remembered, expected in ((soft, fresh(MAX_NON_OBSTACLE)), (hard, fresh())):
+        np.testing.assert_array_equal(remembered.cost, expected.cost)
+        np.testing.assert_array_equal(remembered.grid.occupied, expected.grid.occupied)
+    assert soft.grid is base.grid and soft.distance is base.distance
+    assert np.any(soft.cost != base.cost) and np.any(hard.grid.occupied != base.grid.occupied)
 
 
 def test_an_empty_grid_is_free_everywhere():

@@ -16,7 +16,7 @@ from mrta_drake.grid_planner import (
     GridPlanner,
     PlannerParams,
 )
-from mrta_drake.obstacles import Box, Obstacles
+from mrta_drake.obstacles import Box, Cylinder, Obstacles
 from mrta_drake.occupancy_grid import OccupancyGrid
 
 RESOLUTION = 0.1
@@ -193,13 +193,44 @@ def test_bad_params_are_refused():
 
 
 def test_a_full_search_heap_grows_and_gives_the_same_path():
-    planner = GridPlanner(random_costmap(3), PlannerParams(landmarks=0))
-    free = np.argwhere(planner.costmap.cost == 0)
-    start, goal = centre(planner.costmap, free[0]), centre(planner.costmap, free[-1])
-    expected = planner.plan(start, goal)
+    costmap, params = random_costmap(3), PlannerParams(landmarks=0)
+    free = np.argwhere(costmap.cost == 0)
+    start, goal = centre(costmap, free[0]), centre(costmap, free[-1])
+    expected = GridPlanner(costmap, params).plan(start, goal)
     assert expected.found
+    planner = GridPlanner(costmap, params)
     planner._heap_key, planner._heap_item = np.empty(2), np.empty(2, dtype=np.int64)
     again = planner.plan(start, goal)
     assert len(planner._heap_key) > 2
     assert again.cost == expected.cost
     np.testing.assert_array_equal(again.cells, expected.cells)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_switching_costmaps_back_and_forth_answers_as_one_switch(seed):
+    """``use_costmap`` updates only the changed cells; answers are kept per costmap."""
+    base = random_costmap(seed)
+    rng = np.random.default_rng(seed)
+    free = np.argwhere(base.cost < INSCRIBED)
+    queries = [(centre(base, free[a]) + rng.uniform(-0.04, 0.04, 2), centre(base, free[b]))
+               for a, b in rng.integers(0, len(free), size=(15, 2))]
+    soft = base.with_obstacles(Obstacles(cylinders=(Cylinder("r", (0.5, 2.0), 0.6),)),
+                               MAX_NON_OBSTACLE)
+    walled = soft.with_obstacles(Obstacles(boxes=(Box("wall", (0.5, 2.0), (0.2, 3.0)),)))
+    planner = GridPlanner(base)
+    for costmap in (soft, walled, base, walled, soft):
+        planner.use_costmap(costmap)
+        factor = 1.0 + 2.0 * costmap.cost / MAX_NON_OBSTACLE
+        np.testing.assert_array_equal(planner._factor.reshape(costmap.shape),
+                                      np.where(costmap.traversable, factor, np.inf))
+        once = GridPlanner(base)
+        once.use_costmap(costmap)
+        for start, goal in queries:
+            answer = planner.plan(start, goal)
+            expected = once.plan(start, goal)
+            assert (answer.failure, answer.cost) == (expected.failure, expected.cost)
+            assert answer.points.tobytes() == expected.points.tobytes()
+            np.testing.assert_array_equal(answer.cells, expected.cells)
+            assert planner.plan(start.copy(), goal) is answer
+    with pytest.raises(ValueError):
+        GridPlanner(soft).use_costmap(base)  # costs below the planner's own

@@ -26,6 +26,7 @@ from mrta_drake.payloads import (
 )
 
 _COSTMAP_CACHE = 16  # costmaps with closures kept for reuse
+_NO_POINTS = frozen_array(np.zeros((0, 2)))  # of every idle or failed path
 
 
 @dataclass(frozen=True)
@@ -151,8 +152,9 @@ class PlannerService(LeafSystem):
         periodic = now >= old.next_replan - 1e-9
         closed = self._closures(context, disturbances, targets, old.closed, periodic)
         replan_all = periodic or closed != old.closed
-        due = [k for k in range(len(self._robots))
-               if replan_all or targets[k] != old.targets[k]]
+        # ``is`` first: an unchanged target is mostly the very same object.
+        due = [k for k, (target, was) in enumerate(zip(targets, old.targets, strict=True))
+               if replan_all or (target is not was and target != was)]
         if not due:
             return EventStatus.DidNothing()
         self._close(disturbances.blockages, closed)
@@ -177,7 +179,8 @@ class PlannerService(LeafSystem):
         (index, x, y) of each robot at rest (see the class docstring; taken anew at periodic
         re-plans and when the other two change, else kept from ``old``), its position
         rounded to the costmap's cells (m); () for nothing."""
-        disturbed = tuple(b.name for b in disturbances.blockages), disturbances.broken
+        broken = disturbances.broken
+        disturbed = tuple(b.name for b in disturbances.blockages), broken
         if not periodic and disturbed == (old[:2] if old else ((), ())):
             return old
         states = self._robot_state.Eval(context).reshape(-1, ROBOT_STATE_SIZE)
@@ -185,7 +188,7 @@ class PlannerService(LeafSystem):
         resting = tuple((k, round(states[k, 0] / res) * res, round(states[k, 1] / res) * res)
                         for k in range(len(self._robots))
                         if abs(states[k, 3]) < ROBOT_STOPPED_SPEED
-                        and (targets[k].active or k in disturbances.broken))
+                        and (targets[k].active or k in broken))
         closed = (*disturbed, resting)
         return closed if any(closed) else ()
 
@@ -213,14 +216,15 @@ class PlannerService(LeafSystem):
               ) -> tuple[RobotPath, int]:
         """One robot's path and its number of failed legs."""
         if not target.active or target.current is None:
-            return RobotPath(robot, PATH_IDLE, planned_at=now), 0
+            return RobotPath(robot, PATH_IDLE, _NO_POINTS, planned_at=now), 0
         first = self._planner.plan(xy, target.current)
         if not first.found:
-            return RobotPath(robot, PATH_FAILED, planned_at=now), 1
+            return RobotPath(robot, PATH_FAILED, _NO_POINTS, planned_at=now), 1
         if target.stop_at_current or target.next is None:
             return RobotPath(robot, PATH_OK, first.points, target.stop_at_current, now), 0
         second = self._planner.plan(first.points[-1], target.next)
         if not second.found:
             return RobotPath(robot, PATH_OK, first.points, True, now), 1
-        points = frozen_array(np.vstack([first.points, second.points[1:]]))
+        points = np.concatenate([first.points, second.points[1:]])
+        points.flags.writeable = False
         return RobotPath(robot, PATH_OK, points, True, now), 0
