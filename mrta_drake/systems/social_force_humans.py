@@ -66,9 +66,9 @@ class SocialForceHumans(LeafSystem):
     reported (and posed) at its parking spot outside the world, standing still, where it
     interacts with nobody; the ``active`` port tells who is present.
 
-    Discrete state groups (world frame, m, m/s, rad): 0 positions ``2M``, 1 velocities
-    ``2M``, 2 target waypoint indices ``M``, 3 headings ``M`` (from the velocity, held while
-    slower than ``STOPPED_SPEED``), 4 presence flags ``M`` (1 present, 0 waiting).
+    Discrete state, one group of ``7M`` (world frame, m, m/s, rad): positions ``2M``,
+    velocities ``2M``, target waypoint indices ``M``, headings ``M`` (from the velocity, held
+    while slower than ``STOPPED_SPEED``), presence flags ``M`` (1 present, 0 waiting).
 
     Input ports:
         robot_state: vector ``4N``, ``[x, y, theta, v]`` per robot; unconnected = no robots.
@@ -124,12 +124,13 @@ class SocialForceHumans(LeafSystem):
 
         first = self._waypoints[:, 0] - self._starts
         present = self._entry <= 0.0
-        self._positions = self.DeclareDiscreteState(self._starts.reshape(-1))
-        self._velocities = self.DeclareDiscreteState(2 * m)
-        self._targets = self.DeclareDiscreteState(m)
-        self._headings = self.DeclareDiscreteState(np.arctan2(first[:, 1], first[:, 0]))
-        self._present = self.DeclareDiscreteState(present.astype(float))
+        # One group: an update reads and writes it once (five groups cost more than the step).
+        self.DeclareDiscreteState(np.concatenate([
+            self._starts.reshape(-1), np.zeros(3 * m), np.arctan2(first[:, 1], first[:, 0]),
+            present.astype(float)]))
         self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
+        self._no_robots = (np.zeros((0, ROBOT_STATE_SIZE)), np.zeros(0), np.zeros(0),
+                           np.zeros(0))
 
         self._robot_state = self.DeclareVectorInputPort(
             "robot_state", ROBOT_STATE_SIZE * self._num_robots)
@@ -172,72 +173,110 @@ class SocialForceHumans(LeafSystem):
 
     # --- outputs -----------------------------------------------------------------------------
 
-    def _read(self, context):
-        m = len(self._people)
-        return (context.get_discrete_state(self._positions).value().reshape(m, 2),
-                context.get_discrete_state(self._velocities).value().reshape(m, 2),
-                context.get_discrete_state(self._headings).value(),
-                context.get_discrete_state(self._present).value() > 0.5)
-
-    def _placed(self, context):
-        """Positions (M, 2) with waiting people at their parking spots, velocities (M, 2)
-        zero for them, headings (M,) and the presence mask (M,)."""
-        p, v, heading, present = self._read(context)
-        return (np.where(present[:, None], p, self._parking),
-                np.where(present[:, None], v, 0.0), heading, present)
+    def _state(self, context) -> np.ndarray:
+        """The state (7M,), laid out as in the class docstring (a read-only view)."""
+        return context.get_discrete_state_vector().value()
 
     def _calc_human_states(self, context, output):
-        p, v, _, _ = self._placed(context)
+        p, v = _placed(self._state(context), self._parking)
         p.flags.writeable = v.flags.writeable = False  # new arrays: frozen without a copy
         output.set_value(HumanStates(names=self._names, positions=p, velocities=v,
                                      radii=self._frozen_radii))
 
     def _calc_plant_positions(self, context, output):
-        p, _, heading, _ = self._placed(context)
-        output.SetFromVector(np.column_stack([p, heading]).reshape(-1))
+        x, m = self._state(context), len(self._names)
+        output.SetFromVector(np.column_stack([_placed(x, self._parking)[0],
+                                              x[5 * m: 6 * m]]).reshape(-1))
 
     def _calc_active(self, context, output):
-        output.SetFromVector(self._read(context)[3].astype(float))
+        output.SetFromVector((self._state(context)[6 * len(self._names):] > 0.5).astype(float))
 
     # --- update ------------------------------------------------------------------------------
 
     def _robots(self, context):
-        """Robot positions (N, 2), velocities (N, 2), radii (N,); empty when unconnected."""
+        """Robot states (N, 4), cosines and sines of their headings (N,), radii (N,); empty
+        when unconnected."""
         if self._num_robots == 0 or not self._robot_state.HasValue(context):
-            return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0)
+            return self._no_robots
         x = self._robot_state.Eval(context).reshape(self._num_robots, ROBOT_STATE_SIZE)
-        velocity = x[:, 3:4] * np.column_stack([np.cos(x[:, 2]), np.sin(x[:, 2])])
-        return x[:, :2], velocity, self._robot_radii
+        return x, np.cos(x[:, 2]), np.sin(x[:, 2]), self._robot_radii
 
     def _update(self, context, discrete_state):
-        p, v, heading, present = (a.copy() for a in self._read(context))
-        targets = context.get_discrete_state(self._targets).value().astype(int)
-        robot_p, robot_v, robot_r = self._robots(context)
-        self._enter(context.get_time(), p, v, present, robot_p, robot_r)
-        _step_people(p, v, heading, targets, np.flatnonzero(present), robot_p, robot_v, robot_r,
-                     self._radii, self._speeds, self._counts, self._waypoints,
-                     self._obstacles.compiled, self._constants)
-        discrete_state.get_mutable_vector(self._positions).SetFromVector(p.reshape(-1))
-        discrete_state.get_mutable_vector(self._velocities).SetFromVector(v.reshape(-1))
-        discrete_state.get_mutable_vector(self._targets).SetFromVector(targets.astype(float))
-        discrete_state.get_mutable_vector(self._headings).SetFromVector(heading)
-        discrete_state.get_mutable_vector(self._present).SetFromVector(present.astype(float))
+        _update_people(context.get_discrete_state_vector().value(),
+                       discrete_state.get_mutable_value(), context.get_time(),
+                       *self._robots(context), self._radii, self._speeds, self._counts,
+                       self._waypoints, self._entry, self._starts, self._obstacles.compiled,
+                       self._constants)
 
-    def _enter(self, time, p, v, present, robot_p, robot_r) -> None:
-        """Lets waiting people whose entry time has come enter, in people order, when their
-        start is clear of everyone present and of the robots (modifies the arrays)."""
-        for i in np.flatnonzero(~present & (self._entry <= time + 1e-9)):
-            others = np.concatenate([p[present], robot_p])
-            others_r = np.concatenate([self._radii[present], robot_r])
-            gaps = np.linalg.norm(others - self._starts[i], axis=1) - others_r - self._radii[i]
-            if np.all(gaps >= ENTRY_GAP):
-                present[i] = True
-                p[i], v[i] = self._starts[i], 0.0
+
+@numba.njit(cache=True)
+def _placed(x, parking):
+    """New arrays from the state ``x``: positions (M, 2), with waiting people at their
+    ``parking`` spots (M, 2), and velocities (M, 2), zero for waiting people."""
+    m = len(parking)
+    p, v = np.empty((m, 2)), np.zeros((m, 2))
+    for i in range(m):
+        present = x[6 * m + i] > 0.5
+        for c in range(2):
+            p[i, c] = x[2 * i + c] if present else parking[i, c]
+            if present:
+                v[i, c] = x[2 * m + 2 * i + c]
+    return p, v
 
 
 # The update, compiled: indices of ``SocialForceHumans._constants``.
 _DT, _TOLERANCE, _RELAXATION, _STRENGTH, _RANGE, _WALL_STRENGTH, _WALL_RANGE, _MAX_SPEED = \
     range(8)
+
+
+@numba.njit(cache=True)
+def _update_people(x, out, time, robots, cos, sin, robot_r, radii, speeds, counts, waypoints,
+                   entry, starts, obstacles, constants):
+    """One update of the state ``x`` (layout of the class docstring) into ``out``: entries
+    (``_enter``), then steps 1-4 for the people present (``_step_people``); ``robots``
+    (N, 4) robot states, ``cos`` and ``sin`` (N,) of their headings (numpy's, so that the
+    result does not depend on the compiled math library)."""
+    m = len(radii)
+    robot_p, robot_v = robots[:, :2], np.empty((len(robots), 2))
+    for j in range(len(robots)):
+        robot_v[j, 0], robot_v[j, 1] = robots[j, 3] * cos[j], robots[j, 3] * sin[j]
+    out[:] = x
+    p, v, heading = out[: 2 * m].reshape((m, 2)), out[2 * m: 4 * m].reshape((m, 2)), \
+        out[5 * m: 6 * m]
+    targets, present = np.empty(m, dtype=np.int64), np.empty(m, dtype=np.bool_)
+    for i in range(m):
+        targets[i], present[i] = int(x[4 * m + i]), x[6 * m + i] > 0.5
+    _enter(time, p, v, present, robot_p, robot_r, radii, entry, starts)
+    _step_people(p, v, heading, targets, np.flatnonzero(present), robot_p, robot_v, robot_r,
+                 radii, speeds, counts, waypoints, obstacles, constants)
+    for i in range(m):
+        out[4 * m + i], out[6 * m + i] = targets[i], 1.0 if present[i] else 0.0
+
+
+@numba.njit(cache=True)
+def _enter(time, p, v, present, robot_p, robot_r, radii, entry, starts):
+    """Lets waiting people whose ``entry`` time has come enter, in people order, when their
+    start is at least ``ENTRY_GAP`` (surface to surface) from everyone present and from the
+    robots (modifies ``p``, ``v`` and ``present``)."""
+    m = len(radii)
+    for i in range(m):
+        if present[i] or not entry[i] <= time + 1e-9:
+            continue
+        clear = True
+        for j in range(m + len(robot_p)):
+            if j < m:
+                if not present[j]:
+                    continue
+                x, y, reach = p[j, 0], p[j, 1], radii[j]
+            else:
+                x, y, reach = robot_p[j - m, 0], robot_p[j - m, 1], robot_r[j - m]
+            dx, dy = x - starts[i, 0], y - starts[i, 1]
+            if not math.sqrt(dx * dx + dy * dy) - reach - radii[i] >= ENTRY_GAP:
+                clear = False
+                break
+        if clear:
+            present[i] = True
+            p[i], v[i] = starts[i], 0.0
 
 
 @numba.njit(cache=True)
@@ -252,7 +291,8 @@ def _step_people(p, v, heading, targets, a, robot_p, robot_v, robot_r, radii_all
     pa, va, radii, goal = np.empty((k, 2)), np.empty((k, 2)), radii_all[a], np.empty((k, 2))
     for j in range(k):
         i = a[j]
-        pa[j], va[j], goal[j] = p[i], v[i], waypoints[i, targets[i]]
+        for c in range(2):
+            pa[j, c], va[j, c], goal[j, c] = p[i, c], v[i, c], waypoints[i, targets[i], c]
     reached = _taken(goal, pa, radii, robot_p, robot_r)
     direction, accel = np.zeros((k, 2)), np.empty((k, 2))
     for j in range(k):
@@ -284,7 +324,8 @@ def _step_people(p, v, heading, targets, a, robot_p, robot_v, robot_r, radii_all
 
     va_new = _cap_speed(va + dt * accel, constants[_MAX_SPEED])
     free_step = pa + dt * va_new
-    pa_new, blocked = _project(free_step, pa, clearance, radii, robot_p, robot_r, obstacles)
+    pa_new, blocked = _project(free_step, pa, closest, clearance, radii, robot_p, robot_r,
+                               obstacles)
     va_new = _cap_speed(va_new + (pa_new - free_step) / dt, constants[_MAX_SPEED])
     for j in range(k):
         i = a[j]
@@ -296,9 +337,10 @@ def _step_people(p, v, heading, targets, a, robot_p, robot_v, robot_r, radii_all
 
 
 @numba.njit(cache=True)
-def _project(new, old, old_clearance, radii, robot_p, robot_r, obstacles):
-    """Hard constraints on the step ``old`` -> ``new`` (positions (a, 2)): overlapping
-    people are pushed apart; nobody steps closer to a robot (surface to surface) than
+def _project(new, old, old_closest, old_clearance, radii, robot_p, robot_r, obstacles):
+    """Hard constraints on the step ``old`` -> ``new`` (positions (a, 2); ``old_closest``
+    and ``old_clearance``: ``closest_points_of`` at ``old``): overlapping people are
+    pushed apart; nobody steps closer to a robot (surface to surface) than
     min(``ROBOT_STANDOFF``, its gap before the step), so only a robot's own motion can
     cause contact; everyone ends at clearance >= radius from obstacles. Returns the new
     positions and the mask of people blocked, who would still break a robot floor or lose
@@ -306,11 +348,11 @@ def _project(new, old, old_clearance, radii, robot_p, robot_r, obstacles):
     new = new.copy()
     floor = np.minimum(ROBOT_STANDOFF, _gaps(old, radii, robot_p, robot_r))
     depth = np.zeros(len(new))
-    clearance = old_clearance
+    known, closest, clearance = old.copy(), old_closest.copy(), old_clearance.copy()
     for _ in range(PROJECTION_ITERATIONS):
         shift = _apart(new, radii) + _away(new, radii, robot_p, robot_r, floor)
         new += shift
-        closest, clearance = closest_points_of(new, *obstacles)
+        _refresh_closest(new, known, closest, clearance, obstacles)
         depth = np.maximum(radii - clearance, 0.0)
         outward = _outward(new, closest, clearance)
         for i in range(len(new)):
@@ -319,7 +361,7 @@ def _project(new, old, old_clearance, radii, robot_p, robot_r, obstacles):
         if not shift.any() and not depth.any():
             break
     if depth.any():
-        clearance = closest_points_of(new, *obstacles)[1]
+        _refresh_closest(new, known, closest, clearance, obstacles)
     blocked = clearance < np.minimum(radii, old_clearance) - 1e-9
     gaps = _gaps(new, radii, robot_p, robot_r)
     for i in range(len(new)):
@@ -332,11 +374,44 @@ def _project(new, old, old_clearance, radii, robot_p, robot_r, obstacles):
 
 
 @numba.njit(cache=True)
+def _refresh_closest(p, known, closest, clearance, obstacles):
+    """``closest_points_of`` points ``p`` (n, 2) into ``closest`` (n, 2) and ``clearance``
+    (n,), which hold it for the points ``known`` (n, 2): only the points that moved (bit
+    for bit) are queried again; then ``known`` = ``p``."""
+    moved = np.empty(len(p), dtype=np.int64)
+    count = 0
+    for i in range(len(p)):
+        if not (_same(p[i, 0], known[i, 0]) and _same(p[i, 1], known[i, 1])):
+            moved[count] = i
+            count += 1
+    if count == 0:
+        return
+    moved = moved[:count]
+    q, d = closest_points_of(p[moved], *obstacles)
+    for k in range(count):
+        i = moved[k]
+        closest[i, 0], closest[i, 1], clearance[i] = q[k, 0], q[k, 1], d[k]
+        known[i, 0], known[i, 1] = p[i, 0], p[i, 1]
+
+
+@numba.njit(cache=True)
+def _same(x, y) -> bool:
+    """True when x and y are the same number, zeros of the same sign included."""
+    return x == y and math.copysign(1.0, x) == math.copysign(1.0, y)
+
+
+@numba.njit(cache=True)
 def _add_repulsion(p, direction, radii, q, q_velocity, q_radii, same, strength, reach, force):
     """Adds to ``force`` (a, 2) the elliptical-potential force (m/s^2) of every other (q) on
     each person (p) walking in ``direction`` (a, 2) (``same``: q are the people themselves,
     nobody repels itself); ``strength`` V0, ``reach`` sigma."""
     cos_view = math.cos(FIELD_OF_VIEW)
+    # Each other's next ELLIPSE_TIME s of walk (m) and walking direction, once per other.
+    walk, ux, uy = np.empty(len(q)), np.empty(len(q)), np.empty(len(q))
+    for j in range(len(q)):
+        speed = math.sqrt(q_velocity[j, 0] ** 2 + q_velocity[j, 1] ** 2)
+        walk[j] = speed * ELLIPSE_TIME
+        ux[j], uy[j] = q_velocity[j, 0] / max(speed, 1e-12), q_velocity[j, 1] / max(speed, 1e-12)
     for i in range(len(p)):
         dx, dy = direction[i, 0], direction[i, 1]
         for j in range(len(q)):
@@ -346,11 +421,9 @@ def _add_repulsion(p, direction, radii, q, q_velocity, q_radii, same, strength, 
             n1 = math.sqrt(r1x * r1x + r1y * r1y)
             if n1 < 1e-9:
                 continue
-            speed = math.sqrt(q_velocity[j, 0] ** 2 + q_velocity[j, 1] ** 2)
-            s = speed * ELLIPSE_TIME
+            s = walk[j]
             # From the other's position ELLIPSE_TIME s ahead.
-            r2x = r1x - s * (q_velocity[j, 0] / max(speed, 1e-12))
-            r2y = r1y - s * (q_velocity[j, 1] / max(speed, 1e-12))
+            r2x, r2y = r1x - s * ux[j], r1y - s * uy[j]
             n2 = math.sqrt(r2x * r2x + r2y * r2y)
             b = 0.5 * math.sqrt(max((n1 + n2) ** 2 - s * s, 0.0))
             g = (n1 + n2) / (4.0 * max(b, 1e-9))
@@ -420,10 +493,12 @@ def _taken(goal, p, radii, robot_p, robot_r) -> np.ndarray:
         if not math.hypot(goal[i, 0] - p[i, 0], goal[i, 1] - p[i, 1]) < TAKEN_REACH:
             continue
         for j in range(len(p) + len(robot_p)):
-            other, reach = (p[j], radii[j]) if j < len(p) else (robot_p[j - len(p)],
-                                                                robot_r[j - len(p)])
-            if j != i and math.sqrt((goal[i, 0] - other[0]) ** 2
-                                    + (goal[i, 1] - other[1]) ** 2) < reach + radii[i]:
+            if j < len(p):
+                x, y, reach = p[j, 0], p[j, 1], radii[j]
+            else:
+                x, y, reach = robot_p[j - len(p), 0], robot_p[j - len(p), 1], robot_r[j - len(p)]
+            if j != i and math.sqrt((goal[i, 0] - x) ** 2
+                                    + (goal[i, 1] - y) ** 2) < reach + radii[i]:
                 taken[i] = True
                 break
     return taken
