@@ -1,5 +1,7 @@
 """RoomQueues in a Simulator, its requests fixed by hand between steps."""
 
+import random
+
 import pytest
 from pydrake.common.value import Value
 from pydrake.systems.analysis import Simulator
@@ -113,3 +115,24 @@ def test_initial_holders():
     assert bench.queue() == RoomQueue(ROOM, "r1", ("r0",))
     with pytest.raises(ValueError):
         RoomQueues(["r0"], rooms=[ROOM], holders={ROOM: "nobody"})
+
+
+def test_an_update_keeps_the_state_when_no_rule_applies():
+    # The update keeps the old state object when it finds no rule to apply (most updates):
+    # random requests from reachable states, the shortcut against the rules applied.
+    robots = ["r0", "r1", "r2", "r3"]
+    bench = Bench(robots, holders={OTHER: "r3"})
+    queues, rng = bench.queues, random.Random(0)
+    kept = 0
+    for _ in range(300):
+        for robot in rng.sample(robots, 2):
+            bench.ask(robot, rng.choice([None, ROOM, OTHER, 99]),
+                      rng.choice([None, None, ROOM, OTHER]))
+        old = queues.GetOutputPort("queue_state").Eval(bench.context)
+        requests = [queues.get_request_input_port(r).Eval(bench.context) for r in robots]
+        bench.step()
+        if not queues._changes_anything(old, requests):
+            assert queues._applied(old, requests) == old
+            assert queues.GetOutputPort("queue_state").Eval(bench.context) is old
+            kept += 1
+    assert 30 < kept < 270

@@ -258,6 +258,14 @@ def test_a_robot_without_stops_is_inactive():
     assert world.progress(0).visits == ()
 
 
+def test_outputs_stay_the_same_objects_while_the_state_does():
+    # Consumers (planner, recorder, queues) may skip work on an unchanged payload by identity.
+    world = World([A], fixed([]))
+    world.run(until=1.0)
+    first, *rest = [targets[0] for _, _, _, targets in world.log]
+    assert rest and all(target is first for target in rest)
+
+
 def test_a_stop_where_the_robot_stands_is_served_in_place():
     # No start_location: the robot is known to be at A by standing on its point.
     world = World([A], fixed([A, B]), start_known=False, params=WaypointParams(service_time=3.0))

@@ -51,23 +51,38 @@ class RoomQueues(LeafSystem):
             self.DeclareAbstractInputPort(f"request_{robot}", Value[object](QueueRequest(robot)))
             for robot in self._robots
         ]
-        self.DeclareAbstractOutputPort(
-            "queue_state",
-            lambda: Value[object](initial),
-            self._calc_queue_state,
-            prerequisites_of_calc={self.abstract_state_ticket(self._state_index)},
-        )
+        self.DeclareStateOutputPort("queue_state", self._state_index)
         self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate_hz, 0.0, self._update)
 
     def get_request_input_port(self, robot: str):
         return self._requests[self._robots.index(robot)]
 
-    def _calc_queue_state(self, context, output):
-        output.set_value(context.get_abstract_state(self._state_index).get_value())
-
     def _update(self, context, state):
         old = context.get_abstract_state(self._state_index).get_value()
         requests = [port.Eval(context) for port in self._requests]
+        if self._changes_anything(old, requests):  # else ``state`` already holds ``old``
+            state.get_mutable_abstract_state(self._state_index).set_value(
+                self._applied(old, requests))
+
+    def _changes_anything(self, old: QueueState, requests: list[QueueRequest]) -> bool:
+        """False if applying ``requests`` to ``old`` gives ``old`` itself (the hot path: most
+        updates change nothing); True if it may not (a holder releasing and asking again for
+        the same room gets it back)."""
+        queues = {q.room: q for q in old.rooms}
+        for robot, request in zip(self._robots, requests, strict=True):
+            released = queues.get(request.release)
+            if released is not None and released.holder == robot:
+                return True
+            wanted = queues.get(request.room)
+            if wanted is not None and wanted.holder != robot and robot not in wanted.waiting:
+                return True
+        room_of = {robot: request.room
+                   for robot, request in zip(self._robots, requests, strict=True)}
+        return any((q.holder is None and q.waiting)
+                   or any(room_of[robot] != q.room for robot in q.waiting)
+                   for q in old.rooms)
+
+    def _applied(self, old: QueueState, requests: list[QueueRequest]) -> QueueState:
         holder = {q.room: q.holder for q in old.rooms}
         waiting = {q.room: list(q.waiting) for q in old.rooms}
         for robot, request in zip(self._robots, requests, strict=True):
@@ -84,8 +99,5 @@ class RoomQueues(LeafSystem):
         for room, queue in waiting.items():
             if holder[room] is None and queue:
                 holder[room] = queue.pop(0)
-        state.get_mutable_abstract_state(self._state_index).set_value(
-            QueueState(
-                tuple(RoomQueue(room, holder[room], tuple(waiting[room])) for room in self._rooms)
-            )
-        )
+        return QueueState(
+            tuple(RoomQueue(room, holder[room], tuple(waiting[room])) for room in self._rooms))

@@ -109,6 +109,8 @@ class RunRecorder(LeafSystem):
         self.events: list[dict] = []
         self._seen_visits = [0] * self._n
         self._seen_detours = [0] * self._n
+        self._last_progress: list[RobotProgress | None] = [None] * self._n
+        self._last_queues: QueueState | None = None
         self._disturbances: dict[tuple, dict] = {}
         self._current_keys: list[str | None] = [None] * self._n
         self._last_revision = None
@@ -143,7 +145,7 @@ class RunRecorder(LeafSystem):
             return  # the forced publish at the end of a run repeats the last periodic one
         if self._out_dir is not None and self._timeline is None:
             self._open_files()
-        states = self._ports["robot_state"].Eval(context).reshape(self._n, -1).copy()
+        states = self._ports["robot_state"].Eval(context).reshape(self._n, -1)  # Eval copies
         self.times.append(t)
         self.robot_states.append(states)
         humans_port = self._ports["human_states"]
@@ -156,26 +158,32 @@ class RunRecorder(LeafSystem):
         telemetry = self._ports["telemetry"].Eval(context)
         self.telemetry.append(telemetry)
         if self._timeline is not None:
-            for name, row in zip(self.robot_names, states, strict=True):
-                self._csv.writerow([f"{t:.3f}", name] + [f"{v:.4f}" for v in row])
+            stamp = f"{t:.3f}"
+            self._csv.writerows([stamp, name] + [f"{v:.4f}" for v in row]
+                                for name, row in zip(self.robot_names, states.tolist(),
+                                                     strict=True))
             self._timeline.flush()
         queues = self._ports["queue_state"].Eval(context)
-        self.modes.append(self._modes(context, states, queues))
+        progress = [port.Eval(context) for port in self._progress]
+        self.modes.append(self._modes(context, states, queues, progress))
         self._note_plan(context, t)
-        self._note_progress(context, t)
+        self._note_progress(progress, t)
         self._note_rooms(queues, t)
         self._note_failures(context, t, telemetry)
         self._note_allocator_events(context, t)
         self._note_disturbances(context, t)
 
-    def _modes(self, context, states: np.ndarray, queues: QueueState) -> np.ndarray:
+    def _modes(self, context, states: np.ndarray, queues: QueueState,
+               progress: list[RobotProgress]) -> np.ndarray:
         waiting = {robot for queue in queues.rooms for robot in queue.waiting}
         holders = {queue.room: queue.holder for queue in queues.rooms}
         modes = np.full(self._n, IDLE, dtype=np.int8)
         for k, name in enumerate(self.robot_names):
-            stop = self._progress[k].Eval(context).current_stop
+            stop = progress[k].current_stop
+            if stop is None:
+                continue
             target = self._targets[k].Eval(context)
-            if stop is None or not target.active:
+            if not target.active:
                 continue
             if name in waiting:
                 modes[k] = QUEUE
@@ -197,10 +205,13 @@ class RunRecorder(LeafSystem):
                        "location": s.location, "planned": s.planned_time} for s in p.stops]
             for p in plan.plans}})
 
-    def _note_progress(self, context, t: float) -> None:
-        for k, name in enumerate(self.robot_names):
-            progress = self._progress[k].Eval(context)
-            began = self.times[-2] if len(self.times) > 1 else t
+    def _note_progress(self, progresses: list[RobotProgress], t: float) -> None:
+        previous = self.times[-2] if len(self.times) > 1 else t
+        for k, (name, progress) in enumerate(zip(self.robot_names, progresses, strict=True)):
+            if progress is self._last_progress[k]:
+                continue  # immutable: nothing new since the last sample
+            self._last_progress[k] = progress
+            began = previous
             for visit in progress.visits[self._seen_visits[k]:]:
                 self._event({"time": t, "type": "arrival", "robot": name, "key": visit.key,
                              "location": visit.location, "at": visit.time,
@@ -220,6 +231,9 @@ class RunRecorder(LeafSystem):
             self._current_keys[k] = key
 
     def _note_rooms(self, queues: QueueState, t: float) -> None:
+        if queues is self._last_queues:
+            return  # immutable: nothing new since the last sample
+        self._last_queues = queues
         for queue in queues.rooms:
             now = (queue.holder, queue.waiting)
             if self._last_rooms.get(queue.room) != now:

@@ -71,12 +71,55 @@ class _Drive:
         return self  # immutable: Drake's copies of the state can share it
 
 
+@dataclass(frozen=True)
+class _Outputs:
+    """The output payloads made from one state, ``drive``."""
+
+    drive: _Drive
+    target: WaypointTarget
+    queue_request: QueueRequest
+    progress: RobotProgress
+
+
+class _Robots:
+    """The robots' states read from the ``robot_state`` port when first needed (a parked
+    or idle robot's update mostly needs none): ``states`` (N, 4) ``[x, y, theta, v]`` and
+    ``xy``, robot ``index``'s position; world frame, m."""
+
+    def __init__(self, port, context, index: int):
+        self._port, self._context, self._index = port, context, index
+        self._states: np.ndarray | None = None
+        self._xy: tuple[float, float] | None = None
+
+    @property
+    def states(self) -> np.ndarray:
+        if self._states is None:
+            self._states = self._port.Eval(self._context).reshape(-1, ROBOT_STATE_SIZE)
+        return self._states
+
+    @property
+    def xy(self) -> tuple[float, float]:
+        if self._xy is None:
+            self._xy = _point(self.states[self._index])
+        return self._xy
+
+
 def _changed(s: _Drive, **changes) -> _Drive:
     """``replace(s, **changes)``, or ``s`` itself when they change nothing (the hot path:
     most updates change nothing)."""
-    if all(getattr(s, name) == value for name, value in changes.items()):
-        return s
-    return replace(s, **changes)
+    for name, value in changes.items():
+        current = getattr(s, name)
+        if current is not value and current != value:
+            return replace(s, **changes)
+    return s
+
+
+def _first_to_do(stops: tuple[Stop, ...], visits: tuple[Visit, ...]) -> Stop | None:
+    """The first of ``stops`` no visit completed."""
+    if not visits:
+        return stops[0] if stops else None
+    done = {visit.key for visit in visits}
+    return next((stop for stop in stops if stop.key not in done), None)
 
 
 def _point(xy) -> tuple[float, float]:
@@ -184,6 +227,8 @@ class WaypointGenerator(LeafSystem):
         self._disturbances = self.DeclareAbstractInputPort(
             "disturbances", Value[object](Disturbances())
         )
+        # The outputs of the state last read: most updates keep the state object as it is.
+        self._last_outputs: _Outputs | None = None
         state_ticket = {self.abstract_state_ticket(self._state_index)}
         for name, payload, calc in (
             ("target", WaypointTarget(robot), self._calc_target),
@@ -204,14 +249,31 @@ class WaypointGenerator(LeafSystem):
         return context.get_abstract_state(self._state_index).get_value()
 
     def _calc_target(self, context, output):
+        output.set_value(self._outputs(context).target)
+
+    def _calc_queue_request(self, context, output):
+        output.set_value(self._outputs(context).queue_request)
+
+    def _calc_progress(self, context, output):
+        output.set_value(self._outputs(context).progress)
+
+    def _outputs(self, context) -> _Outputs:
         s = self._drive(context)
+        outputs = self._last_outputs
+        if outputs is None or outputs.drive is not s:
+            outputs = self._last_outputs = _Outputs(
+                s, self._target(s),
+                QueueRequest(self._robot, s.stop.location if s.phase in (QUEUE, ENTER, SERVE)
+                             else None, s.release),
+                RobotProgress(self._robot, s.visits, s.last_location, s.stop, s.detours))
+        return outputs
+
+    def _target(self, s: _Drive) -> WaypointTarget:
         if s.phase == PARK:
             parking = _point(self._roadways.place(s.last_location).parking[s.index])
-            output.set_value(WaypointTarget(self._robot, True, parking, None, True))
-            return
+            return WaypointTarget(self._robot, True, parking, None, True)
         if s.stop is None or s.phase == WAIT or s.waiting:
-            output.set_value(WaypointTarget(self._robot))
-            return
+            return WaypointTarget(self._robot)
         place = self._roadways.place(s.stop.location)
         if s.phase in (DRIVE, ENTER):
             last = len(s.route) - 1
@@ -222,41 +284,33 @@ class WaypointGenerator(LeafSystem):
             current, after, stop_here = _point(place.queue[s.index]), None, True
         else:
             current, after, stop_here = _point(place.point), None, True
-        output.set_value(WaypointTarget(self._robot, True, current, after, stop_here))
-
-    def _calc_queue_request(self, context, output):
-        s = self._drive(context)
-        room = s.stop.location if s.phase in (QUEUE, ENTER, SERVE) else None
-        output.set_value(QueueRequest(self._robot, room, s.release))
-
-    def _calc_progress(self, context, output):
-        s = self._drive(context)
-        output.set_value(RobotProgress(self._robot, s.visits, s.last_location, s.stop,
-                                       s.detours))
+        return WaypointTarget(self._robot, True, current, after, stop_here)
 
     # --- Update ------------------------------------------------------------------------------
 
     def _update(self, context, state):
-        s = self._drive(context)
+        old = s = self._drive(context)
         t = context.get_time()
-        states = self._robot_state.Eval(context).reshape(-1, ROBOT_STATE_SIZE)
-        xy = _point(states[self._index])
+        robots = _Robots(self._robot_state, context, self._index)
         queues = self._queue_state.Eval(context)
         disturbances = (self._disturbances.Eval(context) if self._disturbances.HasValue(context)
                         else NO_DISTURBANCES)
-        lanes = self._roadways.closed([b.box for b in disturbances.blockages])
-        closed = tuple(b.name for b in disturbances.blockages)
+        lanes, closed = self._roadways, ()
+        if disturbances.blockages:
+            lanes = self._roadways.closed([b.box for b in disturbances.blockages])
+            closed = tuple(b.name for b in disturbances.blockages)
         if closed != s.closed:
-            s = self._reroute(s, xy, lanes, closed, t)
-        if self._index in disturbances.broken:
-            s = replace(s, phase=IDLE, stop=None, route=(), index=0, since=None)
+            s = self._reroute(s, robots.xy, lanes, closed, t)
+        if disturbances.breakdowns and any(b.robot == self._index
+                                           for b in disturbances.breakdowns):
+            s = _changed(s, phase=IDLE, stop=None, route=(), index=0, since=None)
         else:
-            done = {visit.key for visit in s.visits}
-            remaining = [stop for stop in self._stops(context) if stop.key not in done]
-            s = self._follow_plan(s, remaining[0] if remaining else None, xy, states, lanes, t)
-            s = self._advance(s, states, t, queues, remaining, lanes)
-        s = _changed(s, release=self._release(s, xy, queues))
-        state.get_mutable_abstract_state(self._state_index).set_value(s)
+            stops = self._stops(context)
+            s = self._follow_plan(s, _first_to_do(stops, s.visits), robots, lanes, t)
+            s = self._advance(s, robots, t, queues, stops, lanes)
+        s = _changed(s, release=self._release(s, robots, queues))
+        if s is not old:  # ``state`` comes holding the current state
+            state.get_mutable_abstract_state(self._state_index).set_value(s)
 
     def _stops(self, context) -> tuple[Stop, ...]:
         plans = self._plan.Eval(context).plans
@@ -264,18 +318,19 @@ class WaypointGenerator(LeafSystem):
             return plans[self._index].stops
         return next((plan.stops for plan in plans if plan.robot == self._robot), ())
 
-    def _follow_plan(self, s: _Drive, stop: Stop | None, xy, states, lanes: Roadways,
+    def _follow_plan(self, s: _Drive, stop: Stop | None, robots: _Robots, lanes: Roadways,
                      t: float) -> _Drive:
         if stop is None:
             if s.phase == PARK:
                 return s
             place = None if s.last_location is None else self._roadways.place(s.last_location)
             if (place is None or not len(place.parking)
-                    or _distance(xy, place.point) > self._params.reach_tolerance):
-                return replace(s, phase=IDLE, stop=None, route=(), index=0, since=None)
-            others = np.delete(states[:, :2], self._index, axis=0)
+                    or _distance(robots.xy, place.point) > self._params.reach_tolerance):
+                return _changed(s, phase=IDLE, stop=None, route=(), index=0, since=None)
+            others = np.delete(robots.states[:, :2], self._index, axis=0)
             return replace(s, phase=PARK, stop=None, route=(), since=None,
                            index=self._free_parking(place, others))
+        xy = robots.xy
         if s.stop is None:
             return self._start(s, stop, xy, lanes, t)
         if stop.location == s.stop.location:
@@ -396,11 +451,11 @@ class WaypointGenerator(LeafSystem):
                 return ahead
         return _points_or_none(lanes.route_from_point(xy, location))
 
-    def _advance(self, s: _Drive, states: np.ndarray, t: float, queues: QueueState, remaining,
-                 lanes: Roadways) -> _Drive:
+    def _advance(self, s: _Drive, robots: _Robots, t: float, queues: QueueState,
+                 stops: tuple[Stop, ...], lanes: Roadways) -> _Drive:
         if s.stop is None:
             return s
-        xy = _point(states[self._index])
+        xy = robots.xy
         params = self._params
         place = self._roadways.place(s.stop.location)
         queue = queues.room(place.id)
@@ -416,11 +471,11 @@ class WaypointGenerator(LeafSystem):
                 s = replace(s, phase=QUEUE, route=(), index=len(place.queue) - 1)
         if s.phase == QUEUE:
             # Entering while another robot comes out would stand both in the doorway.
-            if holding and not self._door_busy(place, states):
+            if holding and not self._door_busy(place, robots.states):
                 route = _points(place.queue[s.index::-1]) + _points(place.entry)
                 s = replace(s, phase=ENTER, route=route + (_point(place.point),), index=0)
             elif not holding and queue is not None and queue.slot_of(self._robot) is not None:
-                s = replace(s, index=min(queue.slot_of(self._robot), len(place.queue) - 1))
+                s = _changed(s, index=min(queue.slot_of(self._robot), len(place.queue) - 1))
         if s.phase == ENTER:
             s = _changed(s, index=self._reached(s, xy))
             if s.index == len(s.route) - 1:
@@ -429,16 +484,16 @@ class WaypointGenerator(LeafSystem):
         if s.phase == SERVE and holding and _distance(xy, place.point) <= params.reach_tolerance:
             since = t if s.since is None else s.since
             if t - since < params.service_time - 1e-9:
-                return replace(s, since=since)
+                return _changed(s, since=since)
             stop = s.stop
             visit = Visit(stop.key, stop.location, t, stop.task, stop.action)
             s = replace(
                 s, phase=IDLE, stop=None, since=None,
                 visits=s.visits + (visit,), last_location=stop.location,
             )
-            following = [other for other in remaining if other.key != stop.key]
-            if following:
-                s = self._start(s, following[0], xy, lanes, t)
+            following = _first_to_do(stops, s.visits)
+            if following is not None:
+                s = self._start(s, following, xy, lanes, t)
         return s
 
     def _door_busy(self, place, states: np.ndarray) -> bool:
@@ -461,19 +516,19 @@ class WaypointGenerator(LeafSystem):
             index += 1
         return index
 
-    def _release(self, s: _Drive, xy, queues: QueueState) -> int | None:
+    def _release(self, s: _Drive, robots: _Robots, queues: QueueState) -> int | None:
         for queue in queues.rooms:
             if queue.holder != self._robot:
                 continue
             if s.stop is None:
                 point = self._roadways.place(queue.room).point
-                if s.phase != PARK or _distance(xy, point) > self._params.reach_tolerance:
+                if s.phase != PARK or _distance(robots.xy, point) > self._params.reach_tolerance:
                     return queue.room
                 continue
             point = self._roadways.place(queue.room).point
             if (
                 s.stop.location != queue.room
-                and _distance(xy, point) > self._params.release_distance
+                and _distance(robots.xy, point) > self._params.release_distance
             ):
                 return queue.room
         return None
