@@ -25,6 +25,8 @@ allocation) is timed apart from the simulation of ``--duration`` s. Real-time fa
 simulated time / time spent simulating, for CPU time (``time.process_time``, the main figure
 on a shared machine) and wall-clock time; each figure is the best of ``--repeats`` runs.
 A warm-up run first loads the compiled (numba) kernels from their cache.
+A fixed calibration workload (``calibration``), timed before and after the runs, records how
+fast the shared host ran, so that figures taken at different hours can be compared.
 
 With pyinstrument installed (the ``dev`` extra), the runs with ``--profile-robots`` robots
 go on for ``--profile-duration`` s more under the sampling profiler, and the time is split
@@ -225,6 +227,26 @@ def profile(simulator, until: float) -> dict:
             "top_self": [{"function": k, "share": v / total} for k, v in top]}
 
 
+def calibration() -> float:
+    """CPU ms of a fixed workload of small Python and numpy steps, like the stack's own
+    (best of 5): how fast the shared host runs right now, so that figures taken at
+    different hours can be compared (lower: faster host)."""
+    a = np.arange(8.0)
+
+    def work():
+        total = 0.0
+        for k in range(20000):
+            total += float(np.dot(a, a)) * 1e-9 + k % 7
+        return total
+
+    best = math.inf
+    for _ in range(5):
+        start = time.process_time()
+        work()
+        best = min(best, time.process_time() - start)
+    return best * 1e3
+
+
 def machine() -> dict:
     model = ""
     try:
@@ -267,6 +289,8 @@ def main():
         profiled = set()
 
     rows = []
+    calibration_before = calibration()
+    print(f"host calibration workload: {calibration_before:.1f} ms CPU", flush=True)
     with tempfile.TemporaryDirectory() as folder:
         run(2, "kinematic", 1.0, args.seed, folder)  # warm-up: compiled kernels, imports
         for backend in backends:
@@ -286,8 +310,10 @@ def main():
                       f"RTF cpu {best['rtf_cpu']:6.2f}  wall {best['rtf_wall']:6.2f}  "
                       f"stops {best['stops_completed']}", flush=True)
 
+    calibration_after = calibration()
     print(f"\n{args.duration:.0f} s simulated; real-time factor = simulated / spent "
-          "(CPU; wall in brackets)")
+          "(CPU; wall in brackets); host calibration workload "
+          f"{calibration_before:.1f} ms before, {calibration_after:.1f} ms after")
     print(f"{'backend':<10}{'robots':>7}{'floors':>7}{'people':>7}{'start-up s':>11}"
           f"{'RTF':>9}{'(wall)':>9}{'goal':>7}{'paper':>7}")
     for r in rows:
@@ -301,7 +327,9 @@ def main():
 
     args.out.parent.mkdir(parents=True, exist_ok=True)
     report = {"duration": args.duration, "repeats": args.repeats, "seed": args.seed,
-              "floor_robots": FLOOR_ROBOTS, "machine": machine(), "results": rows}
+              "floor_robots": FLOOR_ROBOTS, "machine": machine(),
+              "calibration_ms": {"before": calibration_before, "after": calibration_after},
+              "results": rows}
     args.out.write_text(json.dumps(report, indent=2) + "\n")
     print(f"wrote {args.out.relative_to(ROOT) if args.out.is_relative_to(ROOT) else args.out}")
 

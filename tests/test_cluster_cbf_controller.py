@@ -258,3 +258,23 @@ def test_head_on_swap_in_the_hospital_east_corridor():
     assert max(_arrival_times(states, goals)) < 34.0
     assert _min_separation(states) >= 2 * RADIUS
     assert _min_wall_distance(states, obstacles) >= RADIUS
+
+
+def test_the_telemetry_port_gives_the_tick_s_telemetry():
+    """The telemetry is kept as numbers in the state; the port turns them back into the very
+    telemetry the tick made, clusters (leader first) included."""
+    n = 5
+    controller = ClusterCbfController([f"robot{i}" for i in range(n)])
+    simulator = Simulator(controller)
+    context = simulator.get_mutable_context()
+    starts = [[0.0, 0.0, 0.0, 0.0], [9.0, 0.0, 0.0, 0.0], [1.0, 0.0, math.pi, 0.0],
+              [9.0, 2.0, 0.0, 0.0], [30.0, 0.0, 0.0, 0.0]]
+    controller.get_input_port(0).FixValue(context, np.ravel(starts))
+    paths = FleetPaths(tuple(RobotPath(f"robot{i}", PATH_OK, frozen_array([s[:2], [s[0], 5.0]]))
+                             for i, s in enumerate(starts)))
+    controller.get_input_port(1).FixValue(context, Value[object](paths))
+    simulator.AdvanceTo(0.01)  # one tick, at t = 0
+    telemetry = controller.GetOutputPort("telemetry").Eval(context)
+    _, expected = controller.control(0.0, starts, paths)
+    assert telemetry.clusters == ((0, 2), (1, 3), (4,))
+    assert telemetry == expected

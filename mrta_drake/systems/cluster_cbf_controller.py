@@ -253,7 +253,7 @@ class ClusterCbfController(LeafSystem):
                 failures += len(members)
         wall, human, robot = plan.min_barriers
         change = u - plan.u_nominal
-        deviation = math.sqrt(float(np.max((change * change).sum(axis=1), initial=0.0)))
+        deviation = math.sqrt((change * change).sum(axis=1).max(initial=0.0))
         telemetry = ControllerTelemetry(
             time=float(time), min_barrier_wall=wall, min_barrier_human=human,
             min_barrier_robot=robot, max_slack=max_slack, control_deviation=deviation,
@@ -420,25 +420,27 @@ def declare_controller_ports(system: LeafSystem, n: int, dt: float, update) -> N
 
 
 def _telemetry_vector(telemetry: ControllerTelemetry, n: int) -> np.ndarray:
-    """Telemetry as numbers: the scalar fields, then per robot its cluster's leader (-1: no
-    clusters) and its rank in the cluster."""
-    leader, rank = np.full(n, -1.0), np.zeros(n)
-    for cluster in telemetry.clusters:
-        for r, i in enumerate(cluster):
-            leader[i], rank[i] = cluster[0], r
-    scalars = [float(getattr(telemetry, name)) for name in _TELEMETRY_FIELDS]
-    return np.concatenate([scalars, leader, rank])
+    """Telemetry as numbers: the scalar fields, then the clusters' members one cluster after
+    the other, then where each cluster ends in that list (both padded with -1 to n)."""
+    k = len(_TELEMETRY_FIELDS)
+    vector = np.full(k + 2 * n, -1.0)
+    vector[:k] = [getattr(telemetry, name) for name in _TELEMETRY_FIELDS]
+    members = [i for cluster in telemetry.clusters for i in cluster]
+    vector[k:k + len(members)] = members
+    vector[k + n:k + n + len(telemetry.clusters)] = np.cumsum(
+        [len(cluster) for cluster in telemetry.clusters])
+    return vector
 
 
 def _telemetry_from_vector(vector, n: int) -> ControllerTelemetry:
     k = len(_TELEMETRY_FIELDS)
-    fields = dict(zip(_TELEMETRY_FIELDS, vector[:k], strict=True))
+    fields = dict(zip(_TELEMETRY_FIELDS, vector[:k].tolist(), strict=True))
     fields["failures"] = int(fields["failures"])
-    leader, rank = vector[k:k + n].astype(int), vector[k + n:]
-    groups: dict[int, list[int]] = {}
-    for i in range(n):
-        if leader[i] >= 0:
-            groups.setdefault(int(leader[i]), []).append(i)
-    clusters = sorted((sorted(members, key=lambda i: rank[i]) for members in groups.values()),
-                      key=min)
-    return ControllerTelemetry(clusters=tuple(tuple(c) for c in clusters), **fields)
+    members = vector[k:k + n].astype(int).tolist()
+    clusters, first = [], 0
+    for end in vector[k + n:].astype(int).tolist():
+        if end < 0:
+            break
+        clusters.append(tuple(members[first:end]))
+        first = end
+    return ControllerTelemetry(clusters=tuple(clusters), **fields)
