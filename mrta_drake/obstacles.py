@@ -17,6 +17,9 @@ import numpy as np
 
 from mrta_drake.occupancy_grid import OccupancyGrid
 
+_RAY_CELL = 1.0  # m, grid cell of the ray casting's box order (``compiled_rays``) ...
+_RAY_TABLE = 2_000_000  # ... unless that order would have more entries than this
+
 
 @dataclass(frozen=True)
 class Box:
@@ -116,8 +119,34 @@ class Obstacles:
         if ang.ndim == 1:
             ang = np.broadcast_to(ang, (len(o), len(ang)))
         hit = np.full(ang.shape, float(max_range))
-        cast_rays_into(o, np.cos(ang), np.sin(ang), *self.compiled, hit)
+        cast_rays_into(o, np.cos(ang), np.sin(ang), *self.compiled_rays, hit)
         return hit
+
+    @cached_property
+    def compiled_rays(self) -> tuple:
+        """The obstacles as ``cast_rays_into`` takes them: ``compiled``, then a grid (1 m
+        cells, larger for very many boxes) over the boxes' bounding circles ([x_min, y_min,
+        cell size, columns, rows]) and, per cell, the box indices nearest first (C, K) with a
+        lower bound on their distance (m) from any point of the cell (C, K)."""
+        centers, reach = self._box_arrays[0], self._box_reach
+        if len(centers):
+            lo = (centers - reach[:, None]).min(axis=0)
+            extent = (centers + reach[:, None]).max(axis=0) - lo
+            # Cells larger than 1 m where the table would pass _RAY_TABLE entries.
+            cell = max(_RAY_CELL, math.sqrt(extent[0] * extent[1] * len(centers) / _RAY_TABLE))
+            cols, rows = np.maximum(np.ceil(extent / cell), 1).astype(int)
+        else:
+            cell = _RAY_CELL
+            lo, cols, rows = np.zeros(2), 0, 0
+        x, y = np.meshgrid(lo[0] + cell * (np.arange(cols) + 0.5),
+                           lo[1] + cell * (np.arange(rows) + 0.5))
+        middles = np.column_stack([x.ravel(), y.ravel()])  # cell c = row * cols + col
+        bound = (np.hypot(*(middles[:, None, :] - centers[None, :, :]).transpose(2, 0, 1))
+                 - reach[None, :] - cell * math.sqrt(0.5))
+        order = np.argsort(bound, axis=1, kind="stable")
+        grid = np.array([lo[0], lo[1], cell, cols, rows], dtype=float)
+        return (*self.compiled, grid, np.ascontiguousarray(order, dtype=np.int64),
+                np.ascontiguousarray(np.take_along_axis(bound, order, axis=1)))
 
     @cached_property
     def _box_reach(self) -> np.ndarray:
@@ -210,26 +239,29 @@ def _closest_points(p, centers, half, cos, sin, cyl_centers, cyl_radii, reach, b
 
 
 @numba.njit(cache=True)
-def cast_rays_into(o, dx, dy, centers, half, cos, sin, cyl_centers, cyl_radii, reach, hit):
+def cast_rays_into(o, dx, dy, centers, half, cos, sin, cyl_centers, cyl_radii, reach, grid,
+                   order, bound, hit):
     """``Obstacles.cast_rays`` from origins ``o`` (n, 2) along unit vectors (``dx``, ``dy``)
-    (n, k), for compiled code (``centers`` ... ``reach``: ``Obstacles.compiled``), into
-    ``hit`` (n, k), which starts at the maximum range: slab
-    test per box in its own frame, quadratic per cylinder. Boxes whose bounding circle (of
-    radius ``reach``) the ray misses, or that cannot be hit nearer than the nearest hit so
-    far, are skipped."""
+    (n, k), for compiled code (``centers`` ... ``bound``: ``Obstacles.compiled_rays``), into
+    ``hit`` (n, k), which starts at the maximum range: slab test per box in its own frame,
+    quadratic per cylinder. A ray looks at the boxes nearest first (by the origin's grid
+    cell) and stops at the first that cannot be hit nearer than its nearest hit so far;
+    boxes whose bounding circle (of radius ``reach``) it misses are skipped."""
     inf = math.inf
-    nearest = np.empty(len(centers))  # no point of box k is nearer the origin
+    cell, cols, rows = grid[2], int(grid[3]), int(grid[4])
+    everything = np.arange(len(centers))
     for i in range(len(o)):
-        for k in range(len(centers)):
-            ddx, ddy = o[i, 0] - centers[k, 0], o[i, 1] - centers[k, 1]
-            nearest[k] = math.sqrt(ddx * ddx + ddy * ddy) - reach[k]
-        # Nearest boxes first: a ray stops looking at the first box beyond its hit so far.
-        by_distance = np.argsort(nearest)
+        col = math.floor((o[i, 0] - grid[0]) / cell)
+        row = math.floor((o[i, 1] - grid[1]) / cell)
+        inside = 0 <= col < cols and 0 <= row < rows
+        # Outside the grid no box is skipped by distance (a bound of -inf).
+        boxes = order[row * cols + col] if inside else everything
         for r in range(hit.shape[1]):
             ux_w, uy_w = dx[i, r], dy[i, r]
-            for k in by_distance:
-                if nearest[k] >= hit[i, r]:
+            for j in range(len(boxes)):
+                if inside and bound[row * cols + col, j] >= hit[i, r]:
                     break
+                k = boxes[j]
                 ddx, ddy = o[i, 0] - centers[k, 0], o[i, 1] - centers[k, 1]
                 # A ray that misses the box's bounding circle misses the box.
                 if (ddx * ux_w + ddy * uy_w > reach[k]

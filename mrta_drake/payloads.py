@@ -242,7 +242,7 @@ class ControllerTelemetry:
     max_slack: float = 0.0
     control_deviation: float = 0.0  # max over robots of |u - u_nominal|
     clusters: tuple[tuple[int, ...], ...] = ()
-    solve_time: float = 0.0  # s of CPU time spent in solvers this tick
+    solve_time: float = 0.0  # s (wall clock) spent in solvers this tick
     failures: int = 0  # solver failures this tick (robots braked)
 
 

@@ -223,14 +223,14 @@ class WallRays:
             return np.zeros(shape + (2,)), np.zeros(shape, dtype=bool)
         hits, mask = np.empty(shape + (2,)), np.empty(shape, dtype=bool)
         _wall_hits(states, self._angles, p.rays_in_body_frame, float(p.ray_range),
-                   self._obstacles.compiled, hits, mask)
+                   self._obstacles.compiled_rays, hits, mask)
         return hits, mask
 
 
 @numba.njit(cache=True)
 def _wall_hits(states, angles, in_body_frame, ray_range, obstacles, hits, mask):
     """``WallRays`` into ``hits`` (N, R, 2) and ``mask`` (N, R) (``obstacles``:
-    ``Obstacles.compiled``)."""
+    ``Obstacles.compiled_rays``)."""
     n, rays = len(states), len(angles)
     dx, dy = np.empty((n, rays)), np.empty((n, rays))
     for i in range(n):
@@ -583,7 +583,8 @@ def _min_squared_distances(p, hits, mask, humans):
 class QpSolution:
     """``u`` (k, 2) inputs ``[a, omega]``; ``slack`` (m,) per safety row (scaled units, m/s^2);
     ``success`` False when the solver failed (``u`` is then meaningless); ``solve_time`` s of
-    CPU time; ``solved`` False when the clipped nominal was already optimal (no solver call)."""
+    wall-clock time (the solver runs on the calling thread); ``solved`` False when the
+    clipped nominal was already optimal (no solver call)."""
 
     u: np.ndarray
     slack: np.ndarray
@@ -643,13 +644,13 @@ class CbfQp:
         G = np.asarray(G, dtype=float)
         b = np.asarray(b, dtype=float)
         k, m = len(u_nom) // 2, len(b)
-        start = time.thread_time()
+        start = time.perf_counter()
         clipped, finite, optimal, kept = _prepare(u_nom, G, b, lo, hi)
         if not finite:
-            return QpSolution(np.zeros((k, 2)), np.zeros(m), False, time.thread_time() - start)
+            return QpSolution(np.zeros((k, 2)), np.zeros(m), False, time.perf_counter() - start)
         if optimal:
             return QpSolution(clipped.reshape(k, 2), np.zeros(m), True,
-                              time.thread_time() - start, solved=False)
+                              time.perf_counter() - start, solved=False)
         size = -(-len(kept) // _PAD) * _PAD
         program = self._programs.get((k, size))
         if program is None:
@@ -659,7 +660,7 @@ class CbfQp:
         program.box_evaluator.set_bounds(lo, hi)
         program.rows_evaluator.UpdateCoefficients(program.A, program.lower, program.upper)
         result = self._solver.Solve(program.prog, None, self._options)
-        elapsed = time.thread_time() - start
+        elapsed = time.perf_counter() - start
         if not result.is_success():
             return QpSolution(np.zeros((k, 2)), np.zeros(m), False, elapsed)
         x = result.GetSolution()
