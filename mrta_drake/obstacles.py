@@ -17,7 +17,7 @@ import numpy as np
 
 from mrta_drake.occupancy_grid import OccupancyGrid
 
-_RAY_CELL = 1.0  # m, grid cell of the ray casting's box order (``compiled_rays``) ...
+_RAY_CELL = 1.0  # m, grid cell of the boxes' nearest-first order (``compiled``) ...
 _RAY_TABLE = 2_000_000  # ... unless that order would have more entries than this
 
 
@@ -98,11 +98,6 @@ class Obstacles:
         p = np.ascontiguousarray(np.atleast_2d(np.asarray(points, dtype=float)))
         return closest_points_of(p, *self.compiled)
 
-    @cached_property
-    def compiled(self) -> tuple:
-        """The obstacles as the arrays compiled code takes (``closest_points_of``)."""
-        return (*self._box_arrays, *self._cylinder_arrays, self._box_reach)
-
     def signed_distance(self, points) -> np.ndarray:
         """Signed distance (m) from each point (n, 2) to the nearest obstacle."""
         return self.closest_points(points)[1]
@@ -119,15 +114,17 @@ class Obstacles:
         if ang.ndim == 1:
             ang = np.broadcast_to(ang, (len(o), len(ang)))
         hit = np.full(ang.shape, float(max_range))
-        cast_rays_into(o, np.cos(ang), np.sin(ang), *self.compiled_rays, hit)
+        cast_rays_into(o, np.cos(ang), np.sin(ang), *self.compiled, hit)
         return hit
 
     @cached_property
-    def compiled_rays(self) -> tuple:
-        """The obstacles as ``cast_rays_into`` takes them: ``compiled``, then a grid (1 m
-        cells, larger for very many boxes) over the boxes' bounding circles ([x_min, y_min,
-        cell size, columns, rows]) and, per cell, the box indices nearest first (C, K) with a
-        lower bound on their distance (m) from any point of the cell (C, K)."""
+    def compiled(self) -> tuple:
+        """The obstacles as the arrays compiled code takes (``closest_points_of``,
+        ``cast_rays_into``): boxes (centres, half sizes, cos and sin of their yaw),
+        cylinders (centres, radii), the boxes' half diagonals, then a grid (1 m cells, larger
+        for very many boxes) over the boxes' bounding circles ([x_min, y_min, cell size,
+        columns, rows]) and, per cell, the box indices nearest first (C, K) with a lower
+        bound on their distance (m) from any point of the cell (C, K)."""
         centers, reach = self._box_arrays[0], self._box_reach
         if len(centers):
             lo = (centers - reach[:, None]).min(axis=0)
@@ -145,7 +142,8 @@ class Obstacles:
                  - reach[None, :] - cell * math.sqrt(0.5))
         order = np.argsort(bound, axis=1, kind="stable")
         grid = np.array([lo[0], lo[1], cell, cols, rows], dtype=float)
-        return (*self.compiled, grid, np.ascontiguousarray(order, dtype=np.int64),
+        return (*self._box_arrays, *self._cylinder_arrays, self._box_reach, grid,
+                np.ascontiguousarray(order, dtype=np.int64),
                 np.ascontiguousarray(np.take_along_axis(bound, order, axis=1)))
 
     @cached_property
@@ -191,25 +189,45 @@ class Obstacles:
 
 
 @numba.njit(cache=True)
-def closest_points_of(p, centers, half, cos, sin, cyl_centers, cyl_radii, reach):
+def closest_points_of(p, centers, half, cos, sin, cyl_centers, cyl_radii, reach, grid, order,
+                      bound):
     """``Obstacles.closest_points`` of points ``p`` (n, 2) for compiled code (the other
     arguments: ``Obstacles.compiled``)."""
     best_q, best_d = p.copy(), np.full(len(p), np.inf)
-    _closest_points(p, centers, half, cos, sin, cyl_centers, cyl_radii, reach, best_q, best_d)
+    _closest_points(p, centers, half, cos, sin, cyl_centers, cyl_radii, reach, grid, order,
+                    bound, best_q, best_d)
     return best_q, best_d
 
 
 @numba.njit(cache=True)
-def _closest_points(p, centers, half, cos, sin, cyl_centers, cyl_radii, reach, best_q, best_d):
+def _box_order(x, y, grid, order, count):
+    """The boxes nearest first from the point (x, y) (``Obstacles.compiled``), and the row of
+    their distance bounds (-1 outside the grid: all boxes in index order, no bounds)."""
+    cell, cols, rows = grid[2], int(grid[3]), int(grid[4])
+    col, row = math.floor((x - grid[0]) / cell), math.floor((y - grid[1]) / cell)
+    if 0 <= col < cols and 0 <= row < rows:
+        return order[row * cols + col], row * cols + col
+    return np.arange(count), -1
+
+
+@numba.njit(cache=True)
+def _closest_points(p, centers, half, cos, sin, cyl_centers, cyl_radii, reach, grid, order,
+                    bound, best_q, best_d):
     """``Obstacles.closest_points`` into ``best_q`` (n, 2) and ``best_d`` (n,), which start
-    as the points and +inf. Boxes that cannot be nearer than the best so far are skipped;
-    ties keep the first obstacle (boxes, then cylinders)."""
+    as the points and +inf. Boxes are looked at nearest first; those that cannot be nearer
+    than the best so far are skipped; ties keep the first obstacle (boxes by index, then
+    cylinders)."""
     for i in range(len(p)):
         px, py = p[i, 0], p[i, 1]
-        for k in range(len(centers)):
+        boxes, cell = _box_order(px, py, grid, order, len(centers))
+        best_k = -1
+        for j in range(len(boxes)):
+            if cell >= 0 and bound[cell, j] > best_d[i]:
+                break
+            k = boxes[j]
             dx, dy = px - centers[k, 0], py - centers[k, 1]
             hx, hy = half[k, 0], half[k, 1]
-            if math.sqrt(dx * dx + dy * dy) - reach[k] >= best_d[i]:
+            if math.sqrt(dx * dx + dy * dy) - reach[k] > best_d[i]:
                 continue
             c, s = cos[k], sin[k]
             lx, ly = c * dx + s * dy, -s * dx + c * dy
@@ -223,8 +241,8 @@ def _closest_points(p, centers, half, cos, sin, cyl_centers, cyl_radii, reach, b
                 sd = -min(gap_x, gap_y)
             else:
                 sd = math.hypot(lx - qx, ly - qy)
-            if sd < best_d[i]:
-                best_d[i] = sd
+            if sd < best_d[i] or (sd == best_d[i] and k < best_k):
+                best_d[i], best_k = sd, k
                 best_q[i, 0] = centers[k, 0] + (c * qx - s * qy)
                 best_q[i, 1] = centers[k, 1] + (s * qx + c * qy)
         for k in range(len(cyl_centers)):
@@ -242,24 +260,18 @@ def _closest_points(p, centers, half, cos, sin, cyl_centers, cyl_radii, reach, b
 def cast_rays_into(o, dx, dy, centers, half, cos, sin, cyl_centers, cyl_radii, reach, grid,
                    order, bound, hit):
     """``Obstacles.cast_rays`` from origins ``o`` (n, 2) along unit vectors (``dx``, ``dy``)
-    (n, k), for compiled code (``centers`` ... ``bound``: ``Obstacles.compiled_rays``), into
+    (n, k), for compiled code (``centers`` ... ``bound``: ``Obstacles.compiled``), into
     ``hit`` (n, k), which starts at the maximum range: slab test per box in its own frame,
     quadratic per cylinder. A ray looks at the boxes nearest first (by the origin's grid
     cell) and stops at the first that cannot be hit nearer than its nearest hit so far;
     boxes whose bounding circle (of radius ``reach``) it misses are skipped."""
     inf = math.inf
-    cell, cols, rows = grid[2], int(grid[3]), int(grid[4])
-    everything = np.arange(len(centers))
     for i in range(len(o)):
-        col = math.floor((o[i, 0] - grid[0]) / cell)
-        row = math.floor((o[i, 1] - grid[1]) / cell)
-        inside = 0 <= col < cols and 0 <= row < rows
-        # Outside the grid no box is skipped by distance (a bound of -inf).
-        boxes = order[row * cols + col] if inside else everything
+        boxes, cell = _box_order(o[i, 0], o[i, 1], grid, order, len(centers))
         for r in range(hit.shape[1]):
             ux_w, uy_w = dx[i, r], dy[i, r]
             for j in range(len(boxes)):
-                if inside and bound[row * cols + col, j] >= hit[i, r]:
+                if cell >= 0 and bound[cell, j] >= hit[i, r]:
                     break
                 k = boxes[j]
                 ddx, ddy = o[i, 0] - centers[k, 0], o[i, 1] - centers[k, 1]

@@ -60,9 +60,29 @@ def test_rays_hit_what_testing_every_box_hits(monkeypatch, table):
     np.testing.assert_allclose(got, _reference_hits(world, origins, angles, 10.0),
                                rtol=0, atol=1e-9)
     if table == 50:
-        assert world.compiled_rays[-3][2] > 1.0  # the cells did grow
+        assert world.compiled[-3][2] > 1.0  # the cells did grow
 
 
 def test_rays_without_boxes_reach_their_range():
     world = Obstacles()
     assert world.cast_rays([[0.0, 0.0]], [0.0, 1.0], 5.0).tolist() == [[5.0, 5.0]]
+
+
+@pytest.mark.parametrize("table", [2_000_000, 50])
+def test_closest_points_are_those_of_testing_every_box(monkeypatch, table):
+    """The nearest-first order finds the nearest obstacle, the first one on ties (a point
+    on the line between two equal boxes)."""
+    monkeypatch.setattr(obstacles_module, "_RAY_TABLE", table)
+    rng = np.random.default_rng(4)
+    world = _random_world(rng, 40)
+    twins = Obstacles((Box("left", (-1.0, 0.0), (1.0, 1.0)), Box("right", (1.0, 0.0), (1.0, 1.0))))
+    points = np.vstack([rng.uniform(-12, 12, (80, 2)), [[40.0, 3.0]]])
+    for obstacles, where in ((world, points), (twins, [[0.0, 0.0], [0.0, 2.0]])):
+        q, d = obstacles.closest_points(where)
+        singles = [Obstacles((box,)).closest_points(where) for box in obstacles.boxes] + [
+            Obstacles((), (c,)).closest_points(where) for c in obstacles.cylinders]
+        distances = np.array([s[1] for s in singles])
+        first = np.argmin(distances, axis=0)  # argmin keeps the first on ties
+        np.testing.assert_array_equal(d, distances[first, np.arange(len(d))])
+        np.testing.assert_array_equal(q, np.array([singles[k][0][i] for i, k in
+                                                   enumerate(first)]))

@@ -223,14 +223,14 @@ class WallRays:
             return np.zeros(shape + (2,)), np.zeros(shape, dtype=bool)
         hits, mask = np.empty(shape + (2,)), np.empty(shape, dtype=bool)
         _wall_hits(states, self._angles, p.rays_in_body_frame, float(p.ray_range),
-                   self._obstacles.compiled_rays, hits, mask)
+                   self._obstacles.compiled, hits, mask)
         return hits, mask
 
 
 @numba.njit(cache=True)
 def _wall_hits(states, angles, in_body_frame, ray_range, obstacles, hits, mask):
     """``WallRays`` into ``hits`` (N, R, 2) and ``mask`` (N, R) (``obstacles``:
-    ``Obstacles.compiled_rays``)."""
+    ``Obstacles.compiled``)."""
     n, rays = len(states), len(angles)
     dx, dy = np.empty((n, rays)), np.empty((n, rays))
     for i in range(n):
