@@ -425,10 +425,12 @@ def _telemetry_vector(telemetry: ControllerTelemetry, n: int) -> np.ndarray:
     k = len(_TELEMETRY_FIELDS)
     vector = np.full(k + 2 * n, -1.0)
     vector[:k] = [getattr(telemetry, name) for name in _TELEMETRY_FIELDS]
-    members = [i for cluster in telemetry.clusters for i in cluster]
+    members, ends = [], []
+    for cluster in telemetry.clusters:
+        members.extend(cluster)
+        ends.append(len(members))
     vector[k:k + len(members)] = members
-    vector[k + n:k + n + len(telemetry.clusters)] = np.cumsum(
-        [len(cluster) for cluster in telemetry.clusters])
+    vector[k + n:k + n + len(ends)] = ends
     return vector
 
 
