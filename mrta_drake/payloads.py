@@ -17,6 +17,7 @@ Arrays inside payloads are read-only numpy arrays; never modify a payload, make 
 """
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -298,12 +299,12 @@ class Disturbances:
     breakdowns: tuple[Breakdown, ...] = ()
     outages: tuple[Outage, ...] = ()
 
-    @property
+    @cached_property
     def broken(self) -> tuple[int, ...]:
         """Indices of the broken-down robots, ascending."""
         return tuple(sorted(b.robot for b in self.breakdowns))
 
-    @property
+    @cached_property
     def cut_off(self) -> tuple[int, ...]:
         """Indices of the robots cut off from messages, ascending."""
         return tuple(sorted(o.robot for o in self.outages))
