@@ -258,3 +258,46 @@ def test_head_on_swap_in_the_hospital_east_corridor():
     assert max(_arrival_times(states, goals)) < 34.0
     assert _min_separation(states) >= 2 * RADIUS
     assert _min_wall_distance(states, obstacles) >= RADIUS
+
+
+def _slowed(params, states, paths):
+    """Per robot, whether one tick's nominal input is the slow-down nominal."""
+    names = [f"r{i}" for i in range(len(states))]
+    fleet = FleetPaths(tuple(RobotPath(name, PATH_OK, frozen_array(points))
+                             for name, points in zip(names, paths, strict=True)))
+    plan = ClusterCbfController(names, params=params).plan(np.asarray(states, float), fleet)
+    assert len(plan.clusters) == 1 and plan.clusters[0][0] == 0  # robot 0 leads
+    return [bool(u[0] <= 0.0 and u[1] == 0.0) for u in plan.u_nominal]
+
+
+def test_only_followers_in_the_way_of_a_robot_ranked_above_get_the_slow_down_nominal():
+    lane = [(0.0, 0.0), (8.0, 0.0)]  # robot 0 (the leader) drives east along y = 0
+    ahead_of_it = [[0.0, 0.0, 0.0, 0.0], [2.5, 0.6, math.pi / 2, 0.0]]
+    beside_it = [[0.0, 0.0, 0.0, 0.0], [2.5, 2.5, 0.0, 0.0]]
+    crossing_it = [[0.0, 0.0, 0.0, 0.0], [0.5, 2.5, -math.pi / 2, 0.0]]
+    on_it = [lane, [(2.5, 0.6), (2.5, 6.0)]]
+    beside = [lane, [(2.5, 2.5), (9.0, 2.5)]]
+    across = [lane, [(0.5, 2.5), (0.5, -4.0)]]  # passes 0.5 m from robot 0
+    default = CbfParams()
+    assert _slowed(default, ahead_of_it, on_it) == [False, True]
+    assert _slowed(default, crossing_it, across) == [False, True]
+    assert _slowed(default, beside_it, beside) == [False, False]
+    # The paper's rule: every follower slows down.
+    assert _slowed(CbfParams(followers="all"), beside_it, beside) == [False, True]
+    with pytest.raises(ValueError, match="followers"):
+        CbfParams(followers="none")
+
+
+def test_a_follower_out_of_the_leaders_way_drives_on():
+    # Two robots on parallel lanes 2.5 m apart are one cluster all the way: under the
+    # paper's rule the follower waits until the leader is 4 m away (and then trails it).
+    starts = [[0.0, 0.0, 0.0], [0.0, 2.5, 0.0]]
+    paths = [[(0.0, 0.0), (8.0, 0.0)], [(0.0, 2.5), (8.0, 2.5)]]
+    goals = [p[-1] for p in paths]
+    times = {}
+    for rule in ("in_the_way", "all"):
+        states, _ = _run(starts, paths, None, 20.0, CbfParams(followers=rule))
+        times[rule] = _arrival_times(states, goals)
+    assert abs(times["in_the_way"][1] - times["in_the_way"][0]) < 0.5
+    assert times["all"][1] - times["all"][0] > 3.0
+

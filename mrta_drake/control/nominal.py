@@ -212,14 +212,7 @@ def _local_goal(x, y, points, lookahead):
     k = len(points)
     if k == 1:
         return points[0, 0], points[0, 1], True, math.hypot(x - points[0, 0], y - points[0, 1])
-    nearest, best, t_nearest = 0, math.inf, 0.0
-    for i in range(k - 1):
-        sx, sy = points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1]
-        length2 = max(sx * sx + sy * sy, 1e-12)
-        t = min(max(((x - points[i, 0]) * sx + (y - points[i, 1]) * sy) / length2, 0.0), 1.0)
-        d2 = (points[i, 0] + t * sx - x) ** 2 + (points[i, 1] + t * sy - y) ** 2
-        if d2 < best:
-            nearest, best, t_nearest = i, d2, t
+    nearest, t_nearest = _projection(x, y, points)
     remaining = 0.0
     for i in range(nearest, k - 1):
         length = math.sqrt(max((points[i + 1, 0] - points[i, 0]) ** 2
@@ -241,6 +234,57 @@ def _local_goal(x, y, points, lookahead):
             if root <= 1.0:
                 return points[i, 0] + root * dx, points[i, 1] + root * dy, False, remaining
     return points[k - 1, 0], points[k - 1, 1], True, remaining
+
+
+@numba.njit(cache=True)
+def _projection(x, y, points):
+    """The segment of the path ``points`` (k, 2), k >= 2, nearest (x, y) and the fraction
+    along it of the nearest point."""
+    nearest, best, t_nearest = 0, math.inf, 0.0
+    for i in range(len(points) - 1):
+        sx, sy = points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1]
+        length2 = max(sx * sx + sy * sy, 1e-12)
+        t = min(max(((x - points[i, 0]) * sx + (y - points[i, 1]) * sy) / length2, 0.0), 1.0)
+        d2 = (points[i, 0] + t * sx - x) ** 2 + (points[i, 1] + t * sy - y) ** 2
+        if d2 < best:
+            nearest, best, t_nearest = i, d2, t
+    return nearest, t_nearest
+
+
+@numba.njit(cache=True)
+def _path_ahead_near(x, y, points, qx, qy, horizon, clearance):
+    """Whether a robot at (x, y) following the path ``points`` (k, 2), k >= 1, comes within
+    ``clearance`` (m) of the point (qx, qy) in its next ``horizon`` m: on the way from
+    (x, y) to its projection onto the path, then along the path."""
+    if len(points) == 1:
+        return _segment_distance(qx, qy, x, y, points[0, 0], points[0, 1]) < clearance
+    nearest, t = _projection(x, y, points)
+    ax = points[nearest, 0] + t * (points[nearest + 1, 0] - points[nearest, 0])
+    ay = points[nearest, 1] + t * (points[nearest + 1, 1] - points[nearest, 1])
+    if _segment_distance(qx, qy, x, y, ax, ay) < clearance:
+        return True
+    left = horizon
+    for i in range(nearest + 1, len(points)):
+        bx, by = points[i, 0], points[i, 1]
+        length = math.hypot(bx - ax, by - ay)
+        if length > left:  # the horizon ends on this segment
+            s = left / length
+            bx, by = ax + s * (bx - ax), ay + s * (by - ay)
+        if _segment_distance(qx, qy, ax, ay, bx, by) < clearance:
+            return True
+        left -= length
+        if left <= 0.0:
+            return False
+        ax, ay = bx, by
+    return False
+
+
+@numba.njit(cache=True)
+def _segment_distance(qx, qy, ax, ay, bx, by):
+    """Distance (m) from (qx, qy) to the segment from (ax, ay) to (bx, by)."""
+    sx, sy = bx - ax, by - ay
+    t = min(max(((qx - ax) * sx + (qy - ay) * sy) / max(sx * sx + sy * sy, 1e-12), 0.0), 1.0)
+    return math.hypot(ax + t * sx - qx, ay + t * sy - qy)
 
 
 @numba.njit(cache=True)
