@@ -73,8 +73,9 @@ class CbfParams(NominalParams):
     ``all`` (the paper): every one. ``in_the_way`` (default): only a member in conflict
     with an active member ranked above it in the cluster order, i.e. within
     ``yield_clearance`` (m) of that member's path ahead (its next ``yield_horizon`` m), or
-    with that member within ``yield_clearance`` of its own path ahead; the others follow
-    their paths (the cluster's joint QP still keeps them all apart). Why: clusters are
+    with that member within ``yield_clearance`` of its own path ahead, unless it drives the
+    same way there (one follows the other); the others follow their paths (the cluster's
+    joint QP still keeps them all apart). Why: clusters are
     transitive, so in a busy corridor one spans many robots for long; with ``all`` a robot
     4 m from a leader, out of everyone's way, stood for 38 s (one of the 20-seed sweep's
     deadlocks)."""
