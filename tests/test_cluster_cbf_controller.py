@@ -278,3 +278,71 @@ def test_the_telemetry_port_gives_the_tick_s_telemetry():
     _, expected = controller.control(0.0, starts, paths)
     assert telemetry.clusters == ((0, 2), (1, 3), (4,))
     assert telemetry == expected
+
+
+def _slowed(params, states, paths):
+    """Per robot, whether one tick's nominal input is the slow-down nominal."""
+    names = [f"r{i}" for i in range(len(states))]
+    fleet = FleetPaths(tuple(RobotPath(name, PATH_OK, frozen_array(points))
+                             for name, points in zip(names, paths, strict=True)))
+    plan = ClusterCbfController(names, params=params).plan(np.asarray(states, float), fleet)
+    assert len(plan.clusters) == 1 and plan.clusters[0][0] == 0  # robot 0 leads
+    return [bool(u[0] <= 0.0 and u[1] == 0.0) for u in plan.u_nominal]
+
+
+def test_only_followers_in_the_way_of_a_robot_ranked_above_get_the_slow_down_nominal():
+    lane = [(0.0, 0.0), (8.0, 0.0)]  # robot 0 (the leader) drives east along y = 0
+    ahead_of_it = [[0.0, 0.0, 0.0, 0.0], [2.5, 0.6, math.pi / 2, 0.0]]
+    beside_it = [[0.0, 0.0, 0.0, 0.0], [2.5, 2.5, 0.0, 0.0]]
+    crossing_it = [[0.0, 0.0, 0.0, 0.0], [0.5, 2.5, -math.pi / 2, 0.0]]
+    on_it = [lane, [(2.5, 0.6), (2.5, 6.0)]]
+    beside = [lane, [(2.5, 2.5), (9.0, 2.5)]]
+    across = [lane, [(0.5, 2.5), (0.5, -4.0)]]  # passes 0.5 m from robot 0
+    default = CbfParams()
+    assert _slowed(default, ahead_of_it, on_it) == [False, True]
+    assert _slowed(default, crossing_it, across) == [False, True]
+    assert _slowed(default, beside_it, beside) == [False, False]
+    # One behind the other on the same way: the barriers keep the gap, nobody waits.
+    behind_it = [[2.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]]
+    ahead_on_it = [[0.0, 0.0, 0.0, 0.0], [2.0, 0.0, 0.0, 0.0]]
+    assert _slowed(default, behind_it, [[(2.0, 0.0), (9.0, 0.0)], lane]) == [False, False]
+    assert _slowed(default, ahead_on_it, [lane, [(2.0, 0.0), (9.0, 0.0)]]) == [False, False]
+    head_on = [[0.0, 0.0, 0.0, 0.0], [2.5, 0.0, math.pi, 0.0]]
+    assert _slowed(default, head_on, [lane, [(2.5, 0.0), (-6.0, 0.0)]]) == [False, True]
+    # The paper's rule: every follower slows down.
+    assert _slowed(CbfParams(followers="all"), beside_it, beside) == [False, True]
+    with pytest.raises(ValueError, match="followers"):
+        CbfParams(followers="none")
+
+
+def test_a_follower_out_of_the_leaders_way_drives_on():
+    # Two robots on parallel lanes 2.5 m apart are one cluster all the way: under the
+    # paper's rule the follower waits until the leader is 4 m away (and then trails it).
+    starts = [[0.0, 0.0, 0.0], [0.0, 2.5, 0.0]]
+    paths = [[(0.0, 0.0), (8.0, 0.0)], [(0.0, 2.5), (8.0, 2.5)]]
+    goals = [p[-1] for p in paths]
+    times = {}
+    for rule in ("in_the_way", "all"):
+        states, _ = _run(starts, paths, None, 20.0, CbfParams(followers=rule))
+        times[rule] = _arrival_times(states, goals)
+    assert abs(times["in_the_way"][1] - times["in_the_way"][0]) < 0.5
+    assert times["all"][1] - times["all"][0] > 3.0
+
+
+def test_a_body_standing_right_of_the_lane_is_passed_on_its_left():
+    # A robot standing 0.4 m right of the lane, 0.43 m from a wall (like one at a queue
+    # slot by the corridor wall): passing it on the right would squeeze between it and the
+    # wall, where there is no room.
+    from mrta_drake.control.nominal import NominalParams, nominal_control
+
+    params = NominalParams()
+    path = RobotPath("r", PATH_OK, frozen_array([(0.0, 0.0), (0.0, 8.0)]))  # north
+    state = [0.0, 0.0, math.pi / 2, 0.75]
+
+    def turn(x, speed):  # the yaw rate with a body at (x, 1.5) moving at speed
+        return nominal_control(state, path, params, bodies=[(x, 1.5, speed)])[1]
+
+    assert turn(0.4, 0.0) > 0.1  # turns left (west), away from the body
+    assert turn(0.1, 0.0) < -0.1  # a body near the lane's middle: passed on the right
+    assert turn(0.4, 0.5) < -0.1  # oncoming traffic: passed on the right
+    assert nominal_control(state, path, params, bodies=[(0.4, 1.5)])[1] < -0.1  # moving

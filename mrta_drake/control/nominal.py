@@ -20,8 +20,11 @@ Beyond the paper:
 - passing (``pass_offset`` > 0): when a body (another robot, a human) stands in the lane to
   the local goal (within ``pass_clearance`` of the line, closer than ``pass_range`` and before
   the path end), the robot heads for the point ``pass_offset`` to the right of the nearest such
-  body. Two unicycles meeting head-on on one line would otherwise stop nose to nose: a standing
-  unicycle cannot steer out of a position barrier.
+  body. Two unicycles meeting head-on on one line would otherwise stop nose to nose: a
+  standing unicycle cannot steer out of a position barrier. But a body at rest (slower than
+  ``ROBOT_STOPPED_SPEED``) more than ``pass_clearance / 2`` right of the lane is passed on
+  its left, where there is more room: e.g. a robot waiting at a queue slot by the wall,
+  beside a lane, is passed on the corridor side, not squeezed past along the wall.
 
 Units: m, rad, s; world frame. Inputs are ``[a, omega]`` (m/s^2, rad/s).
 """
@@ -33,7 +36,7 @@ from functools import cached_property
 import numba
 import numpy as np
 
-from mrta_drake.payloads import PATH_OK, RobotPath
+from mrta_drake.payloads import PATH_OK, ROBOT_STOPPED_SPEED, RobotPath
 
 
 @dataclass(frozen=True)
@@ -84,11 +87,12 @@ def wrap_angle(angle):
 def nominal_control(state, path: RobotPath | None, params: NominalParams, clustered: bool = False,
                     bodies=(), exclude: int = -1) -> np.ndarray:
     """Nominal ``[a, omega]`` of a robot in ``state`` ``[x, y, theta, v]`` following ``path``
-    (slow-down without an ``ok`` path). ``bodies`` (n, 2): positions of other robots and humans,
-    used only for passing; ``bodies[exclude]`` is left out (e.g. the robot itself)."""
+    (slow-down without an ``ok`` path). ``bodies`` (n, 3): positions and speeds (m/s) of
+    other robots and humans, or (n, 2) positions of moving ones, used only for passing;
+    ``bodies[exclude]`` is left out (e.g. the robot itself)."""
     if not has_path(path):
         return slow_down(state[3], params)
-    bodies = np.asarray(bodies, dtype=float).reshape(-1, 2)
+    bodies = _with_speeds(bodies)
     return np.array(_nominal(float(state[0]), float(state[1]), float(state[2]), float(state[3]),
                              path.points, path.stop_at_end, clustered, bodies, exclude,
                              params._gains))
@@ -145,14 +149,22 @@ def _progress(states, points, start, ok, stop_at_end, arrival_radius, distances,
 def nominal_controls(states, paths: PathArrays, params: NominalParams, clustered,
                      bodies) -> np.ndarray:
     """``nominal_control`` (N, 2) of the robots ``states`` (N, 4) on their ``paths``,
-    ``clustered`` (N,) bools, with ``bodies`` (n, 2) whose first N are the robots (each
-    robot leaves itself out), in one compiled call."""
+    ``clustered`` (N,) bools, with ``bodies`` (n, 3) or (n, 2) (as in ``nominal_control``)
+    whose first N are the robots (each robot leaves itself out), in one compiled call."""
     states = np.ascontiguousarray(states, dtype=float).reshape(-1, 4)
     u = np.empty((len(states), 2))
     _nominals(states, paths.points, paths.start, paths.ok, paths.stop_at_end,
-              np.asarray(clustered, dtype=bool), np.ascontiguousarray(bodies, dtype=float),
-              params._gains, u)
+              np.asarray(clustered, dtype=bool), _with_speeds(bodies), params._gains, u)
     return u
+
+
+def _with_speeds(bodies) -> np.ndarray:
+    """``bodies`` as an (n, 3) array ``[x, y, speed]``; (n, 2) positions are moving."""
+    bodies = np.asarray(bodies, dtype=float)
+    if bodies.size == 0 or bodies.shape[-1] == 2:
+        bodies = bodies.reshape(-1, 2)
+        return np.column_stack([bodies, np.full(len(bodies), np.inf)])
+    return np.ascontiguousarray(bodies.reshape(-1, 3))
 
 
 @numba.njit(cache=True)
@@ -212,14 +224,7 @@ def _local_goal(x, y, points, lookahead):
     k = len(points)
     if k == 1:
         return points[0, 0], points[0, 1], True, math.hypot(x - points[0, 0], y - points[0, 1])
-    nearest, best, t_nearest = 0, math.inf, 0.0
-    for i in range(k - 1):
-        sx, sy = points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1]
-        length2 = max(sx * sx + sy * sy, 1e-12)
-        t = min(max(((x - points[i, 0]) * sx + (y - points[i, 1]) * sy) / length2, 0.0), 1.0)
-        d2 = (points[i, 0] + t * sx - x) ** 2 + (points[i, 1] + t * sy - y) ** 2
-        if d2 < best:
-            nearest, best, t_nearest = i, d2, t
+    nearest, t_nearest = _projection(x, y, points)
     remaining = 0.0
     for i in range(nearest, k - 1):
         length = math.sqrt(max((points[i + 1, 0] - points[i, 0]) ** 2
@@ -244,18 +249,86 @@ def _local_goal(x, y, points, lookahead):
 
 
 @numba.njit(cache=True)
+def _projection(x, y, points):
+    """The segment of the path ``points`` (k, 2), k >= 2, nearest (x, y) and the fraction
+    along it of the nearest point."""
+    nearest, best, t_nearest = 0, math.inf, 0.0
+    for i in range(len(points) - 1):
+        sx, sy = points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1]
+        length2 = max(sx * sx + sy * sy, 1e-12)
+        t = min(max(((x - points[i, 0]) * sx + (y - points[i, 1]) * sy) / length2, 0.0), 1.0)
+        d2 = (points[i, 0] + t * sx - x) ** 2 + (points[i, 1] + t * sy - y) ** 2
+        if d2 < best:
+            nearest, best, t_nearest = i, d2, t
+    return nearest, t_nearest
+
+
+@numba.njit(cache=True)
+def _path_ahead_near(x, y, points, qx, qy, horizon, clearance):
+    """Whether a robot at (x, y) following the path ``points`` (k, 2), k >= 1, comes within
+    ``clearance`` (m) of the point (qx, qy) in its next ``horizon`` m: on the way from
+    (x, y) to its projection onto the path, then along the path; and the unit direction it
+    then drives in (zero if it has no length)."""
+    if len(points) == 1:
+        return _near_segment(qx, qy, x, y, points[0, 0], points[0, 1], clearance)
+    nearest, t = _projection(x, y, points)
+    ax = points[nearest, 0] + t * (points[nearest + 1, 0] - points[nearest, 0])
+    ay = points[nearest, 1] + t * (points[nearest + 1, 1] - points[nearest, 1])
+    near, ux, uy = _near_segment(qx, qy, x, y, ax, ay, clearance)
+    left = horizon
+    for i in range(nearest + 1, len(points)):
+        if near or left <= 0.0:
+            break
+        bx, by = points[i, 0], points[i, 1]
+        length = math.hypot(bx - ax, by - ay)
+        if length > left:  # the horizon ends on this segment
+            s = left / length
+            bx, by = ax + s * (bx - ax), ay + s * (by - ay)
+        near, ux, uy = _near_segment(qx, qy, ax, ay, bx, by, clearance)
+        left -= length
+        ax, ay = bx, by
+    return near, ux, uy
+
+
+@numba.njit(cache=True)
+def _near_segment(qx, qy, ax, ay, bx, by, clearance):
+    """Whether (qx, qy) is within ``clearance`` (m) of the segment from (ax, ay) to
+    (bx, by), and the segment's unit direction (zero if it has no length)."""
+    sx, sy = bx - ax, by - ay
+    length = math.hypot(sx, sy)
+    t = min(max(((qx - ax) * sx + (qy - ay) * sy) / max(length * length, 1e-12), 0.0), 1.0)
+    near = math.hypot(ax + t * sx - qx, ay + t * sy - qy) < clearance
+    if length < 1e-9:
+        return near, 0.0, 0.0
+    return near, sx / length, sy / length
+
+
+@numba.njit(cache=True)
+def _travel_direction(x, y, points):
+    """The unit direction (zero if none) a robot at (x, y) drives in along the path
+    ``points`` (k, 2), k >= 1: that of the path where it projects onto it (towards the
+    point of a one-point path)."""
+    if len(points) == 1:
+        return _near_segment(x, y, x, y, points[0, 0], points[0, 1], 0.0)[1:]
+    i, _ = _projection(x, y, points)
+    return _near_segment(x, y, points[i, 0], points[i, 1], points[i + 1, 0], points[i + 1, 1],
+                         0.0)[1:]
+
+
+@numba.njit(cache=True)
 def _passing_goal(x, y, gx, gy, bodies, exclude, reach, gains):
-    """Whether a body (positions (n, 2), but ``exclude``) stands in the lane from (x, y)
-    towards the goal (gx, gy) no farther than ``reach`` (m), and then a point as far as the
-    goal in the direction of the point ``pass_offset`` to the right of the nearest such
-    body."""
+    """Whether a body (``[x, y, speed]`` (n, 3), but ``exclude``) stands in the lane from
+    (x, y) towards the goal (gx, gy) no farther than ``reach`` (m), and then a point as far
+    as the goal in the direction of the point ``pass_offset`` to the right of the nearest
+    such body (to its left if it is at rest more than ``pass_clearance / 2`` right of the
+    lane)."""
     offset = gains[_PASS_OFFSET]
     dist = math.hypot(gx - x, gy - y)
     if offset <= 0.0 or len(bodies) == 0 or dist < 1e-9:
         return False, gx, gy
     ahead_x, ahead_y = (gx - x) / dist, (gy - y) / dist
     limit = min(gains[_PASS_RANGE], reach)
-    nearest, along_min, lateral_min = -1, math.inf, 0.0
+    nearest, along_min, lateral_min, speed = -1, math.inf, 0.0, 0.0
     for j in range(len(bodies)):
         if j == exclude:
             continue
@@ -263,9 +336,11 @@ def _passing_goal(x, y, gx, gy, bodies, exclude, reach, gains):
         along = rx * ahead_x + ry * ahead_y
         lateral = -rx * ahead_y + ry * ahead_x
         if 0.0 < along < limit and abs(lateral) < gains[_PASS_CLEARANCE] and along < along_min:
-            nearest, along_min, lateral_min = j, along, lateral
+            nearest, along_min, lateral_min, speed = j, along, lateral, bodies[j, 2]
     if nearest < 0:
         return False, gx, gy
+    if speed < ROBOT_STOPPED_SPEED and lateral_min < -0.5 * gains[_PASS_CLEARANCE]:
+        offset = -offset
     aim_x = along_min * ahead_x - (lateral_min - offset) * ahead_y
     aim_y = along_min * ahead_y + (lateral_min - offset) * ahead_x
     # As far away as the goal, so that passing changes the heading but not the speed.

@@ -10,6 +10,7 @@ from pydrake.common.value import Value
 from pydrake.systems.framework import LeafSystem
 
 from mrta_drake.control.cbf_qp import (
+    FOLLOWER_RULES,
     CbfParams,
     CbfQp,
     QpProblem,
@@ -32,7 +33,9 @@ from mrta_drake.control.nominal import (
     NominalParams,
     PathArrays,
     _nominals,
+    _path_ahead_near,
     _slow_down,
+    _travel_direction,
 )
 from mrta_drake.disturbances import blockage_obstacles
 from mrta_drake.payloads import (
@@ -155,6 +158,11 @@ class ClusterCbfController(LeafSystem):
         self._paths_seen: tuple[FleetPaths | None, PathArrays | None] = (None, None)
         self._bounds = np.array([params.max_accel, params.max_speed, params.min_speed,
                                  params.max_yaw_rate, self._dt])
+        # Which followers slow down (_plan_inputs): none outside clusters mode, all, or those
+        # in the way; and the clearance and horizon (m) of "in the way".
+        self._follower_rule = (0 if params.coordination != "clusters"
+                               else 1 + FOLLOWER_RULES.index(params.followers))
+        self._yield = np.array([params.yield_clearance, params.yield_horizon])
 
     @property
     def params(self) -> CbfParams:
@@ -190,10 +198,11 @@ class ClusterCbfController(LeafSystem):
         starts = np.empty(n + 1, dtype=np.int64)
         u_nom, lower, upper = np.empty((n, 2)), np.empty((n, 2)), np.empty((n, 2))
         minima = np.empty(3)
-        _plan_inputs(states, np.ascontiguousarray(shared[:, :2]), human_p, path_arrays.points,
-                     path_arrays.start, path_arrays.ok, path_arrays.stop_at_end, keys,
-                     self._priorities, active, stalled, ~alone, slowed,
-                     p.coordination == "clusters", p.cluster_radius ** 2, p._gains,
+        _plan_inputs(states, np.ascontiguousarray(shared, dtype=float), human_p, human_v,
+                     path_arrays.points, path_arrays.start, path_arrays.ok,
+                     path_arrays.stop_at_end, keys, self._priorities, active, stalled, ~alone,
+                     slowed,
+                     self._follower_rule, self._yield, p.cluster_radius ** 2, p._gains,
                      self._bounds, hits, mask, order, labels, starts, u_nom, lower, upper,
                      minima)
         clusters = clusters_of(order, labels)
@@ -295,16 +304,18 @@ def _input_bounds(states, a_max, max_speed, min_speed, max_yaw_rate, dt, lower, 
 
 
 @numba.njit(cache=True)
-def _plan_inputs(states, shared, humans, points, start, ok, stop_at_end, keys, priorities,
-                 active, stalled, reachable, slowed, slow_followers, radius2, gains, bounds,
-                 hits, mask, order, labels, starts, u_nom, lower, upper, minima):
+def _plan_inputs(states, shared, humans, human_v, points, start, ok, stop_at_end, keys,
+                 priorities, active, stalled, reachable, slowed, follower_rule, yield_params,
+                 radius2, gains, bounds, hits, mask, order, labels, starts, u_nom, lower,
+                 upper, minima):
     """The compiled part of ``ClusterCbfController.plan``: cluster ``labels`` and ``order``
     (``clusters.form_clusters``; cluster c is ``order[starts[c]:starts[c + 1]]``), nominal
-    inputs ``u_nom`` (cluster members with the cluster gate, around ``shared`` robot
-    positions and ``humans``; slow-down for the ``slowed`` robots and, with
-    ``slow_followers``, every cluster member but the leader), input bounds
-    (``input_bounds``; ``bounds``: ``_bounds``) and the smallest squared distances to walls,
-    humans and robots (``minima``)."""
+    inputs ``u_nom`` (cluster members with the cluster gate, around the ``shared`` robot
+    states and the ``humans`` at velocities ``human_v``; slow-down for the ``slowed``
+    robots and the followers of ``follower_rule``: 0 none, 1 every cluster member but the
+    leader, 2 those in the way (``_in_the_way``; ``yield_params``: clearance, horizon)),
+    input bounds (``input_bounds``; ``bounds``: ``_bounds``) and the smallest squared
+    distances to walls, humans and robots (``minima``)."""
     n = len(states)
     labels[:] = _labels(states[:, :2].copy(), radius2, reachable)
     order[:] = _cluster_order(labels, active, stalled, keys, priorities)
@@ -317,16 +328,54 @@ def _plan_inputs(states, shared, humans, points, start, ok, stop_at_end, keys, p
     clustered = np.empty(n, dtype=np.bool_)
     for i in range(n):
         clustered[i] = size[labels[i]] > 1
-    bodies = np.concatenate((shared, humans))
+    bodies = np.empty((n + len(humans), 3))  # x, y, speed
+    bodies[:n, :2], bodies[:n, 2] = shared[:, :2], np.abs(shared[:, 3])
+    for q in range(len(humans)):
+        bodies[n + q, 0], bodies[n + q, 1] = humans[q, 0], humans[q, 1]
+        bodies[n + q, 2] = math.hypot(human_v[q, 0], human_v[q, 1])
     _nominals(states, points, start, ok, stop_at_end, clustered, bodies, gains, u_nom)
+    first = 0  # position in order of the current cluster's leader
     for k in range(n):
         i = order[k]
         follower = k > 0 and labels[order[k - 1]] == labels[i]
-        if slowed[i] or (slow_followers and follower):
+        if not follower:
+            first = k
+        if follower and follower_rule == 2:
+            follower = _in_the_way(i, order[first:k], states, points, start, ok, active,
+                                   yield_params[0], yield_params[1])
+        if slowed[i] or (follower_rule > 0 and follower):
             u_nom[i] = _slow_down(states[i, 3], gains[_K_SLOW], gains[_SLOW_ACCEL])
     _input_bounds(states, bounds[0], bounds[1], bounds[2], bounds[3], bounds[4], lower, upper)
     minima[0], minima[1], minima[2] = _min_squared_distances(states[:, :2].copy(), hits, mask,
                                                              humans)
+
+
+@numba.njit(cache=True)
+def _in_the_way(i, above, states, points, start, ok, active, clearance, horizon):
+    """Whether robot i and an active robot j of ``above`` (those ranked above it in its
+    cluster) are in each other's way: either within ``clearance`` (m) of the other's path
+    ahead (its next ``horizon`` m), unless it drives on that way too (within 60 degrees of
+    the other's direction there: one follows the other, and the barriers keep the gap)."""
+    x, y = states[i, 0], states[i, 1]
+    own = points[start[i]:start[i + 1]]
+    ix, iy = _travel_direction(x, y, own) if ok[i] else (0.0, 0.0)
+    for j in above:
+        if not active[j]:
+            continue
+        qx, qy = states[j, 0], states[j, 1]
+        path = points[start[j]:start[j + 1]]
+        near, ux, uy = _path_ahead_near(qx, qy, path, x, y, horizon, clearance)
+        if near and ux * ix + uy * iy < _SAME_WAY:
+            return True
+        if ok[i]:
+            near, ux, uy = _path_ahead_near(x, y, own, qx, qy, horizon, clearance)
+            jx, jy = _travel_direction(qx, qy, path)
+            if near and ux * jx + uy * jy < _SAME_WAY:
+                return True
+    return False
+
+
+_SAME_WAY = 0.5  # cos 60 degrees: two directions this close are the same way (_in_the_way)
 
 
 def predict_states(states, commands, params: NominalParams, dt: float) -> np.ndarray:
