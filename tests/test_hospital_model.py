@@ -101,6 +101,20 @@ def test_location_points_are_clear(plan, navigation):
         assert plan.obstacles.signed_distance(points).min() >= POINT_CLEARANCE, loc.name
 
 
+def test_robots_can_reach_the_points_they_stop_at(plan, navigation):
+    # The controller keeps robot centres its wall safety distance from walls: a point nearer
+    # a wall is out of reach (queue slots once were, by up to 0.18 m: a robot waiting at
+    # one kept turning to the wall and pushing into its barrier).
+    from mrta_drake.control.cbf_qp import CbfParams
+
+    locations, _ = navigation
+    reach = CbfParams().safety_distance_wall
+    for loc in locations:
+        points = np.array([loc.point, *loc.queue, *loc.entry, *loc.parking])
+        clearance = plan.obstacles.signed_distance(points)
+        assert clearance.min() >= reach, (loc.name, points[clearance.argmin()])
+
+
 def test_location_paths_are_clear(plan, navigation):
     locations, roadways = navigation
     for loc in locations:
