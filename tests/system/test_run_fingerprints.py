@@ -1,0 +1,24 @@
+"""Behaviour pinned: 120 s of the two hospital scenarios give the same fingerprint as before
+the package was regrouped. A change meant to alter behaviour updates these, and says so."""
+
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+SCRIPT = pathlib.Path(__file__).with_name("run_fingerprint.py")
+
+FINGERPRINTS = {
+    "hospital_6_robots.yaml": "715239b35061d5536eb87fe49e6f06bca3f6f9f3d2ded5769736e1e433897232",
+    "hospital_disturbances.yaml":
+        "2d477a6306ef475587d256217f4c1a24e3b60d7e1960e8056db539473c76aaaf",
+}
+
+
+@pytest.mark.parametrize("name", sorted(FINGERPRINTS))
+def test_a_120_s_run_keeps_its_fingerprint(name):
+    done = subprocess.run([sys.executable, str(SCRIPT), str(ROOT / "scenarios" / name), "120"],
+                          capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == FINGERPRINTS[name]
