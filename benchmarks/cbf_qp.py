@@ -34,9 +34,9 @@ import numpy as np
 from pydrake.solvers import ClarabelSolver, MathematicalProgram, OsqpSolver
 
 from mrta_drake.control.cbf_qp import CbfParams, CbfQp
-from mrta_drake.obstacles import Box, Obstacles
+from mrta_drake.control.cluster_cbf_controller import ClusterCbfController
 from mrta_drake.payloads import PATH_OK, FleetPaths, RobotPath, frozen_array
-from mrta_drake.systems.cluster_cbf_controller import ClusterCbfController
+from mrta_drake.world.obstacles import Box, Obstacles
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks/results/cbf_qp.json"
@@ -48,7 +48,7 @@ CORRIDOR_X = 5.0  # m, centre line of the hospital's east corridor
 def _obstacles() -> tuple[Obstacles, str]:
     path = ROOT / "models/hospital/floor_plan.yaml"
     if path.is_file():
-        from mrta_drake.floor_plan import load_floor_plan
+        from mrta_drake.world.floor_plan import load_floor_plan
 
         return load_floor_plan(path).obstacles, "hospital floor plan"
     walls = (Box("west", (3.5, -10.0), (0.2, 30.0)), Box("east", (6.5, -10.0), (0.2, 30.0)))

@@ -36,12 +36,12 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
 from mrta_drake import load_scenario, simulate
-from mrta_drake.blocks import replace_block
-from mrta_drake.floor_plan import FloorPlan
-from mrta_drake.obstacles import Box, Obstacles
-from mrta_drake.physics import add_plant_stepping
-from mrta_drake.systems.physics_robots import PhysicsRobotParams, PhysicsRobots
-from mrta_drake.world import Body, PlantPhysics, build_world, load_floor_plan_of
+from mrta_drake.robots.physics_robots import PhysicsRobotParams, PhysicsRobots
+from mrta_drake.robots.plant_stepping import add_plant_stepping
+from mrta_drake.stack.blocks import replace_block
+from mrta_drake.world.floor_plan import FloorPlan
+from mrta_drake.world.obstacles import Box, Obstacles
+from mrta_drake.world.plant import Body, PlantPhysics, build_world, load_floor_plan_of
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks/results/physics_backend.json"

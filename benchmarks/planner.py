@@ -33,9 +33,9 @@ from scipy import ndimage
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from mrta_drake.costmap import INSCRIBED, MAX_NON_OBSTACLE, Costmap  # noqa: E402
-from mrta_drake.grid_planner import GridPlanner  # noqa: E402
-from mrta_drake.occupancy_grid import OccupancyGrid  # noqa: E402
+from mrta_drake.navigation.costmap import INSCRIBED, MAX_NON_OBSTACLE, Costmap  # noqa: E402
+from mrta_drake.navigation.grid_planner import GridPlanner  # noqa: E402
+from mrta_drake.world.occupancy_grid import OccupancyGrid  # noqa: E402
 
 FLOOR_PLAN = ROOT / "models" / "hospital" / "floor_plan.yaml"
 REFERENCE_MAP = ROOT.parent / "shared" / "reference" / "hospital_map" / "hospital_floor1.yaml"
@@ -47,13 +47,13 @@ def load_grid(path: Path) -> OccupancyGrid:
     with open(path) as f:
         is_ros_map = "image" in (yaml.safe_load(f) or {})
     if is_ros_map:
-        from mrta_drake.ros_map import read_ros_map
+        from mrta_drake.world.ros_map import read_ros_map
 
         grid = read_ros_map(path)
         if not math.isclose(grid.resolution, RESOLUTION):
             raise SystemExit(f"{path}: resolution {grid.resolution} m, need {RESOLUTION} m")
         return grid
-    from mrta_drake.floor_plan import load_floor_plan
+    from mrta_drake.world.floor_plan import load_floor_plan
 
     plan = load_floor_plan(path)
     return plan.obstacles.rasterize(plan.bounds, RESOLUTION)

@@ -57,7 +57,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from mrta_drake import load_scenario
-from mrta_drake.diagram import build_diagram
+from mrta_drake.stack.diagram import build_diagram
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks/results/realtime.json"

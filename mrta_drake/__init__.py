@@ -9,23 +9,23 @@ Names are imported on first use, so ``import mrta_drake.errors`` stays light.
 import importlib
 
 _PUBLIC = {
-    "load_scenario": "mrta_drake.scenario",
-    "build_diagram": "mrta_drake.diagram",
-    "add_stack": "mrta_drake.diagram",
-    "simulate": "mrta_drake.simulate",
-    "SimulationResult": "mrta_drake.simulate",
-    "register_block": "mrta_drake.blocks",
+    "load_scenario": "mrta_drake.scenario.loading",
+    "build_diagram": "mrta_drake.stack.diagram",
+    "add_stack": "mrta_drake.stack.diagram",
+    "simulate": "mrta_drake.stack.simulate",
+    "SimulationResult": "mrta_drake.stack.simulate",
+    "register_block": "mrta_drake.stack.blocks",
     "SmtAllocator": "mrta_drake.allocation",
     "GreedyAllocator": "mrta_drake.allocation",
-    "TaskAllocator": "mrta_drake.systems.task_allocator",
-    "FixedSequenceAllocator": "mrta_drake.systems.fixed_sequence_allocator",
-    "WaypointGenerator": "mrta_drake.systems.waypoint_generator",
-    "RoomQueues": "mrta_drake.systems.room_queues",
-    "PlannerService": "mrta_drake.systems.planner_service",
-    "ClusterCbfController": "mrta_drake.systems.cluster_cbf_controller",
-    "GoToGoalController": "mrta_drake.systems.go_to_goal_controller",
-    "UnicycleRobots": "mrta_drake.systems.unicycle_robots",
-    "SocialForceHumans": "mrta_drake.systems.social_force_humans",
+    "TaskAllocator": "mrta_drake.allocation.task_allocator",
+    "FixedSequenceAllocator": "mrta_drake.allocation.fixed_sequence_allocator",
+    "WaypointGenerator": "mrta_drake.navigation.waypoint_generator",
+    "RoomQueues": "mrta_drake.navigation.room_queues",
+    "PlannerService": "mrta_drake.navigation.planner_service",
+    "ClusterCbfController": "mrta_drake.control.cluster_cbf_controller",
+    "GoToGoalController": "mrta_drake.control.go_to_goal_controller",
+    "UnicycleRobots": "mrta_drake.robots.unicycle_robots",
+    "SocialForceHumans": "mrta_drake.humans.social_force_humans",
 }
 
 __all__ = sorted(_PUBLIC)

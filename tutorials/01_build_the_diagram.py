@@ -1,6 +1,6 @@
 """Tutorial 1: build the hospital diagram by hand, run it, and look at its ports.
 
-``mrta_drake.simulate(scenario)`` builds the whole simulation and runs it. Underneath, it is
+``mrta_drake.stack.simulate(scenario)`` builds the whole simulation and runs it. Underneath, it is
 one plain Drake diagram, and this tutorial builds it by hand so that you can add systems of
 your own:
 
@@ -41,7 +41,7 @@ from tutorial_common import open_meshcat, options
 
 from mrta_drake import add_stack, load_scenario
 from mrta_drake.payloads import ROBOT_STATE_SIZE
-from mrta_drake.report import text_table
+from mrta_drake.results.report import text_table
 
 SCENARIO = pathlib.Path(__file__).resolve().parent.parent / "scenarios/hospital_6_robots.yaml"
 

@@ -48,9 +48,9 @@ from mrta_drake.allocation import (
     verify_allocation,
 )
 from mrta_drake.allocation.problem import solve_appending, stream_tasks
-from mrta_drake.blocks import BuildContext, NoParams, replace_block, task_allocator_block
 from mrta_drake.payloads import DROPOFF, PICKUP
-from mrta_drake.report import format_comparison, text_table
+from mrta_drake.results.report import format_comparison, text_table
+from mrta_drake.stack.blocks import BuildContext, NoParams, replace_block, task_allocator_block
 
 SCENARIO = pathlib.Path(__file__).resolve().parent.parent / "scenarios/hospital_6_robots.yaml"
 TASKS = {

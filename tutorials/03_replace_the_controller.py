@@ -42,10 +42,10 @@ import numpy as np
 from tutorial_common import options, run_each
 
 from mrta_drake import GoToGoalController, load_scenario, register_block
-from mrta_drake.blocks import BlockType, replace_block
 from mrta_drake.control import CbfParams, slow_down
 from mrta_drake.payloads import ROBOT_STATE_SIZE, HumanStates
-from mrta_drake.report import format_runs
+from mrta_drake.results.report import format_runs
+from mrta_drake.stack.blocks import BlockType, replace_block
 
 SCENARIO = pathlib.Path(__file__).resolve().parent.parent / "scenarios/hospital_6_robots.yaml"
 STOP_DISTANCE = 1.0  # m, centre to centre

@@ -38,9 +38,9 @@ import numpy as np
 from tutorial_common import options, run_each
 
 from mrta_drake import load_scenario
-from mrta_drake.blocks import replace_block
 from mrta_drake.control import register_leader_rule
-from mrta_drake.report import format_runs, text_table
+from mrta_drake.results.report import format_runs, text_table
+from mrta_drake.stack.blocks import replace_block
 
 SCENARIO = (pathlib.Path(__file__).resolve().parent.parent
             / "scenarios/hospital_routes_6_robots.yaml")

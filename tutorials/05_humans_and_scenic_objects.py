@@ -15,7 +15,7 @@ Three sections of a scenario make the world busy:
   values. Its objects join the floor plan's obstacles, the one obstacle source, so the
   physics, the planner's costmap, the controller's wall rays, the people and Meshcat all see
   them. By default a program's objects must stay off the robots' lanes and queues (the
-  ``beside_lanes`` region of ``mrta_drake/scenic_model.scenic``); Scenic redraws the scene
+  ``beside_lanes`` region of ``mrta_drake/world/scenic_model.scenic``); Scenic redraws the scene
   until no object breaks a rule. One seed gives one scene; another seed, another scene.
 - ``disturbances.blockages``: a box closed for a time window (``start`` to ``end``, s). While
   it is closed it is lethal in the planner's costmap, the roadway lanes through it are shut
@@ -33,7 +33,7 @@ seed's scene and of the next seed's, the people, the blockage's effect (which ro
 re-routed or left waiting, from the ``disturbances`` section of the summary), and the three
 runs side by side: clearances to people, walls and objects (``min robot-wall`` counts
 objects too), how far and how long the robots drove, and the people's own figures
-(``mrta_drake/human_metrics.py``: closest approach, time a robot spent in someone's
+(``mrta_drake/results/human_metrics.py``: closest approach, time a robot spent in someone's
 personal space, encounters, detours).
 
 Run (``--meshcat`` shows the runs live, one after the other)::
@@ -47,9 +47,9 @@ import pathlib
 from tutorial_common import options, run_each
 
 from mrta_drake import load_scenario
-from mrta_drake.blocks import BuildContext
-from mrta_drake.report import format_runs, text_table
-from mrta_drake.world import load_floor_plan_of
+from mrta_drake.results.report import format_runs, text_table
+from mrta_drake.stack.blocks import BuildContext
+from mrta_drake.world.plant import load_floor_plan_of
 
 HERE = pathlib.Path(__file__).resolve().parent
 SCENARIO = HERE.parent / "scenarios/hospital_routes_6_robots.yaml"

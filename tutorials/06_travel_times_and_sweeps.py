@@ -20,7 +20,7 @@ drove every leg with the scenario's own blocks).
    written to ``DIR/travel_times.yaml`` with ``write_travel_times``; a scenario uses such a
    file through ``tasks.travel_times``.
 2. Sweep the speed the estimate assumes, with the measured file switched off
-   (``tasks.travel_times: ""``). A sweep spec (``mrta_drake/sweep.py``, written to
+   (``tasks.travel_times: ""``). A sweep spec (``mrta_drake/tools/sweep.py``, written to
    ``DIR/sweep.yaml``) names a base scenario and a ``grid`` of dotted scenario fields, one
    run per combination, each in its own process (``--workers``), resumable: a run whose
    ``summary.json`` exists is not run again. The run's duration is a one-value grid entry so
@@ -57,11 +57,11 @@ from matplotlib.figure import Figure
 from tutorial_common import open_meshcat, options
 
 from mrta_drake import load_scenario, simulate
-from mrta_drake.blocks import BuildContext
-from mrta_drake.report import text_table
-from mrta_drake.sweep import format_table, load_sweep, run_sweep, sweep_scenario
-from mrta_drake.travel_time_collection import collect_travel_times
-from mrta_drake.travel_times import write_travel_times
+from mrta_drake.results.report import text_table
+from mrta_drake.scenario.travel_times import write_travel_times
+from mrta_drake.stack.blocks import BuildContext
+from mrta_drake.tools.sweep import format_table, load_sweep, run_sweep, sweep_scenario
+from mrta_drake.tools.travel_time_collection import collect_travel_times
 
 SCENARIO = pathlib.Path(__file__).resolve().parent.parent / "scenarios/hospital_6_robots.yaml"
 SPEED = "tasks.estimate_speed"

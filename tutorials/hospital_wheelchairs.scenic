@@ -7,7 +7,7 @@ Every object must lie off the lanes (``beside_lanes``, the default region of a
 ``HospitalObject``) and overlap nothing: Scenic redraws the scene until that holds.
 """
 
-model mrta_drake.scenic_model
+model mrta_drake.world.scenic_model
 
 
 class Wheelchair(HospitalObject):

@@ -1,4 +1,5 @@
-"""Task allocation: the SMrTa problem, the SMT and greedy allocators, and a checker."""
+"""Task allocation: the SMrTa problem, the SMT and greedy allocators, a checker, and the allocator
+blocks (``TaskAllocator``, ``FixedSequenceAllocator``)."""
 
 from mrta_drake.allocation.greedy_allocator import GreedyAllocator, GreedyAllocatorParams
 from mrta_drake.allocation.problem import (

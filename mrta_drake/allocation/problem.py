@@ -382,7 +382,7 @@ def stream_tasks(stream: Sequence) -> tuple[tuple[Task, ...], ...]:
 
     A batch is anything with ``arrival`` (s) and ``tasks``, each task with ``pickup`` and
     ``dropoff`` (location ids) and ``deadline`` (absolute, s), e.g.
-    ``mrta_drake.scenario_schema.TaskBatch``."""
+    ``mrta_drake.scenario.schema.TaskBatch``."""
     batches, next_id = [], 0
     for batch in stream:
         tasks = []

@@ -1,7 +1,7 @@
 """Control of dynamic unicycles: nominal path following (``nominal``), robot clusters and
 their leaders (``clusters``), and second-order CBF safety filters solved as QPs (``cbf_qp``).
-Plain numpy/Drake-solver code without the systems framework; the controller blocks in
-``mrta_drake.systems`` call it every tick."""
+The controller blocks beside them (``ClusterCbfController``, ``GoToGoalController``) call it
+every tick."""
 
 from mrta_drake.control.cbf_qp import CbfParams, CbfQp, QpSolution, WallRays, safety_rows
 from mrta_drake.control.clusters import (

@@ -49,7 +49,7 @@ import numpy as np
 from pydrake.solvers import ClarabelSolver, MathematicalProgram, OsqpSolver, SolverOptions
 
 from mrta_drake.control.nominal import NominalParams, wrap_angle
-from mrta_drake.obstacles import cast_rays_into
+from mrta_drake.world.obstacles import cast_rays_into
 
 SOLVERS = ("clarabel", "osqp")
 COORDINATION_MODES = ("clusters", "decentralized", "centralized")

@@ -7,7 +7,7 @@ The corridor runs between x 3.6 and 6.4 there. The bed (2.1 m long, facing east)
 are allowed on the lanes (``regionContainedIn workspace``).
 """
 
-model mrta_drake.scenic_model
+model mrta_drake.world.scenic_model
 
 y = Range(-19.0, -17.5)
 new Bed at (4.7, y), facing -90 deg, with regionContainedIn workspace

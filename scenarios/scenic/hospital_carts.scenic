@@ -8,7 +8,7 @@ the whole scene when any object is misplaced, so raise the counts gradually: abo
 the defaults runs out of tries.
 """
 
-model mrta_drake.scenic_model
+model mrta_drake.world.scenic_model
 
 param carts = 3  # parked against the east corridor's outer wall
 param shelves = 2  # against the spine blocks' walls in the west corridor

@@ -1,0 +1,526 @@
+"""All humans of a run in one discrete system: the Helbing-Molnar social force model."""
+
+import math
+from collections.abc import Sequence
+
+import numba
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import BasicVector, LeafSystem
+
+from mrta_drake.humans.people import Person
+from mrta_drake.payloads import (
+    PLANAR_POSITION_SIZE,
+    ROBOT_STATE_SIZE,
+    HumanStates,
+    frozen_array,
+)
+from mrta_drake.scenario.schema import HumansConfig
+from mrta_drake.world.obstacles import Obstacles, closest_points_of
+
+ELLIPSE_TIME = 2.0  # s: the elliptical potential stretches along the other's next 2 s of walk
+FIELD_OF_VIEW = np.deg2rad(100.0)  # half angle of the field of view
+OUT_OF_VIEW_WEIGHT = 0.5  # weight of repulsion from someone behind (c in Helbing-Molnar)
+KEEP_RIGHT = 1.0  # sidestep to the right per unit of repulsion against the walking direction
+GRADIENT_CAP = 2.0  # cap on |grad b|, which diverges on the ellipse's degenerate axis
+STOPPED_SPEED = 0.05  # m/s: below it the heading is held
+ENTRY_GAP = 0.1  # m: surface gap to everyone else a waiting person needs to enter
+ROBOT_STANDOFF = 0.05  # m: a person's own step never takes it closer to a robot's surface
+PROJECTION_ITERATIONS = 3
+TAKEN_REACH = 1.0  # m: a target covered by someone else's body counts as reached this close
+PARKING_GAP = 1.0  # m: distance of the parking row from the world's bounds
+
+
+class SocialForceHumans(LeafSystem):
+    """Moves M people with the social force model at a fixed rate (20 Hz by default).
+
+    Each update (period ``1/rate`` s, first at t = 0), for every person present:
+
+    1. Waypoint: within ``waypoint_tolerance`` of its target (or within ``TAKEN_REACH`` of a
+       target covered by a robot's or another person's body), the person targets the next
+       waypoint of its loop (wrapping around).
+    2. Acceleration, m/s^2: relaxation to the desired velocity (``desired_speed`` toward the
+       target) with ``relaxation_time``; repulsion from other people and from robots (robots
+       count as pedestrians, moving with ``v (cos theta, sin theta)``) with the elliptical
+       potential ``V0 exp(-b'/sigma)``, ``V0 = repulsion_strength``, ``sigma =
+       repulsion_range``, ``b'`` the ellipse's semi-minor axis minus both body radii (so
+       bodies, not centres, keep apart), stretched along the other's next ``ELLIPSE_TIME`` s
+       of motion and weighted ``OUT_OF_VIEW_WEIGHT`` when the other is outside the
+       ``FIELD_OF_VIEW``; repulsion from the nearest obstacle
+       ``U0 exp(-d/R)`` (``U0 = wall_strength``, ``R = wall_range``, ``d`` the centre's
+       distance to the obstacle) from ``Obstacles.closest_points``.
+       A person's sidestep to the right, ``KEEP_RIGHT`` times the repulsion opposing its
+       walking direction, breaks the symmetry of head-on encounters (which would deadlock);
+       ``|grad b|`` is capped at ``GRADIENT_CAP`` where the ellipse degenerates.
+    3. Semi-implicit Euler step, speed capped at ``max_speed``.
+    4. Hard constraints on the step: overlapping people are pushed apart; nobody steps
+       closer to a robot's surface than min(``ROBOT_STANDOFF``, the gap before the step), so
+       only a robot's own motion causes contact (robots are never pushed, and the people are
+       not shoved out of a robot that drove into them: contacts stay visible to the
+       metrics); everyone is pushed out to clearance ``radius`` from obstacles, and a step
+       that would still lose clearance below ``radius`` (or break a robot gap) is cancelled
+       and the person stops, so nobody ever enters a wall.
+
+    A person with ``entry_time`` > 0 waits until that time and until nobody is within
+    ``ENTRY_GAP`` of its start. The number of people never changes: a waiting person is
+    reported (and posed) at its parking spot outside the world, standing still, where it
+    interacts with nobody; the ``active`` port tells who is present.
+
+    Discrete state, one group of ``7M`` (world frame, m, m/s, rad): positions ``2M``,
+    velocities ``2M``, target waypoint indices ``M``, headings ``M`` (from the velocity, held
+    while slower than ``STOPPED_SPEED``), presence flags ``M`` (1 present, 0 waiting).
+
+    Input ports:
+        robot_state: vector ``4N``, ``[x, y, theta, v]`` per robot; unconnected = no robots.
+    Output ports:
+        human_states: abstract ``HumanStates`` of all M people, in people order.
+        plant_positions: vector ``3M``, ``[x, y, heading]`` per person. Parking spots form a
+            row running west from ``parking`` (default: 1 m south-west of the obstacles' and
+            people's bounds), 3 radii apart.
+        active: vector ``M``, 1.0 for a person present, 0.0 for one still waiting.
+    """
+
+    def __init__(
+        self,
+        people: Sequence[Person],
+        params: HumansConfig,
+        obstacles: Obstacles,
+        num_robots: int = 0,
+        robot_radii: Sequence[float] = (),
+        rate: float = 20.0,
+        parking: tuple[float, float] | None = None,
+    ):
+        super().__init__()
+        self._people = tuple(people)
+        self._params = params
+        self._obstacles = obstacles
+        self._num_robots = int(num_robots)
+        self._robot_radii = np.asarray(robot_radii, dtype=float).reshape(-1)
+        if len(self._robot_radii) != self._num_robots:
+            raise ValueError(f"robot_radii has {len(self._robot_radii)} entries, "
+                             f"expected num_robots = {self._num_robots}")
+        if not rate > 0:
+            raise ValueError(f"rate must be > 0, got {rate}")
+        self._dt = 1.0 / rate
+        m = len(self._people)
+        if any(not p.waypoints for p in self._people):
+            raise ValueError("every person needs at least one waypoint")
+
+        self._names = tuple(p.name for p in self._people)
+        self._radii = np.full(m, float(params.radius))
+        self._frozen_radii = frozen_array(self._radii)
+        self._speeds = np.array([p.desired_speed for p in self._people], dtype=float)
+        self._entry = np.array([p.entry_time for p in self._people], dtype=float)
+        self._starts = np.array([p.start for p in self._people], dtype=float).reshape(m, 2)
+        self._counts = np.array([len(p.waypoints) for p in self._people], dtype=int)
+        self._waypoints = np.zeros((m, max(self._counts, default=1), 2))
+        for i, p in enumerate(self._people):
+            self._waypoints[i, : len(p.waypoints)] = p.waypoints
+        self._parking = self._parking_spots(parking)
+        self._constants = np.array([self._dt, params.waypoint_tolerance, params.relaxation_time,
+                                    params.repulsion_strength, params.repulsion_range,
+                                    params.wall_strength, params.wall_range, params.max_speed],
+                                   dtype=float)
+
+        first = self._waypoints[:, 0] - self._starts
+        present = self._entry <= 0.0
+        # One group: an update reads and writes it once (five groups cost more than the step).
+        self.DeclareDiscreteState(np.concatenate([
+            self._starts.reshape(-1), np.zeros(3 * m), np.arctan2(first[:, 1], first[:, 0]),
+            present.astype(float)]))
+        self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
+        self._no_robots = (np.zeros((0, ROBOT_STATE_SIZE)), np.zeros(0), np.zeros(0),
+                           np.zeros(0))
+
+        self._robot_state = self.DeclareVectorInputPort(
+            "robot_state", ROBOT_STATE_SIZE * self._num_robots)
+        state = {self.xd_ticket()}
+        self.DeclareAbstractOutputPort(
+            "human_states", lambda: AbstractValue.Make(HumanStates()), self._calc_human_states,
+            prerequisites_of_calc=state)
+        self.DeclareVectorOutputPort(
+            "plant_positions", BasicVector(PLANAR_POSITION_SIZE * m),
+            self._calc_plant_positions, prerequisites_of_calc=state)
+        self.DeclareVectorOutputPort(
+            "active", BasicVector(m), self._calc_active, prerequisites_of_calc=state)
+
+    @property
+    def people(self) -> tuple[Person, ...]:
+        return self._people
+
+    @property
+    def human_names(self) -> tuple[str, ...]:
+        return self._names
+
+    @property
+    def human_radii(self) -> np.ndarray:
+        """(M,) body radii, m."""
+        return self._radii.copy()
+
+    def _parking_spots(self, parking) -> np.ndarray:
+        """(M, 2) places for waiting people: a row running west from ``parking``."""
+        if parking is None:
+            xy = [p.start for p in self._people] + [w for p in self._people for w in p.waypoints]
+            if len(self._obstacles):
+                x0, _, y0, _ = self._obstacles.bounds()
+                xy.append((x0, y0))
+            corner = np.min(xy, axis=0) if xy else np.zeros(2)
+            parking = corner - PARKING_GAP
+        spots = np.zeros((len(self._people), 2))
+        spots[:, 0] = parking[0] - 3.0 * self._radii * np.arange(len(self._people))
+        spots[:, 1] = parking[1]
+        return spots
+
+    # --- outputs -----------------------------------------------------------------------------
+
+    def _state(self, context) -> np.ndarray:
+        """The state (7M,), laid out as in the class docstring (a read-only view)."""
+        return context.get_discrete_state_vector().value()
+
+    def _calc_human_states(self, context, output):
+        p, v = _placed(self._state(context), self._parking)
+        p.flags.writeable = v.flags.writeable = False  # new arrays: frozen without a copy
+        output.set_value(HumanStates(names=self._names, positions=p, velocities=v,
+                                     radii=self._frozen_radii))
+
+    def _calc_plant_positions(self, context, output):
+        x, m = self._state(context), len(self._names)
+        output.SetFromVector(np.column_stack([_placed(x, self._parking)[0],
+                                              x[5 * m: 6 * m]]).reshape(-1))
+
+    def _calc_active(self, context, output):
+        output.SetFromVector((self._state(context)[6 * len(self._names):] > 0.5).astype(float))
+
+    # --- update ------------------------------------------------------------------------------
+
+    def _robots(self, context):
+        """Robot states (N, 4), cosines and sines of their headings (N,), radii (N,); empty
+        when unconnected."""
+        if self._num_robots == 0 or not self._robot_state.HasValue(context):
+            return self._no_robots
+        x = self._robot_state.Eval(context).reshape(self._num_robots, ROBOT_STATE_SIZE)
+        return x, np.cos(x[:, 2]), np.sin(x[:, 2]), self._robot_radii
+
+    def _update(self, context, discrete_state):
+        _update_people(context.get_discrete_state_vector().value(),
+                       discrete_state.get_mutable_value(), context.get_time(),
+                       *self._robots(context), self._radii, self._speeds, self._counts,
+                       self._waypoints, self._entry, self._starts, self._obstacles.compiled,
+                       self._constants)
+
+
+@numba.njit(cache=True)
+def _placed(x, parking):
+    """New arrays from the state ``x``: positions (M, 2), with waiting people at their
+    ``parking`` spots (M, 2), and velocities (M, 2), zero for waiting people."""
+    m = len(parking)
+    p, v = np.empty((m, 2)), np.zeros((m, 2))
+    for i in range(m):
+        present = x[6 * m + i] > 0.5
+        for c in range(2):
+            p[i, c] = x[2 * i + c] if present else parking[i, c]
+            if present:
+                v[i, c] = x[2 * m + 2 * i + c]
+    return p, v
+
+
+# The update, compiled: indices of ``SocialForceHumans._constants``.
+_DT, _TOLERANCE, _RELAXATION, _STRENGTH, _RANGE, _WALL_STRENGTH, _WALL_RANGE, _MAX_SPEED = \
+    range(8)
+
+
+@numba.njit(cache=True)
+def _update_people(x, out, time, robots, cos, sin, robot_r, radii, speeds, counts, waypoints,
+                   entry, starts, obstacles, constants):
+    """One update of the state ``x`` (layout of the class docstring) into ``out``: entries
+    (``_enter``), then steps 1-4 for the people present (``_step_people``); ``robots``
+    (N, 4) robot states, ``cos`` and ``sin`` (N,) of their headings (numpy's, so that the
+    result does not depend on the compiled math library)."""
+    m = len(radii)
+    robot_p, robot_v = robots[:, :2], np.empty((len(robots), 2))
+    for j in range(len(robots)):
+        robot_v[j, 0], robot_v[j, 1] = robots[j, 3] * cos[j], robots[j, 3] * sin[j]
+    out[:] = x
+    p, v, heading = out[: 2 * m].reshape((m, 2)), out[2 * m: 4 * m].reshape((m, 2)), \
+        out[5 * m: 6 * m]
+    targets, present = np.empty(m, dtype=np.int64), np.empty(m, dtype=np.bool_)
+    for i in range(m):
+        targets[i], present[i] = int(x[4 * m + i]), x[6 * m + i] > 0.5
+    _enter(time, p, v, present, robot_p, robot_r, radii, entry, starts)
+    _step_people(p, v, heading, targets, np.flatnonzero(present), robot_p, robot_v, robot_r,
+                 radii, speeds, counts, waypoints, obstacles, constants)
+    for i in range(m):
+        out[4 * m + i], out[6 * m + i] = targets[i], 1.0 if present[i] else 0.0
+
+
+@numba.njit(cache=True)
+def _enter(time, p, v, present, robot_p, robot_r, radii, entry, starts):
+    """Lets waiting people whose ``entry`` time has come enter, in people order, when their
+    start is at least ``ENTRY_GAP`` (surface to surface) from everyone present and from the
+    robots (modifies ``p``, ``v`` and ``present``)."""
+    m = len(radii)
+    for i in range(m):
+        if present[i] or not entry[i] <= time + 1e-9:
+            continue
+        clear = True
+        for j in range(m + len(robot_p)):
+            if j < m:
+                if not present[j]:
+                    continue
+                x, y, reach = p[j, 0], p[j, 1], radii[j]
+            else:
+                x, y, reach = robot_p[j - m, 0], robot_p[j - m, 1], robot_r[j - m]
+            dx, dy = x - starts[i, 0], y - starts[i, 1]
+            if not math.sqrt(dx * dx + dy * dy) - reach - radii[i] >= ENTRY_GAP:
+                clear = False
+                break
+        if clear:
+            present[i] = True
+            p[i], v[i] = starts[i], 0.0
+
+
+@numba.njit(cache=True)
+def _step_people(p, v, heading, targets, a, robot_p, robot_v, robot_r, radii_all, speeds,
+                 counts, waypoints, obstacles, constants):
+    """Steps 1-4 of the class docstring for the people present (indices ``a``), in place on
+    positions ``p`` (M, 2), velocities ``v`` (M, 2), ``heading`` (M,) and ``targets`` (M,);
+    robots at ``robot_p`` (N, 2) moving at ``robot_v`` (N, 2); ``obstacles``:
+    ``Obstacles.compiled``."""
+    dt, tolerance = constants[_DT], constants[_TOLERANCE]
+    k = len(a)
+    pa, va, radii, goal = np.empty((k, 2)), np.empty((k, 2)), radii_all[a], np.empty((k, 2))
+    for j in range(k):
+        i = a[j]
+        for c in range(2):
+            pa[j, c], va[j, c], goal[j, c] = p[i, c], v[i, c], waypoints[i, targets[i], c]
+    reached = _taken(goal, pa, radii, robot_p, robot_r)
+    direction, accel = np.zeros((k, 2)), np.empty((k, 2))
+    for j in range(k):
+        i = a[j]
+        gx, gy = goal[j, 0] - pa[j, 0], goal[j, 1] - pa[j, 1]
+        if reached[j] or math.sqrt(gx * gx + gy * gy) < tolerance:
+            targets[i] = (targets[i] + 1) % counts[i]
+        tx, ty = waypoints[i, targets[i], 0] - pa[j, 0], waypoints[i, targets[i], 1] - pa[j, 1]
+        distance = math.sqrt(tx * tx + ty * ty)
+        if distance > 1e-9 and not (counts[i] == 1 and distance < tolerance):
+            direction[j, 0], direction[j, 1] = tx / distance, ty / distance
+        for c in range(2):
+            accel[j, c] = (speeds[i] * direction[j, c] - va[j, c]) / constants[_RELAXATION]
+    force = np.zeros((k, 2))
+    _add_repulsion(pa, direction, radii, pa, va, radii, True, constants[_STRENGTH],
+                   constants[_RANGE], force)
+    accel += force
+    force = np.zeros((k, 2))
+    _add_repulsion(pa, direction, radii, robot_p, robot_v, robot_r, False, constants[_STRENGTH],
+                   constants[_RANGE], force)
+    accel += force
+    closest, clearance = closest_points_of(pa, *obstacles)
+    outward = _outward(pa, closest, clearance)
+    for j in range(k):
+        wall = constants[_WALL_STRENGTH] / constants[_WALL_RANGE] * np.exp(
+            -max(clearance[j], 0.0) / constants[_WALL_RANGE])
+        accel[j, 0] += wall * outward[j, 0]
+        accel[j, 1] += wall * outward[j, 1]
+
+    va_new = _cap_speed(va + dt * accel, constants[_MAX_SPEED])
+    free_step = pa + dt * va_new
+    pa_new, blocked = _project(free_step, pa, closest, clearance, radii, robot_p, robot_r,
+                               obstacles)
+    va_new = _cap_speed(va_new + (pa_new - free_step) / dt, constants[_MAX_SPEED])
+    for j in range(k):
+        i = a[j]
+        if blocked[j]:
+            va_new[j] = 0.0
+        p[i], v[i] = pa_new[j], va_new[j]
+        if math.sqrt(va_new[j, 0] ** 2 + va_new[j, 1] ** 2) > STOPPED_SPEED:
+            heading[i] = np.arctan2(va_new[j, 1], va_new[j, 0])
+
+
+@numba.njit(cache=True)
+def _project(new, old, old_closest, old_clearance, radii, robot_p, robot_r, obstacles):
+    """Hard constraints on the step ``old`` -> ``new`` (positions (a, 2); ``old_closest``
+    and ``old_clearance``: ``closest_points_of`` at ``old``): overlapping people are
+    pushed apart; nobody steps closer to a robot (surface to surface) than
+    min(``ROBOT_STANDOFF``, its gap before the step), so only a robot's own motion can
+    cause contact; everyone ends at clearance >= radius from obstacles. Returns the new
+    positions and the mask of people blocked, who would still break a robot floor or lose
+    clearance below min(radius, old clearance), and so stay at ``old``."""
+    new = new.copy()
+    floor = np.minimum(ROBOT_STANDOFF, _gaps(old, radii, robot_p, robot_r))
+    depth = np.zeros(len(new))
+    known, closest, clearance = old.copy(), old_closest.copy(), old_clearance.copy()
+    for _ in range(PROJECTION_ITERATIONS):
+        shift = _apart(new, radii) + _away(new, radii, robot_p, robot_r, floor)
+        new += shift
+        _refresh_closest(new, known, closest, clearance, obstacles)
+        depth = np.maximum(radii - clearance, 0.0)
+        outward = _outward(new, closest, clearance)
+        for i in range(len(new)):
+            new[i, 0] += depth[i] * outward[i, 0]
+            new[i, 1] += depth[i] * outward[i, 1]
+        if not shift.any() and not depth.any():
+            break
+    if depth.any():
+        _refresh_closest(new, known, closest, clearance, obstacles)
+    blocked = clearance < np.minimum(radii, old_clearance) - 1e-9
+    gaps = _gaps(new, radii, robot_p, robot_r)
+    for i in range(len(new)):
+        for j in range(len(robot_p)):
+            if gaps[i, j] < floor[i, j] - 1e-9:
+                blocked[i] = True
+        if blocked[i]:
+            new[i] = old[i]
+    return new, blocked
+
+
+@numba.njit(cache=True)
+def _refresh_closest(p, known, closest, clearance, obstacles):
+    """``closest_points_of`` points ``p`` (n, 2) into ``closest`` (n, 2) and ``clearance``
+    (n,), which hold it for the points ``known`` (n, 2): only the points that moved (bit
+    for bit) are queried again; then ``known`` = ``p``."""
+    moved = np.empty(len(p), dtype=np.int64)
+    count = 0
+    for i in range(len(p)):
+        if not (_same(p[i, 0], known[i, 0]) and _same(p[i, 1], known[i, 1])):
+            moved[count] = i
+            count += 1
+    if count == 0:
+        return
+    moved = moved[:count]
+    q, d = closest_points_of(p[moved], *obstacles)
+    for k in range(count):
+        i = moved[k]
+        closest[i, 0], closest[i, 1], clearance[i] = q[k, 0], q[k, 1], d[k]
+        known[i, 0], known[i, 1] = p[i, 0], p[i, 1]
+
+
+@numba.njit(cache=True)
+def _same(x, y) -> bool:
+    """True when x and y are the same number, zeros of the same sign included."""
+    return x == y and math.copysign(1.0, x) == math.copysign(1.0, y)
+
+
+@numba.njit(cache=True)
+def _add_repulsion(p, direction, radii, q, q_velocity, q_radii, same, strength, reach, force):
+    """Adds to ``force`` (a, 2) the elliptical-potential force (m/s^2) of every other (q) on
+    each person (p) walking in ``direction`` (a, 2) (``same``: q are the people themselves,
+    nobody repels itself); ``strength`` V0, ``reach`` sigma."""
+    cos_view = math.cos(FIELD_OF_VIEW)
+    # Each other's next ELLIPSE_TIME s of walk (m) and walking direction, once per other.
+    walk, ux, uy = np.empty(len(q)), np.empty(len(q)), np.empty(len(q))
+    for j in range(len(q)):
+        speed = math.sqrt(q_velocity[j, 0] ** 2 + q_velocity[j, 1] ** 2)
+        walk[j] = speed * ELLIPSE_TIME
+        ux[j], uy[j] = q_velocity[j, 0] / max(speed, 1e-12), q_velocity[j, 1] / max(speed, 1e-12)
+    for i in range(len(p)):
+        dx, dy = direction[i, 0], direction[i, 1]
+        for j in range(len(q)):
+            if same and i == j:
+                continue
+            r1x, r1y = p[i, 0] - q[j, 0], p[i, 1] - q[j, 1]  # from the other to the person
+            n1 = math.sqrt(r1x * r1x + r1y * r1y)
+            if n1 < 1e-9:
+                continue
+            s = walk[j]
+            # From the other's position ELLIPSE_TIME s ahead.
+            r2x, r2y = r1x - s * ux[j], r1y - s * uy[j]
+            n2 = math.sqrt(r2x * r2x + r2y * r2y)
+            b = 0.5 * math.sqrt(max((n1 + n2) ** 2 - s * s, 0.0))
+            g = (n1 + n2) / (4.0 * max(b, 1e-9))
+            gx = g * (r1x / max(n1, 1e-12) + r2x / max(n2, 1e-12))
+            gy = g * (r1y / max(n1, 1e-12) + r2y / max(n2, 1e-12))
+            cap = min(1.0, GRADIENT_CAP / max(math.sqrt(gx * gx + gy * gy), 1e-12))
+            magnitude = strength / reach * math.exp(-max(b - radii[i] - q_radii[j], 0.0) / reach)
+            fx, fy = magnitude * (gx * cap), magnitude * (gy * cap)
+            # The other is in view when -force (pointing at it) is within FIELD_OF_VIEW of
+            # the person's desired direction.
+            if not -(dx * fx + dy * fy) >= math.sqrt(fx * fx + fy * fy) * cos_view:
+                fx, fy = fx * OUT_OF_VIEW_WEIGHT, fy * OUT_OF_VIEW_WEIGHT
+            # Keeping right breaks the symmetry of head-on encounters, which would deadlock.
+            against = max(-(dx * fx + dy * fy), 0.0)
+            force[i, 0] += fx + KEEP_RIGHT * against * dy
+            force[i, 1] += fy - KEEP_RIGHT * against * dx
+
+
+@numba.njit(cache=True)
+def _gaps(p, radii, q, q_radii) -> np.ndarray:
+    """Surface distances (a, b) between circles at p (a, 2) and q (b, 2)."""
+    gaps = np.empty((len(p), len(q)))
+    for i in range(len(p)):
+        for j in range(len(q)):
+            gaps[i, j] = (math.sqrt((p[i, 0] - q[j, 0]) ** 2 + (p[i, 1] - q[j, 1]) ** 2)
+                          - radii[i] - q_radii[j])
+    return gaps
+
+
+@numba.njit(cache=True)
+def _apart(p, radii) -> np.ndarray:
+    """Shifts (a, 2) that move each overlapping pair of people half the overlap apart."""
+    shift = np.zeros_like(p)
+    for i in range(len(p)):
+        for j in range(len(p)):
+            ox, oy = p[i, 0] - p[j, 0], p[i, 1] - p[j, 1]
+            dist = math.sqrt(ox * ox + oy * oy)
+            overlap = radii[i] + radii[j] - dist
+            if i != j and overlap > 0 and dist > 1e-9:
+                push = 0.5 * overlap / dist
+                shift[i, 0] += push * ox
+                shift[i, 1] += push * oy
+    return shift
+
+
+@numba.njit(cache=True)
+def _away(p, radii, q, q_radii, floor) -> np.ndarray:
+    """Shifts (a, 2) that move people straight away from robots q until each gap >= floor."""
+    shift = np.zeros_like(p)
+    for i in range(len(p)):
+        for j in range(len(q)):
+            ox, oy = p[i, 0] - q[j, 0], p[i, 1] - q[j, 1]
+            dist = math.sqrt(ox * ox + oy * oy)
+            deficit = max(floor[i, j] - (dist - radii[i] - q_radii[j]), 0.0)
+            if dist > 1e-9:
+                shift[i, 0] += deficit / dist * ox
+                shift[i, 1] += deficit / dist * oy
+    return shift
+
+
+@numba.njit(cache=True)
+def _taken(goal, p, radii, robot_p, robot_r) -> np.ndarray:
+    """True for people within ``TAKEN_REACH`` of a target that someone else's body (a
+    robot's or another person's) covers, so they cannot get closer."""
+    taken = np.zeros(len(p), dtype=np.bool_)
+    for i in range(len(p)):
+        if not math.hypot(goal[i, 0] - p[i, 0], goal[i, 1] - p[i, 1]) < TAKEN_REACH:
+            continue
+        for j in range(len(p) + len(robot_p)):
+            if j < len(p):
+                x, y, reach = p[j, 0], p[j, 1], radii[j]
+            else:
+                x, y, reach = robot_p[j - len(p), 0], robot_p[j - len(p), 1], robot_r[j - len(p)]
+            if j != i and math.sqrt((goal[i, 0] - x) ** 2
+                                    + (goal[i, 1] - y) ** 2) < reach + radii[i]:
+                taken[i] = True
+                break
+    return taken
+
+
+@numba.njit(cache=True)
+def _outward(p, closest, clearance) -> np.ndarray:
+    """Unit vectors (n, 2) pointing from the obstacle out to each point (zero if undefined)."""
+    out = np.zeros_like(p)
+    for i in range(len(p)):
+        sign = -1.0 if clearance[i] < 0 else 1.0
+        ox, oy = sign * (p[i, 0] - closest[i, 0]), sign * (p[i, 1] - closest[i, 1])
+        norm = math.sqrt(ox * ox + oy * oy)
+        if norm > 1e-12:
+            out[i, 0], out[i, 1] = ox / norm, oy / norm
+    return out
+
+
+@numba.njit(cache=True)
+def _cap_speed(v, max_speed: float) -> np.ndarray:
+    out = np.empty_like(v)
+    for i in range(len(v)):
+        scale = min(1.0, max_speed / max(math.sqrt(v[i, 0] ** 2 + v[i, 1] ** 2), 1e-12))
+        out[i, 0], out[i, 1] = v[i, 0] * scale, v[i, 1] * scale
+    return out

@@ -1,0 +1,268 @@
+"""The building's lanes: a directed graph of roadway nodes, and the legs robots drive on it.
+
+A leg from location ``a`` to location ``b`` is the polyline a robot drives after serving ``a``
+until it joins ``b``'s queue: ``a``'s point, ``a``'s entry path reversed (out of the room),
+``a``'s exit node, the shortest path along one-way lanes to ``b``'s approach node, and the
+tail slot of ``b``'s queue. Legs are always computed from the graph, never written by hand.
+
+World frame, x east, y north, metres. Lanes are one-way (right-hand traffic is encoded by the
+edges: each corridor has one lane per direction).
+"""
+
+import copy
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import networkx as nx
+import numpy as np
+
+from mrta_drake.errors import InputError
+from mrta_drake.payloads import frozen_array
+from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig
+
+
+@dataclass(frozen=True, eq=False)
+class Place:
+    """A location's geometry, validated: ``point`` (2,), ``queue`` (n, 2) head slot first with
+    n >= 1, ``entry`` (k, 2) from the head slot to the point (intermediate points only), and
+    the roadway nodes robots leave by and approach from; ``parking`` (p, 2): spots where a
+    robot with nothing left to do waits off the point (p may be 0)."""
+
+    id: int
+    point: np.ndarray
+    queue: np.ndarray
+    entry: np.ndarray
+    exit_node: str
+    approach_node: str
+    parking: np.ndarray = field(default_factory=lambda: frozen_array(np.zeros((0, 2))))
+
+    @property
+    def tail(self) -> np.ndarray:
+        """The last queue slot, where legs end."""
+        return self.queue[-1]
+
+
+def _xy(value, file, field) -> np.ndarray:
+    if (
+        not isinstance(value, list | tuple)
+        or len(value) != 2
+        or not all(isinstance(v, int | float) and math.isfinite(v) for v in value)
+    ):
+        raise InputError(file, field, f"expected [x, y] in metres, got {value!r}")
+    return frozen_array(value)
+
+
+def _polyline_length(points: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+
+
+def segment_crosses_box(a, b, box) -> bool:
+    """Whether the segment from ``a`` to ``b`` (world points, m) touches the axis-aligned
+    ``box`` (x_min, x_max, y_min, y_max), m (slab test; edges count)."""
+    low, high = 0.0, 1.0
+    for k, (lo, hi) in enumerate(((box[0], box[1]), (box[2], box[3]))):
+        d = b[k] - a[k]
+        if d == 0.0:
+            if not lo <= a[k] <= hi:
+                return False
+            continue
+        t0, t1 = (lo - a[k]) / d, (hi - a[k]) / d
+        low, high = max(low, min(t0, t1)), min(high, max(t0, t1))
+        if low > high:
+            return False
+    return True
+
+
+def _without_repeats(points: list[np.ndarray]) -> np.ndarray:
+    kept = [points[0]]
+    for point in points[1:]:
+        if not np.array_equal(point, kept[-1]):
+            kept.append(point)
+    return frozen_array(kept, shape=(len(kept), 2))
+
+
+class Roadways:
+    """The directed lane graph of a building and its locations' queues and entries.
+
+    Built from a scenario's ``RoadwaysConfig`` and ``LocationConfig`` list (points resolved);
+    bad input raises ``InputError`` naming ``file``, the field and the value. The graph is a
+    ``networkx.DiGraph`` whose nodes carry ``pos`` (x, y) and whose edges carry ``length``, m.
+    """
+
+    def __init__(
+        self,
+        config: RoadwaysConfig,
+        locations: Sequence[LocationConfig],
+        file: str | None = None,
+    ):
+        self._file = file
+        self.graph = nx.DiGraph()
+        self._node_at: dict[tuple[float, float], str] = {}
+        for name, value in config.nodes.items():
+            xy = _xy(value, file, f"roadways.nodes.{name}")
+            key = (float(xy[0]), float(xy[1]))
+            if key in self._node_at:
+                raise InputError(
+                    file, f"roadways.nodes.{name}",
+                    f"same position {list(key)} as node '{self._node_at[key]}'",
+                )
+            self._node_at[key] = name
+            self.graph.add_node(name, pos=xy)
+        for k, edge in enumerate(config.edges):
+            field = f"roadways.edges[{k}]"
+            if not isinstance(edge, list | tuple) or len(edge) != 2:
+                raise InputError(file, field, f"expected [from, to], got {edge!r}")
+            for name in edge:
+                if not isinstance(name, str | int) or name not in self.graph:
+                    raise InputError(file, field, f"unknown node {name!r}")
+            if edge[0] == edge[1]:
+                raise InputError(file, field, f"edge from node {edge[0]!r} to itself")
+            start, end = (self.node_position(name) for name in edge)
+            self.graph.add_edge(edge[0], edge[1], length=float(np.linalg.norm(end - start)))
+
+        self._places: dict[int, Place] = {}
+        for i, location in enumerate(locations):
+            self._places[location.id] = self._place(location, f"locations[{i}]")
+        self.location_ids: tuple[int, ...] = tuple(sorted(self._places))
+        self._check_reachable(locations)
+        self._legs: dict[tuple[int, int], np.ndarray | None] = {}
+        self.closures: tuple[tuple[float, float, float, float], ...] = ()
+        self._closed_views: dict[tuple, Roadways] = {}
+
+    def _place(self, location: LocationConfig, field: str) -> Place:
+        file = self._file
+        if location.id in self._places:
+            raise InputError(file, f"{field}.id", f"duplicate location id {location.id}")
+        point = _xy(location.point, file, f"{field}.point")
+        if not location.queue:
+            raise InputError(file, f"{field}.queue", "a location needs at least one queue slot")
+        queue = [_xy(slot, file, f"{field}.queue[{k}]") for k, slot in enumerate(location.queue)]
+        entry = [_xy(p, file, f"{field}.entry[{k}]") for k, p in enumerate(location.entry)]
+        for attribute in ("exit_node", "approach_node"):
+            name = getattr(location, attribute)
+            if not isinstance(name, str | int) or name not in self.graph:
+                raise InputError(file, f"{field}.{attribute}", f"unknown roadway node {name!r}")
+        return Place(
+            id=location.id,
+            point=point,
+            queue=frozen_array(queue, shape=(len(queue), 2)),
+            entry=frozen_array(entry, shape=(len(entry), 2)),
+            exit_node=location.exit_node,
+            approach_node=location.approach_node,
+            parking=frozen_array(
+                [_xy(p, file, f"{field}.parking[{k}]") for k, p in enumerate(location.parking)],
+                shape=(len(location.parking), 2)),
+        )
+
+    def _check_reachable(self, locations: Sequence[LocationConfig]) -> None:
+        for j, target in enumerate(locations):
+            for source in locations:
+                if source.id == target.id:
+                    continue
+                if not nx.has_path(self.graph, source.exit_node, target.approach_node):
+                    raise InputError(
+                        self._file, f"locations[{j}].approach_node",
+                        f"node {target.approach_node!r} of location {target.id} cannot be "
+                        f"reached from exit node {source.exit_node!r} of location {source.id}",
+                    )
+
+    # --- Geometry ----------------------------------------------------------------------------
+
+    def place(self, location: int) -> Place:
+        """The geometry of ``location`` (KeyError if unknown)."""
+        return self._places[location]
+
+    def node_position(self, name: str) -> np.ndarray:
+        """World (x, y) of roadway node ``name``, m."""
+        return self.graph.nodes[name]["pos"]
+
+    def node_at(self, xy) -> str | None:
+        """The roadway node at exactly ``xy`` (a point taken from a leg), or None."""
+        return self._node_at.get((float(xy[0]), float(xy[1])))
+
+    # --- Closures ----------------------------------------------------------------------------
+
+    def closed(self, boxes: Sequence[Sequence[float]]) -> "Roadways":
+        """These roadways with every lane that touches one of ``boxes`` (x_min, x_max,
+        y_min, y_max; m) closed: its ``closures`` are the boxes, legs and routes avoid them
+        or are None where no lane is left. Views are cached per set of boxes."""
+        key = tuple(tuple(float(v) for v in box) for box in boxes)
+        if not key:
+            return self
+        view = self._closed_views.get(key)
+        if view is None:
+            view = copy.copy(self)
+            view.graph = self.graph.copy()
+            view.graph.remove_edges_from([
+                (a, b) for a, b in self.graph.edges
+                if any(segment_crosses_box(self.node_position(a), self.node_position(b), box)
+                       for box in key)])
+            view.closures, view._legs, view._closed_views = key, {}, {}
+            self._closed_views[key] = view
+        return view
+
+    def crosses_closure(self, points) -> bool:
+        """Whether the polyline ``points`` (k, 2) touches one of the ``closures``."""
+        return any(segment_crosses_box(a, b, box) for box in self.closures
+                   for a, b in zip(points[:-1], points[1:], strict=True))
+
+    # --- Legs --------------------------------------------------------------------------------
+
+    def leg(self, from_location: int, to_location: int) -> np.ndarray | None:
+        """The polyline (k, 2) from ``from_location``'s point out of the room to the tail slot
+        of ``to_location``'s queue, shortest along the lanes (None if closed lanes leave no
+        way). The locations must differ."""
+        key = (from_location, to_location)
+        if key not in self._legs:
+            if from_location == to_location:
+                raise ValueError(f"a leg joins two different locations, got {from_location} twice")
+            start = self.place(from_location)
+            route = self.route_from_node(start.exit_node, to_location)
+            self._legs[key] = None if route is None else _without_repeats(
+                [start.point, *start.entry[::-1], *route])
+        return self._legs[key]
+
+    def leg_length(self, from_location: int, to_location: int) -> float:
+        """Length of ``leg(from_location, to_location)``, m; 0 from a location to itself."""
+        if from_location == to_location:
+            return 0.0
+        return _polyline_length(self.leg(from_location, to_location))
+
+    def route_from_node(self, node: str, to_location: int) -> np.ndarray | None:
+        """The polyline (k, 2) from roadway node ``node`` along the lanes to the tail slot of
+        ``to_location``'s queue, or None if the lanes do not lead there."""
+        target = self.place(to_location)
+        try:
+            names = nx.shortest_path(self.graph, node, target.approach_node, weight="length")
+        except nx.NetworkXNoPath:
+            return None
+        return _without_repeats([self.node_position(n) for n in names] + [target.tail])
+
+    def route_from_point(self, xy, to_location: int) -> np.ndarray | None:
+        """The polyline (k, 2) from the roadway node nearest ``xy`` that leads to
+        ``to_location`` (for a robot that is not at a location, e.g. at the start), skipping
+        nodes the straight line from ``xy`` to which touches a closure; None if none does."""
+        xy = np.asarray(xy, dtype=float)
+        by_distance = sorted(
+            self.graph.nodes, key=lambda n: float(np.linalg.norm(self.node_position(n) - xy))
+        )
+        for node in by_distance:
+            route = self.route_from_node(node, to_location)
+            if route is not None and not self.crosses_closure([xy, self.node_position(node)]):
+                return route
+        return None
+
+    def travel_time_estimate(self, speed: float) -> np.ndarray:
+        """Integer travel times (s) between all locations at a nominal ``speed`` (m/s):
+        ``ceil(leg_length / speed)``, 0 on the diagonal. Rows and columns follow
+        ``location_ids`` (ascending ids, so the index is the id when ids are 0..n-1)."""
+        if speed <= 0:
+            raise ValueError(f"speed must be positive, got {speed}")
+        ids = self.location_ids
+        times = np.zeros((len(ids), len(ids)), dtype=int)
+        for i, a in enumerate(ids):
+            for j, b in enumerate(ids):
+                times[i, j] = math.ceil(self.leg_length(a, b) / speed)
+        times.flags.writeable = False
+        return times

@@ -1,0 +1,534 @@
+"""Turns one robot's plan into waypoints: roadway legs, room queues, entries and service."""
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from pydrake.common.value import Value
+from pydrake.systems.framework import BasicVector, LeafSystem
+
+from mrta_drake.navigation.roadways import Roadways
+from mrta_drake.payloads import (
+    NO_DISTURBANCES,
+    ROBOT_STATE_SIZE,
+    ROBOT_STOPPED_SPEED,
+    Detour,
+    Disturbances,
+    FleetPlan,
+    QueueRequest,
+    QueueState,
+    RobotProgress,
+    Stop,
+    Visit,
+    WaypointTarget,
+)
+
+IDLE = "idle"  # no stop to do; the robot stands still
+DRIVE = "drive"  # along a roadway leg to the tail slot of the stop's queue
+QUEUE = "queue"  # requesting the stop's room, waiting at a queue slot
+ENTER = "enter"  # holding the room, driving through the queue slots and entry to its point
+SERVE = "serve"  # at the point: once holding the room, stand there for the service time
+PARK = "park"  # no stop to do: wait on a free parking spot of the last location
+WAIT = "wait"  # blockages leave no lane to the stop: stand still until they change
+
+
+@dataclass(frozen=True)
+class WaypointParams:
+    """Parameters of a ``WaypointGenerator``; distances in m, times in s."""
+
+    waypoint_tolerance: float = 1.0  # a waypoint is reached within this distance
+    reach_tolerance: float = 1.0  # a location's point is reached within this distance
+    service_time: float = 1.0  # standing at the point, holding the room, to finish a stop
+    request_distance: float = 3.0  # ask for a place in the queue this close to its tail slot
+    release_distance: float = 5.0  # give a room back this far from its point
+    parking_clearance: float = 0.8  # a parking spot is taken with another robot this close
+    door_clearance: float = 1.0  # a holder waits at its slot while another robot moves this
+    # close to the room's entry path or point
+
+
+@dataclass(frozen=True)
+class _Drive:
+    """The generator's whole state. ``index`` is the route waypoint being driven to (drive,
+    enter) or the queue slot being waited at (queue); ``since`` the time service began;
+    ``release`` the room the robot asks to release; ``closed`` the blockages (names) in
+    force at the last update; ``detours`` the route changes they forced; ``waiting``: to
+    serve at a point whose room another robot still holds (e.g. parked in that room), so
+    standing still rather than driving onto the holder."""
+
+    phase: str = IDLE
+    stop: Stop | None = None
+    route: tuple[tuple[float, float], ...] = ()
+    index: int = 0
+    since: float | None = None
+    release: int | None = None
+    visits: tuple[Visit, ...] = ()
+    last_location: int | None = None
+    closed: tuple[str, ...] = ()
+    detours: tuple[Detour, ...] = ()
+    waiting: bool = False
+
+    def __deepcopy__(self, memo):
+        return self  # immutable: Drake's copies of the state can share it
+
+
+@dataclass(frozen=True)
+class _Outputs:
+    """The output payloads made from one state, ``drive``."""
+
+    drive: _Drive
+    target: WaypointTarget
+    queue_request: QueueRequest
+    progress: RobotProgress
+
+
+class _Robots:
+    """The robots' states read from the ``robot_state`` port when first needed (a parked
+    or idle robot's update mostly needs none): ``states`` (N, 4) ``[x, y, theta, v]`` and
+    ``xy``, robot ``index``'s position; world frame, m."""
+
+    def __init__(self, port, context, index: int):
+        self._port, self._context, self._index = port, context, index
+        self._states: np.ndarray | None = None
+        self._xy: tuple[float, float] | None = None
+
+    @property
+    def states(self) -> np.ndarray:
+        if self._states is None:
+            self._states = self._port.Eval(self._context).reshape(-1, ROBOT_STATE_SIZE)
+        return self._states
+
+    @property
+    def xy(self) -> tuple[float, float]:
+        if self._xy is None:
+            self._xy = _point(self.states[self._index])
+        return self._xy
+
+
+def _changed(s: _Drive, **changes) -> _Drive:
+    """``replace(s, **changes)``, or ``s`` itself when they change nothing (the hot path:
+    most updates change nothing)."""
+    for name, value in changes.items():
+        current = getattr(s, name)
+        if current is not value and current != value:
+            return replace(s, **changes)
+    return s
+
+
+def _first_to_do(stops: tuple[Stop, ...], visits: tuple[Visit, ...]) -> Stop | None:
+    """The first of ``stops`` no visit completed."""
+    if not visits:
+        return stops[0] if stops else None
+    done = {visit.key for visit in visits}
+    return next((stop for stop in stops if stop.key not in done), None)
+
+
+def _point(xy) -> tuple[float, float]:
+    return (float(xy[0]), float(xy[1]))
+
+
+def _points(array) -> tuple[tuple[float, float], ...]:
+    return tuple(_point(xy) for xy in np.asarray(array))
+
+
+def _points_or_none(array) -> tuple[tuple[float, float], ...] | None:
+    return None if array is None else _points(array)
+
+
+def _distance(a, b) -> float:
+    return math.hypot(a[0] - b[0], a[1] - b[1])
+
+
+class WaypointGenerator(LeafSystem):
+    """Drives one robot through its plan's stops, one waypoint at a time.
+
+    Inputs:
+      ``plan``: abstract ``FleetPlan``; this robot's ``RobotPlan`` is the one named ``robot``.
+      ``robot_state``: vector 4N, ``[x, y, theta, v]`` per robot; this robot's is at ``index``.
+      ``queue_state``: abstract ``QueueState`` from ``RoomQueues``.
+    Outputs (from the state; no direct feedthrough):
+      ``target``: abstract ``WaypointTarget``, world frame, m.
+      ``queue_request``: abstract ``QueueRequest``.
+      ``progress``: abstract ``RobotProgress``; visit times are simulation times, s.
+
+    ``rate_hz`` times a second an unrestricted update takes the current stop through these
+    phases:
+
+    - drive: follow ``roadways.leg`` from the last location (or, away from any location, a
+      route from the nearest roadway node) to the tail slot of the stop's queue; waypoints
+      count as reached within ``waypoint_tolerance``. Within ``request_distance`` of the
+      tail slot, on the last segment, go to queue. A robot that still holds the stop's room
+      (sent back to it) drives straight to the point instead.
+    - queue: request the room and wait at slot ``min(place, slots - 1)``, moving up as the
+      queue advances; robots beyond the last slot all wait at the tail slot.
+    - enter: once holding the room, drive through the remaining slots and the entry path;
+      but while another robot moves within ``door_clearance`` of the entry path or the point
+      (e.g. one that had parked in the room, leaving), wait at the slot: two robots in a
+      doorway cannot pass.
+    - serve: within ``reach_tolerance`` of the point and holding the room, stand for
+      ``service_time``; the stop is then done (a ``Visit`` at that time) and the next begins.
+      A stop at the location the robot is already at starts here (requesting the room);
+      until it holds the room its target is inactive, so a robot parked in the room does not
+      drive onto the holder standing at the point.
+
+    The robot's stops are the plan's stops whose keys it has not completed, re-read every
+    update: a new plan with the same first stop location changes nothing (only the stop);
+    one with another location re-routes from the next roadway node ahead on the leg, from
+    the exit node of the queue it waited in, or out of the room it entered. A completed stop
+    is never redone. Without stops the robot parks: at a location with parking spots it
+    drives to the first one no other robot is within ``parking_clearance`` of (park), off
+    the point; elsewhere the target is inactive and it stands still.
+    A parked robot given a stop starts it as if standing on the location's point.
+
+    Release: the robot asks to release a room it holds (per ``queue_state``) once its
+    current stop is elsewhere and it is more than ``release_distance`` from the room's
+    point, or, with no stop left, once it is more than ``reach_tolerance`` from the point
+    (at once where there is no parking spot). It keeps naming that room in ``release``
+    until the queues no longer show it as the holder.
+
+    Optional input ``disturbances`` (abstract ``Disturbances``):
+
+    - blockages close the lanes that touch their boxes (``Roadways.closed``): legs and
+      routes made while they are in force go around them. When the set of blockages
+      changes, a robot driving (or waiting, below) takes the route ahead again: it keeps
+      its route if that touches no newly closed box and none has opened, else it goes on to
+      the first roadway node ahead it can reach without touching a closed box and from which
+      lanes lead to its stop, else to the nearest such node it can reach in a straight line
+      (turning back). Each change of route is a ``Detour`` in ``progress``. With no lane
+      left to the stop the robot waits (wait, target inactive) until the blockages change.
+    - a breakdown of this robot makes it drop its stop and stand (idle): it leaves any
+      queue, gives up any room it holds and ignores the plan until it is repaired.
+    """
+
+    def __init__(
+        self,
+        robot: str,
+        index: int,
+        num_robots: int,
+        roadways: Roadways,
+        start_location: int | None = None,
+        params: WaypointParams = WaypointParams(),
+        rate_hz: float = 10.0,
+    ):
+        super().__init__()
+        self._robot = robot
+        self._index = index
+        self._roadways = roadways
+        self._params = params
+        self._state_index = self.DeclareAbstractState(
+            Value[object](_Drive(last_location=start_location))
+        )
+        self._plan = self.DeclareAbstractInputPort("plan", Value[object](FleetPlan(())))
+        self._robot_state = self.DeclareVectorInputPort(
+            "robot_state", BasicVector(ROBOT_STATE_SIZE * num_robots)
+        )
+        self._queue_state = self.DeclareAbstractInputPort(
+            "queue_state", Value[object](QueueState())
+        )
+        self._disturbances = self.DeclareAbstractInputPort(
+            "disturbances", Value[object](Disturbances())
+        )
+        # The outputs of the state last read: most updates keep the state object as it is.
+        self._last_outputs: _Outputs | None = None
+        state_ticket = {self.abstract_state_ticket(self._state_index)}
+        for name, payload, calc in (
+            ("target", WaypointTarget(robot), self._calc_target),
+            ("queue_request", QueueRequest(robot), self._calc_queue_request),
+            ("progress", RobotProgress(robot, last_location=start_location), self._calc_progress),
+        ):
+            self.DeclareAbstractOutputPort(
+                name,
+                lambda payload=payload: Value[object](payload),
+                calc,
+                prerequisites_of_calc=state_ticket,
+            )
+        self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate_hz, 0.0, self._update)
+
+    # --- Outputs -----------------------------------------------------------------------------
+
+    def _drive(self, context) -> _Drive:
+        return context.get_abstract_state(self._state_index).get_value()
+
+    def _calc_target(self, context, output):
+        output.set_value(self._outputs(context).target)
+
+    def _calc_queue_request(self, context, output):
+        output.set_value(self._outputs(context).queue_request)
+
+    def _calc_progress(self, context, output):
+        output.set_value(self._outputs(context).progress)
+
+    def _outputs(self, context) -> _Outputs:
+        s = self._drive(context)
+        outputs = self._last_outputs
+        if outputs is None or outputs.drive is not s:
+            outputs = self._last_outputs = _Outputs(
+                s, self._target(s),
+                QueueRequest(self._robot, s.stop.location if s.phase in (QUEUE, ENTER, SERVE)
+                             else None, s.release),
+                RobotProgress(self._robot, s.visits, s.last_location, s.stop, s.detours))
+        return outputs
+
+    def _target(self, s: _Drive) -> WaypointTarget:
+        if s.phase == PARK:
+            parking = _point(self._roadways.place(s.last_location).parking[s.index])
+            return WaypointTarget(self._robot, True, parking, None, True)
+        if s.stop is None or s.phase == WAIT or s.waiting:
+            return WaypointTarget(self._robot)
+        place = self._roadways.place(s.stop.location)
+        if s.phase in (DRIVE, ENTER):
+            last = len(s.route) - 1
+            current = s.route[s.index]
+            after = s.route[s.index + 1] if s.index < last else None
+            stop_here = s.index == last
+        elif s.phase == QUEUE:
+            current, after, stop_here = _point(place.queue[s.index]), None, True
+        else:
+            current, after, stop_here = _point(place.point), None, True
+        return WaypointTarget(self._robot, True, current, after, stop_here)
+
+    # --- Update ------------------------------------------------------------------------------
+
+    def _update(self, context, state):
+        old = s = self._drive(context)
+        t = context.get_time()
+        robots = _Robots(self._robot_state, context, self._index)
+        queues = self._queue_state.Eval(context)
+        disturbances = (self._disturbances.Eval(context) if self._disturbances.HasValue(context)
+                        else NO_DISTURBANCES)
+        lanes, closed = self._roadways, ()
+        if disturbances.blockages:
+            lanes = self._roadways.closed([b.box for b in disturbances.blockages])
+            closed = tuple(b.name for b in disturbances.blockages)
+        if closed != s.closed:
+            s = self._reroute(s, robots.xy, lanes, closed, t)
+        if disturbances.breakdowns and any(b.robot == self._index
+                                           for b in disturbances.breakdowns):
+            s = _changed(s, phase=IDLE, stop=None, route=(), index=0, since=None)
+        else:
+            stops = self._stops(context)
+            s = self._follow_plan(s, _first_to_do(stops, s.visits), robots, lanes, t)
+            s = self._advance(s, robots, t, queues, stops, lanes)
+        s = _changed(s, release=self._release(s, robots, queues))
+        if s is not old:  # ``state`` comes holding the current state
+            state.get_mutable_abstract_state(self._state_index).set_value(s)
+
+    def _stops(self, context) -> tuple[Stop, ...]:
+        plans = self._plan.Eval(context).plans
+        if self._index < len(plans) and plans[self._index].robot == self._robot:
+            return plans[self._index].stops
+        return next((plan.stops for plan in plans if plan.robot == self._robot), ())
+
+    def _follow_plan(self, s: _Drive, stop: Stop | None, robots: _Robots, lanes: Roadways,
+                     t: float) -> _Drive:
+        if stop is None:
+            if s.phase == PARK:
+                return s
+            place = None if s.last_location is None else self._roadways.place(s.last_location)
+            if (place is None or not len(place.parking)
+                    or _distance(robots.xy, place.point) > self._params.reach_tolerance):
+                return _changed(s, phase=IDLE, stop=None, route=(), index=0, since=None)
+            others = np.delete(robots.states[:, :2], self._index, axis=0)
+            return replace(s, phase=PARK, stop=None, route=(), since=None,
+                           index=self._free_parking(place, others))
+        xy = robots.xy
+        if s.stop is None:
+            return self._start(s, stop, xy, lanes, t)
+        if stop.location == s.stop.location:
+            return _changed(s, stop=stop)
+        old = self._roadways.place(s.stop.location)
+        if s.phase == DRIVE:
+            def route(roadways):
+                return self._splice(s.route[s.index:], xy, old.exit_node, stop.location,
+                                    roadways)
+        elif s.phase == WAIT:
+            route = self._way_from(s, stop, xy)
+        elif s.phase == QUEUE:
+            def route(roadways):
+                return _points_or_none(roadways.route_from_node(old.exit_node, stop.location))
+        else:
+            def route(roadways):
+                return _points_or_none(roadways.leg(old.id, stop.location))
+        return self._drive_to(s, stop, route, lanes, t)
+
+    def _drive_to(self, s: _Drive, stop: Stop, route, lanes: Roadways, t: float) -> _Drive:
+        """Drive to ``stop`` along ``route(lanes)`` (a function of the roadways: waypoints,
+        or None where no lane leads there), or wait without one. Under blockages, a route
+        other than the open roadways' is a detour."""
+        waypoints = route(lanes)
+        if lanes.closures and waypoints != route(self._roadways):
+            s = replace(s, detours=s.detours + (Detour(t, s.closed, waypoints is not None),))
+        return replace(s, phase=DRIVE if waypoints else WAIT, stop=stop,
+                       route=waypoints or (), index=0, since=None)
+
+    def _reroute(self, s: _Drive, xy, lanes: Roadways, closed: tuple[str, ...],
+                 t: float) -> _Drive:
+        """Take the route ahead again after the blockages changed from ``s.closed`` to
+        ``closed`` (see the class docstring)."""
+        opened = set(s.closed) - set(closed)
+        changed = tuple(sorted(opened | (set(closed) - set(s.closed))))
+        s = replace(s, closed=closed)
+        if s.phase == WAIT:
+            route = self._way_from(s, s.stop, xy)(lanes)
+        elif s.phase == DRIVE:
+            ahead = s.route[s.index:]
+            if not opened and not lanes.crosses_closure((xy, *ahead)):
+                return s
+            route = self._splice(ahead, xy, None, s.stop.location, lanes)
+            if route == ahead:
+                return s
+        else:
+            return s
+        return replace(s, phase=DRIVE if route else WAIT, route=route or (), index=0,
+                       detours=s.detours + (Detour(t, changed, route is not None),))
+
+    def _free_parking(self, place, others: np.ndarray) -> int:
+        """Index of the first of ``place``'s parking spots with no other robot near it (the
+        last spot if all are taken)."""
+        for k, spot in enumerate(place.parking):
+            if not len(others) or np.min(np.linalg.norm(others - spot, axis=1)) > \
+                    self._params.parking_clearance:
+                return k
+        return len(place.parking) - 1
+
+    def _start(self, s: _Drive, stop: Stop, xy, lanes: Roadways, t: float) -> _Drive:
+        """Begin ``stop`` from standing (at the start, or after finishing a stop)."""
+        roadways, tolerance = self._roadways, self._params.reach_tolerance
+        parked = s.phase == PARK
+        if (_distance(xy, roadways.place(stop.location).point) <= tolerance
+                or (parked and s.last_location == stop.location)):
+            return replace(s, phase=SERVE, stop=stop, route=(), index=0, since=None)
+        return self._drive_to(s, stop, self._way_from(s, stop, xy), lanes, t)
+
+    def _way_from(self, s: _Drive, stop: Stop, xy):
+        """How to reach ``stop`` from standing at ``xy``, as a function of the roadways:
+        the leg from the last location when on its point (or parked there), else the lanes
+        from the nearest roadway node."""
+        roadways, tolerance = self._roadways, self._params.reach_tolerance
+        parked = s.phase == PARK
+        last = s.last_location
+        if last is None:  # e.g. a robot placed on a location's point without start_location
+            last = next(
+                (i for i in roadways.location_ids
+                 if _distance(xy, roadways.place(i).point) <= tolerance),
+                None,
+            )
+        if (
+            last is not None
+            and last != stop.location
+            and (parked or _distance(xy, roadways.place(last).point) <= tolerance)
+        ):
+            def route(lanes):
+                return _points_or_none(lanes.leg(last, stop.location))
+        else:
+            def route(lanes):
+                return _points_or_none(lanes.route_from_point(xy, stop.location))
+        return route
+
+    @staticmethod
+    def _splice(ahead, xy, exit_node: str | None, location: int, lanes: Roadways):
+        """The rest of the route ``ahead`` up to its first roadway node that leads to
+        ``location``, then the lanes from there, looking only as far ahead as the robot at
+        ``xy`` gets without touching a closure. If no node ahead leads there: with
+        ``exit_node`` (the robot is past the last node of its leg), the rest of the route
+        and then the lanes from it; else the rest of the route as it is. If the way ahead
+        touches a closure (or there is none): the lanes from the nearest node the robot
+        reaches in a straight line; None if none leads there."""
+        last = xy
+        for j, point in enumerate(ahead):
+            if lanes.crosses_closure((last, point)):
+                break
+            last = point
+            node = lanes.node_at(point)
+            route = None if node is None else lanes.route_from_node(node, location)
+            if route is not None:
+                return ahead[:j] + _points(route)
+        else:
+            if exit_node is not None:
+                route = lanes.route_from_node(exit_node, location)
+                if route is not None and not lanes.crosses_closure((last, route[0])):
+                    return ahead + _points(route)
+            elif ahead:
+                return ahead
+        return _points_or_none(lanes.route_from_point(xy, location))
+
+    def _advance(self, s: _Drive, robots: _Robots, t: float, queues: QueueState,
+                 stops: tuple[Stop, ...], lanes: Roadways) -> _Drive:
+        if s.stop is None:
+            return s
+        xy = robots.xy
+        params = self._params
+        place = self._roadways.place(s.stop.location)
+        queue = queues.room(place.id)
+        holding = queue is not None and queue.holder == self._robot
+        if s.phase == DRIVE and holding:
+            s = replace(s, phase=ENTER, route=(_point(place.point),), index=0)
+        if s.phase == DRIVE:
+            s = _changed(s, index=self._reached(s, xy))
+            if (
+                s.index == len(s.route) - 1
+                and _distance(xy, s.route[-1]) <= params.request_distance
+            ):
+                s = replace(s, phase=QUEUE, route=(), index=len(place.queue) - 1)
+        if s.phase == QUEUE:
+            # Entering while another robot comes out would stand both in the doorway.
+            if holding and not self._door_busy(place, robots.states):
+                route = _points(place.queue[s.index::-1]) + _points(place.entry)
+                s = replace(s, phase=ENTER, route=route + (_point(place.point),), index=0)
+            elif not holding and queue is not None and queue.slot_of(self._robot) is not None:
+                s = _changed(s, index=min(queue.slot_of(self._robot), len(place.queue) - 1))
+        if s.phase == ENTER:
+            s = _changed(s, index=self._reached(s, xy))
+            if s.index == len(s.route) - 1:
+                s = replace(s, phase=SERVE, route=(), index=0)
+        s = _changed(s, waiting=s.phase == SERVE and not holding)
+        if s.phase == SERVE and holding and _distance(xy, place.point) <= params.reach_tolerance:
+            since = t if s.since is None else s.since
+            if t - since < params.service_time - 1e-9:
+                return _changed(s, since=since)
+            stop = s.stop
+            visit = Visit(stop.key, stop.location, t, stop.task, stop.action)
+            s = replace(
+                s, phase=IDLE, stop=None, since=None,
+                visits=s.visits + (visit,), last_location=stop.location,
+            )
+            following = _first_to_do(stops, s.visits)
+            if following is not None:
+                s = self._start(s, following, xy, lanes, t)
+        return s
+
+    def _door_busy(self, place, states: np.ndarray) -> bool:
+        """Whether another robot is moving (faster than ``ROBOT_STOPPED_SPEED``) within
+        ``door_clearance`` of ``place``'s entry path or point."""
+        others = np.delete(states, self._index, axis=0)
+        moving = others[np.abs(others[:, 3]) > ROBOT_STOPPED_SPEED, :2]
+        if not len(moving):
+            return False
+        door = np.array([*place.entry, place.point], dtype=float).reshape(-1, 2)
+        gaps = np.linalg.norm(moving[:, None, :] - door[None, :, :], axis=-1)
+        return bool((gaps <= self._params.door_clearance).any())
+
+    def _reached(self, s: _Drive, xy) -> int:
+        """The first route index not yet reached, at most the last."""
+        index = s.index
+        while index < len(s.route) - 1 and (
+            _distance(xy, s.route[index]) <= self._params.waypoint_tolerance
+        ):
+            index += 1
+        return index
+
+    def _release(self, s: _Drive, robots: _Robots, queues: QueueState) -> int | None:
+        for queue in queues.rooms:
+            if queue.holder != self._robot:
+                continue
+            if s.stop is None:
+                point = self._roadways.place(queue.room).point
+                if s.phase != PARK or _distance(robots.xy, point) > self._params.reach_tolerance:
+                    return queue.room
+                continue
+            point = self._roadways.place(queue.room).point
+            if (
+                s.stop.location != queue.room
+                and _distance(robots.xy, point) > self._params.release_distance
+            ):
+                return queue.room
+        return None

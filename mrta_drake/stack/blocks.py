@@ -1,0 +1,314 @@
+"""Which implementations exist for each block, and how to make one from a scenario.
+
+A scenario picks an implementation per block slot (``blocks.controller.kind``) and gives its
+parameters (``blocks.controller.params``, checked against the implementation's own frozen
+``Params`` dataclass). Researchers add their own with ``register_block``; the new system
+must have the slot's ports (docs/architecture.md lists them):
+
+=========== ===================================== ============================================
+slot        inputs                                outputs
+=========== ===================================== ============================================
+allocator   progress_<robot> (RobotProgress)      plan (FleetPlan)
+waypoints   plan, robot_state, queue_state        target, queue_request, progress (per robot)
+queues      request_<robot> (QueueRequest)        queue_state (QueueState)
+planner     robot_state, target_<robot>           paths (FleetPaths)
+controller  robot_state, paths, humans            commands (2N), telemetry
+robots      commands (2N)                         state (4N), plant_positions (3N)
+humans      robot_state (4N)                      human_states (HumanStates), plant_positions
+=========== ===================================== ============================================
+
+A robots block that steps the plant (``BlockType.physics``, e.g. kind ``physics``) also has
+an input ``plant_state`` and an output ``generalized_force`` (see
+``mrta_drake.robots.plant_stepping``).
+Any block may also have an input ``disturbances`` (``payloads.Disturbances``): ``add_stack``
+connects it when the scenario schedules disturbances (see ``mrta_drake.scenario.disturbances``).
+"""
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from mrta_drake.errors import InputError
+from mrta_drake.scenario.schema import BlockConfig, Scenario
+from mrta_drake.scenario.typed_yaml import load_typed
+
+
+@dataclass(frozen=True, eq=False)
+class BuildContext:
+    """What a block factory may use: the scenario, the world geometry, derived data."""
+
+    scenario: Scenario
+    floor_plan: object  # FloorPlan
+    rates: object  # RatesConfig
+    world: object = None  # World, for the blocks made after it (all but humans)
+
+    @classmethod
+    def for_scenario(cls, scenario: Scenario) -> "BuildContext":
+        """The context of ``scenario`` before its world is built: its floor plan (with any
+        Scenic objects) loaded, its location points filled in from the floor plan."""
+        from mrta_drake.world.plant import load_floor_plan_of, resolve_locations
+
+        floor_plan = load_floor_plan_of(scenario)
+        return cls(resolve_locations(scenario, floor_plan), floor_plan, scenario.rates)
+
+    @property
+    def robot_names(self) -> list[str]:
+        return [r.name for r in self.scenario.robots]
+
+    @property
+    def robot_starts(self) -> np.ndarray:
+        """(N, 3) [x, y, theta] start poses."""
+        return np.array([(list(r.start) + [0.0])[:3] for r in self.scenario.robots])
+
+    @property
+    def obstacles(self):
+        return self.floor_plan.obstacles
+
+    @cached_property
+    def roadways(self):
+        from mrta_drake.navigation.roadways import Roadways
+
+        return Roadways(self.scenario.roadways, self.scenario.locations, self.scenario.source)
+
+    @cached_property
+    def travel_times(self) -> np.ndarray:
+        """The allocator's (L, L) integer travel times (s): the scenario's file, else an
+        estimate from roadway leg lengths at ``tasks.estimate_speed``."""
+        from mrta_drake.scenario.travel_times import load_travel_times
+
+        tasks = self.scenario.tasks
+        if tasks.travel_times:
+            return load_travel_times(tasks.travel_times, len(self.scenario.locations))
+        return self.roadways.travel_time_estimate(tasks.estimate_speed)
+
+    @cached_property
+    def start_locations(self) -> list[int | None]:
+        """Each robot's start location: as given, else the location whose point is within
+        1 m of its start position, else None."""
+        result = []
+        for robot in self.scenario.robots:
+            found = robot.start_location
+            if found is None:
+                for location in self.scenario.locations:
+                    if np.hypot(*np.subtract(location.point, robot.start[:2])) <= 1.0:
+                        found = location.id
+                        break
+            result.append(found)
+        return result
+
+
+@dataclass(frozen=True)
+class BlockType:
+    """An implementation of a block slot: its parameter dataclass and a factory
+    ``make(context, params) -> LeafSystem`` (for ``waypoints``: one system per robot,
+    ``make(context, params, robot_index)``). A robots block that steps the plant gives
+    ``physics(params) -> world.PlantPhysics``, how the world makes the plant."""
+
+    params: type
+    make: Callable
+    physics: Callable | None = None
+
+
+_REGISTRY: dict[str, dict[str, Callable[[], BlockType]]] = {
+    "allocator": {}, "waypoints": {}, "queues": {}, "planner": {}, "controller": {},
+    "robots": {}, "humans": {},
+}
+
+
+def register_block(slot: str, kind: str, block_type: "BlockType | Callable[[], BlockType]"):
+    """Make ``kind`` available for ``slot`` in scenarios. ``block_type`` may be a function
+    returning the BlockType, so heavy imports happen only when the kind is used."""
+    if slot not in _REGISTRY:
+        raise ValueError(f"unknown block slot {slot!r}; slots: {', '.join(_REGISTRY)}")
+    _REGISTRY[slot][kind] = block_type if callable(block_type) and not isinstance(
+        block_type, BlockType) else (lambda: block_type)
+
+
+def block_kinds(slot: str) -> list[str]:
+    return sorted(_REGISTRY[slot])
+
+
+def block_type(slot: str, kind: str) -> BlockType:
+    """The registered implementation ``kind`` of ``slot``."""
+    return _REGISTRY[slot][kind]()
+
+
+def resolve_block(scenario: Scenario, slot: str) -> tuple[BlockType, object]:
+    """The chosen implementation of ``slot`` and its parameters, checked."""
+    config: BlockConfig = getattr(scenario.blocks, slot)
+    kinds = _REGISTRY[slot]
+    if config.kind not in kinds:
+        raise InputError(scenario.source, f"blocks.{slot}.kind",
+                         f"unknown kind {config.kind!r} (known: {', '.join(sorted(kinds))})")
+    chosen = kinds[config.kind]()
+    params = load_typed(config.params, chosen.params, scenario.source, f"blocks.{slot}.params")
+    return chosen, params
+
+
+def check_blocks(scenario: Scenario) -> None:
+    """Resolve every block slot once, so bad kinds or parameters fail at load time."""
+    for slot in _REGISTRY:
+        resolve_block(scenario, slot)
+
+
+# --- The built-in implementations ------------------------------------------------------------
+
+
+def _kinematic_robots() -> BlockType:
+    from mrta_drake.robots.unicycle_robots import UnicycleParams, UnicycleRobots
+
+    return BlockType(UnicycleParams, lambda ctx, params: UnicycleRobots(
+        ctx.robot_names, ctx.robot_starts, params, ctx.rates.robots))
+
+
+def _physics_robots() -> BlockType:
+    from mrta_drake.robots.physics_robots import PhysicsRobotParams, PhysicsRobots
+    from mrta_drake.world.plant import PlantPhysics
+
+    return BlockType(
+        PhysicsRobotParams,
+        lambda ctx, params: PhysicsRobots(ctx.world.plant, ctx.world.robots, params),
+        physics=lambda params: PlantPhysics(params.time_step, params.mass,
+                                            params.collision_shape))
+
+
+@dataclass(frozen=True)
+class NoParams:
+    """For implementations without parameters."""
+
+
+def task_allocator_block(allocator_class, params_class) -> BlockType:
+    """An allocator block: a ``TaskAllocator`` around ``allocator_class(params)``, any class
+    with ``allocate(AllocationProblem) -> Allocation`` (like ``GreedyAllocator``), whose
+    parameters are ``params_class`` (e.g. ``NoParams``)."""
+
+    def make(ctx: BuildContext, params):
+        from mrta_drake.allocation.task_allocator import TaskAllocator
+
+        # A robot that does not start on a location is planned from the nearest one.
+        points = np.array([loc.point for loc in ctx.scenario.locations])
+        ids = [loc.id for loc in ctx.scenario.locations]
+        starts = [
+            location if location is not None
+            else ids[int(np.argmin(np.linalg.norm(points - start[:2], axis=1)))]
+            for location, start in zip(ctx.start_locations, ctx.robot_starts, strict=True)]
+        return TaskAllocator(
+            ctx.scenario.tasks.stream, ctx.robot_names, starts,
+            [r.capacity for r in ctx.scenario.robots], ctx.travel_times,
+            allocator_class(params), ctx.scenario.tasks.service_time, ctx.rates.allocator,
+            ctx.scenario.source)
+
+    return BlockType(params_class, make)
+
+
+def _smt_allocator() -> BlockType:
+    from mrta_drake.allocation import SmtAllocator, SmtAllocatorParams
+
+    return task_allocator_block(SmtAllocator, SmtAllocatorParams)
+
+
+def _greedy_allocator() -> BlockType:
+    from mrta_drake.allocation import GreedyAllocator, GreedyAllocatorParams
+
+    return task_allocator_block(GreedyAllocator, GreedyAllocatorParams)
+
+
+def _fixed_allocator() -> BlockType:
+    from mrta_drake.allocation.fixed_sequence_allocator import FixedSequenceAllocator
+
+    return BlockType(NoParams, lambda ctx, params: FixedSequenceAllocator(ctx.scenario.robots))
+
+
+def _roadway_waypoints() -> BlockType:
+    from mrta_drake.navigation.waypoint_generator import WaypointGenerator, WaypointParams
+
+    def make(ctx: BuildContext, params: WaypointParams, index: int):
+        if ctx.scenario.blocks.waypoints.params.get("service_time") is not None:
+            raise InputError(ctx.scenario.source, "blocks.waypoints.params.service_time",
+                             "set tasks.service_time instead (the allocator uses it too)")
+        params = dataclasses.replace(params, service_time=ctx.scenario.tasks.service_time)
+        return WaypointGenerator(ctx.robot_names[index], index, len(ctx.robot_names),
+                                 ctx.roadways, ctx.start_locations[index], params,
+                                 ctx.rates.waypoints)
+
+    return BlockType(WaypointParams, make)
+
+
+def _fifo_queues() -> BlockType:
+    from mrta_drake.navigation.room_queues import RoomQueues
+
+    def make(ctx: BuildContext, params):
+        # A robot that starts on a location holds it until it leaves (first one per room).
+        holders = {}
+        for name, location in zip(ctx.robot_names, ctx.start_locations, strict=True):
+            if location is not None:
+                holders.setdefault(location, name)
+        return RoomQueues(ctx.robot_names, ctx.roadways.location_ids, ctx.rates.queues, holders)
+
+    return BlockType(NoParams, make)
+
+
+def _grid_astar_planner() -> BlockType:
+    from mrta_drake.navigation.planner_service import PlannerService, PlannerServiceParams
+
+    return BlockType(PlannerServiceParams, lambda ctx, params: PlannerService.from_obstacles(
+        ctx.obstacles, ctx.floor_plan.bounds, ctx.robot_names, params, ctx.rates.planner))
+
+
+def _social_force_humans() -> BlockType:
+    from mrta_drake.humans.people import generate_people
+    from mrta_drake.humans.social_force_humans import SocialForceHumans
+
+    def make(ctx: BuildContext, params):
+        robots = ctx.scenario.robots
+        keep_clear = [(r.start[0], r.start[1], r.radius + 0.3) for r in robots]
+        people = generate_people(ctx.scenario.humans, ctx.scenario.seed, ctx.obstacles,
+                                 places=ctx.floor_plan.places, keep_clear=keep_clear,
+                                 file=ctx.scenario.source)
+        return SocialForceHumans(people, ctx.scenario.humans, ctx.obstacles, len(robots),
+                                 [r.radius for r in robots], ctx.rates.humans)
+
+    return BlockType(NoParams, make)
+
+
+def _priorities(ctx: BuildContext) -> list[int]:
+    """Robots' leader priorities (smaller leads); default: their place in the scenario."""
+    return [k if r.priority is None else r.priority for k, r in enumerate(ctx.scenario.robots)]
+
+
+def _cluster_cbf_controller() -> BlockType:
+    from mrta_drake.control.cbf_qp import CbfParams
+    from mrta_drake.control.cluster_cbf_controller import ClusterCbfController
+
+    return BlockType(CbfParams, lambda ctx, params: ClusterCbfController(
+        ctx.robot_names, ctx.obstacles, params, _priorities(ctx), ctx.rates.controller))
+
+
+def _go_to_goal_controller() -> BlockType:
+    from mrta_drake.control.cbf_qp import CbfParams
+    from mrta_drake.control.go_to_goal_controller import GoToGoalController
+
+    return BlockType(CbfParams, lambda ctx, params: GoToGoalController(
+        ctx.robot_names, ctx.obstacles, params, ctx.rates.controller))
+
+
+register_block("robots", "kinematic", _kinematic_robots)
+register_block("robots", "physics", _physics_robots)
+register_block("controller", "cluster_cbf", _cluster_cbf_controller)
+register_block("controller", "go_to_goal", _go_to_goal_controller)
+register_block("humans", "social_force", _social_force_humans)
+register_block("planner", "grid_astar", _grid_astar_planner)
+register_block("allocator", "fixed", _fixed_allocator)
+register_block("allocator", "smt", _smt_allocator)
+register_block("allocator", "greedy", _greedy_allocator)
+register_block("waypoints", "roadway", _roadway_waypoints)
+register_block("queues", "fifo", _fifo_queues)
+
+
+def replace_block(scenario: Scenario, slot: str, kind: str, **params) -> Scenario:
+    """A copy of ``scenario`` using implementation ``kind`` for ``slot`` with ``params``."""
+    blocks = dataclasses.replace(scenario.blocks, **{slot: BlockConfig(kind, dict(params))})
+    return dataclasses.replace(scenario, blocks=blocks)

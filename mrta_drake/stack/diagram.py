@@ -1,0 +1,185 @@
+"""Wiring a scenario's blocks into one Drake diagram.
+
+``add_stack`` adds every block of a scenario to a ``DiagramBuilder`` as a named subsystem
+and connects the fixed ports (see ``blocks.py``); ``build_diagram`` does that and builds.
+Users who want to add their own systems call ``add_stack`` on their own builder, connect
+what they like to the returned handles, then build.
+"""
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Role
+from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
+
+from mrta_drake.robots.plant_stepping import add_plant_stepping
+from mrta_drake.scenario.disturbances import blockages, breakdowns, has_disturbances, outage_windows
+from mrta_drake.scenario.schema import Scenario
+from mrta_drake.stack.blocks import BuildContext, resolve_block
+from mrta_drake.stack.contact_recorder import ContactRecorder
+from mrta_drake.stack.disturbance_schedule import DisturbanceSchedule
+from mrta_drake.stack.meshcat_overlay import MeshcatOverlay
+from mrta_drake.stack.run_recorder import RunRecorder
+from mrta_drake.world.plant import Body, World, add_plant_posing, build_world
+
+
+@dataclass(eq=False)
+class Stack:
+    """Handles to the systems of one scenario's diagram (``diagram`` once built);
+    ``contacts`` records the plant's contacts when a physics robots block steps it;
+    ``disturbances`` is the schedule of a scenario with a ``disturbances:`` section."""
+
+    scenario: Scenario
+    world: World
+    robots: LeafSystem
+    controller: LeafSystem
+    planner: LeafSystem
+    queues: LeafSystem
+    allocator: LeafSystem
+    waypoint_generators: list[LeafSystem]
+    humans: LeafSystem | None
+    recorder: RunRecorder
+    visualizer: MeshcatVisualizer | None = None
+    diagram: Diagram | None = None
+    contacts: ContactRecorder | None = None
+    disturbances: DisturbanceSchedule | None = None
+    extras: dict = field(default_factory=dict)
+
+
+def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat | None = None,
+              out_dir: str | None = None) -> Stack:
+    """Add the scenario's world and blocks to ``builder`` and connect them. With ``meshcat``
+    the scene, lanes, queues and paths are drawn there; with ``out_dir`` the recorder
+    streams the timeline to files as the run goes."""
+    ctx = BuildContext.for_scenario(scenario)
+    scenario, floor_plan = ctx.scenario, ctx.floor_plan
+    names = ctx.robot_names
+
+    humans = None
+    has_humans = bool(scenario.humans.walkers or scenario.humans.groups)
+    if has_humans:
+        humans_type, humans_params = resolve_block(scenario, "humans")
+        humans = builder.AddNamedSystem("humans", humans_type.make(ctx, humans_params))
+    human_bodies = ([Body(n, r, tuple(p)) for n, r, p in zip(
+        humans.human_names, humans.human_radii, _start_poses(humans), strict=True)]
+        if humans else [])
+    robots_type, robots_params = resolve_block(scenario, "robots")
+    world = build_world(builder, floor_plan,
+                        robots=[Body(r.name, r.radius, tuple(pose)) for r, pose in zip(
+                            scenario.robots, ctx.robot_starts, strict=True)],
+                        humans=human_bodies,
+                        physics=robots_type.physics(robots_params) if robots_type.physics
+                        else None)
+    ctx = dataclasses.replace(ctx, world=world)
+
+    def make(slot: str, *extra):
+        block_type, params = resolve_block(scenario, slot)
+        return block_type.make(ctx, params, *extra)
+
+    robots = builder.AddNamedSystem("robots", make("robots"))
+    controller = builder.AddNamedSystem("controller", make("controller"))
+    planner = builder.AddNamedSystem("planner", make("planner"))
+    queues = builder.AddNamedSystem("room_queues", make("queues"))
+    allocator = builder.AddNamedSystem("allocator", make("allocator"))
+    generators = [builder.AddNamedSystem(f"waypoints_{name}", make("waypoints", i))
+                  for i, name in enumerate(names)]
+
+    state = robots.GetOutputPort("state")
+    builder.Connect(controller.GetOutputPort("commands"), robots.GetInputPort("commands"))
+    builder.Connect(state, controller.GetInputPort("robot_state"))
+    builder.Connect(planner.GetOutputPort("paths"), controller.GetInputPort("paths"))
+    builder.Connect(state, planner.GetInputPort("robot_state"))
+    for name, generator in zip(names, generators, strict=True):
+        builder.Connect(allocator.GetOutputPort("plan"), generator.GetInputPort("plan"))
+        builder.Connect(state, generator.GetInputPort("robot_state"))
+        builder.Connect(queues.GetOutputPort("queue_state"),
+                        generator.GetInputPort("queue_state"))
+        builder.Connect(generator.GetOutputPort("target"),
+                        planner.GetInputPort(f"target_{name}"))
+        builder.Connect(generator.GetOutputPort("queue_request"),
+                        queues.GetInputPort(f"request_{name}"))
+        builder.Connect(generator.GetOutputPort("progress"),
+                        allocator.GetInputPort(f"progress_{name}"))
+    if humans is not None:
+        builder.Connect(state, humans.GetInputPort("robot_state"))
+        builder.Connect(humans.GetOutputPort("human_states"), controller.GetInputPort("humans"))
+    human_positions = humans.GetOutputPort("plant_positions") if humans is not None else None
+    contacts = None
+    if robots_type.physics is None:
+        add_plant_posing(builder, world, robots.GetOutputPort("plant_positions"), human_positions)
+    else:
+        contacts = add_plant_stepping(builder, world, robots, human_positions)
+
+    recorder = builder.AddNamedSystem("recorder", RunRecorder(
+        names, human_bodies, scenario.rates.logging, out_dir))
+    builder.Connect(state, recorder.GetInputPort("robot_state"))
+    builder.Connect(controller.GetOutputPort("telemetry"), recorder.GetInputPort("telemetry"))
+    builder.Connect(planner.GetOutputPort("paths"), recorder.GetInputPort("paths"))
+    builder.Connect(queues.GetOutputPort("queue_state"), recorder.GetInputPort("queue_state"))
+    builder.Connect(allocator.GetOutputPort("plan"), recorder.GetInputPort("plan"))
+    for name, generator in zip(names, generators, strict=True):
+        builder.Connect(generator.GetOutputPort("progress"),
+                        recorder.GetInputPort(f"progress_{name}"))
+        builder.Connect(generator.GetOutputPort("target"),
+                        recorder.GetInputPort(f"target_{name}"))
+    if allocator.HasOutputPort("events"):
+        builder.Connect(allocator.GetOutputPort("events"),
+                        recorder.GetInputPort("allocator_events"))
+    if humans is not None:
+        builder.Connect(humans.GetOutputPort("human_states"),
+                        recorder.GetInputPort("human_states"))
+        if humans.HasOutputPort("active"):
+            builder.Connect(humans.GetOutputPort("active"), recorder.GetInputPort("human_active"))
+
+    visualizer = None
+    if meshcat is not None:
+        _look_at_floor_plan(meshcat, floor_plan.bounds)
+        visualizer = MeshcatVisualizer.AddToBuilder(
+            builder, world.scene_graph, meshcat,
+            MeshcatVisualizerParams(publish_period=1.0 / scenario.rates.meshcat,
+                                    role=Role.kIllustration, prefix="hospital"))
+        overlay = builder.AddNamedSystem("meshcat_overlay", MeshcatOverlay(
+            meshcat, scenario, publish_rate=scenario.rates.meshcat))
+        builder.Connect(planner.GetOutputPort("paths"), overlay.GetInputPort("paths"))
+        builder.Connect(queues.GetOutputPort("queue_state"), overlay.GetInputPort("queue_state"))
+
+    schedule = None
+    if has_disturbances(scenario.disturbances):
+        schedule = builder.AddNamedSystem("disturbances", DisturbanceSchedule(
+            len(names), blockages(scenario), breakdowns(scenario), outage_windows(scenario)))
+        builder.Connect(state, schedule.GetInputPort("robot_state"))
+        readers = [controller, planner, allocator, *generators, recorder]
+        if meshcat is not None:
+            readers.append(overlay)
+        for reader in readers:  # a swapped-in block without the input ignores disturbances
+            if reader.HasInputPort("disturbances"):
+                builder.Connect(schedule.GetOutputPort("disturbances"),
+                                reader.GetInputPort("disturbances"))
+    return Stack(scenario, world, robots, controller, planner, queues, allocator, generators,
+                 humans, recorder, visualizer, contacts=contacts, disturbances=schedule)
+
+
+def _look_at_floor_plan(meshcat: Meshcat, bounds) -> None:
+    """Puts the camera south of and above the floor plan's middle, looking north and down
+    at it, far enough back to see all of it."""
+    x_min, x_max, y_min, y_max = bounds
+    middle = np.array([0.5 * (x_min + x_max), 0.5 * (y_min + y_max), 0.0])
+    extent = max(x_max - x_min, y_max - y_min)
+    meshcat.SetCameraPose(middle + [0.0, -0.3 * extent, 0.75 * extent], middle)
+
+
+def _start_poses(system) -> np.ndarray:
+    """(K, 3) [x, y, theta] rows of ``system``'s ``plant_positions`` in a default context."""
+    context = system.CreateDefaultContext()
+    return system.GetOutputPort("plant_positions").Eval(context).reshape(-1, 3)
+
+
+def build_diagram(scenario: Scenario, *, meshcat: Meshcat | None = None,
+                  out_dir: str | None = None) -> Stack:
+    """The scenario's complete diagram (``stack.diagram``), with handles to its blocks."""
+    builder = DiagramBuilder()
+    stack = add_stack(builder, scenario, meshcat=meshcat, out_dir=out_dir)
+    stack.diagram = builder.Build()
+    stack.diagram.set_name("mrta_drake")
+    return stack

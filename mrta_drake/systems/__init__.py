@@ -1,1 +1,0 @@
-"""The blocks of the mrta-drake diagram, one LeafSystem per module."""

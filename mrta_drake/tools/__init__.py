@@ -1,0 +1,1 @@
+"""Command-line tools: ``mrta-sim`` (``cli``), sweeps and travel-time collection."""

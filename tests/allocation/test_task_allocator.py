@@ -1,0 +1,137 @@
+"""TaskAllocator in a Drake simulation, with fake robots that do their stops on time (or
+late by a fixed delay) and report their progress."""
+
+import numpy as np
+import pytest
+from pydrake.common.value import AbstractValue
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
+
+from mrta_drake.allocation import FEASIBLE, INFEASIBLE, GreedyAllocator, SmtAllocator
+from mrta_drake.allocation.task_allocator import TaskAllocator
+from mrta_drake.errors import InputError
+from mrta_drake.payloads import FleetPlan, RobotProgress, Visit
+from mrta_drake.scenario.schema import TaskBatch, TaskConfig
+
+TRAVEL = 10 * np.abs(np.subtract.outer(np.arange(5), np.arange(5)))
+
+
+class FakeRobot(LeafSystem):
+    """Does the stops of its plan in order, each taking travel + 1 s + ``delay`` s."""
+
+    def __init__(self, index: int, name: str, start: int, delay: float = 0.0):
+        super().__init__()
+        self._index, self._delay = index, delay
+        self._plan = self.DeclareAbstractInputPort("plan", AbstractValue.Make(FleetPlan(())))
+        initial = (RobotProgress(robot=name, last_location=start), 0.0)
+        self._state = self.DeclareAbstractState(AbstractValue.Make(initial))
+        self.DeclareAbstractOutputPort(
+            "progress", lambda: AbstractValue.Make(initial[0]),
+            lambda context, output: output.set_value(self._progress(context)[0]),
+            prerequisites_of_calc={self.abstract_state_ticket(self._state)},
+        )
+        self.DeclarePeriodicUnrestrictedUpdateEvent(0.1, 0.0, self._update)
+
+    def _progress(self, context):
+        return context.get_abstract_state(self._state).get_value()
+
+    def _update(self, context, state):
+        (progress, finish), now = self._progress(context), context.get_time()
+        stop = progress.current_stop
+        if stop is not None and now >= finish:
+            visit = Visit(stop.key, stop.location, finish, stop.task, stop.action)
+            progress = RobotProgress(progress.robot, (*progress.visits, visit), stop.location)
+        if progress.current_stop is None:
+            done = {visit.key for visit in progress.visits}
+            plans = self._plan.Eval(context).plans
+            stops = plans[self._index].stops if plans else ()
+            stop = next((s for s in stops if s.key not in done), None)
+            if stop is not None:
+                finish = now + TRAVEL[progress.last_location, stop.location] + 1.0 + self._delay
+                progress = RobotProgress(progress.robot, progress.visits,
+                                         progress.last_location, stop)
+        state.get_mutable_abstract_state(self._state).set_value((progress, finish))
+
+
+def simulate(stream, starts, allocator, delay=0.0):
+    builder = DiagramBuilder()
+    names = [f"robot{k}" for k in range(len(starts))]
+    allocator_system = builder.AddSystem(
+        TaskAllocator(stream, names, starts, [2] * len(starts), TRAVEL, allocator))
+    robots = []
+    for k, (name, start) in enumerate(zip(names, starts, strict=True)):
+        robot = builder.AddSystem(FakeRobot(k, name, start, delay))
+        builder.Connect(allocator_system.GetOutputPort("plan"), robot.GetInputPort("plan"))
+        builder.Connect(robot.GetOutputPort("progress"),
+                        allocator_system.get_progress_input_port(k))
+        robots.append(robot)
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+
+    def output(system, port):
+        return system.GetOutputPort(port).Eval(system.GetMyContextFromRoot(context))
+
+    return simulator, lambda port: output(allocator_system, port), \
+        lambda k: output(robots[k], "progress")
+
+
+def planned_tasks(plan):
+    return sorted(stop.task for robot in plan.plans for stop in robot.stops)
+
+
+def test_plans_appear_on_arrival_and_are_redone_on_the_next_batch():
+    stream = (TaskBatch(2.0, (TaskConfig(1, 2, 100.0),)),
+              TaskBatch(20.0, (TaskConfig(3, 0, 200.0),)))
+    simulator, allocator, progress = simulate(stream, [0, 4], SmtAllocator())
+    simulator.AdvanceTo(1.5)
+    assert allocator("plan").revision == 0 and planned_tasks(allocator("plan")) == []
+    simulator.AdvanceTo(2.5)
+    first = allocator("plan")
+    assert first.revision == 1 and planned_tasks(first) == [0, 0]
+    simulator.AdvanceTo(20.5)
+    second = allocator("plan")
+    events = allocator("events")
+    assert second.revision == 2 and [event.batches for event in events] == [(0,), (1,)]
+    assert all(event.status == FEASIBLE for event in events)
+    # Robot 0 picked task 0 up at 13.1 s and is driving to drop it: that leg is kept.
+    assert progress(0).current_stop.key == "t0/dropoff"
+    kept = second.plans[0].stops[0]
+    assert kept.key == "t0/dropoff" and kept.planned_time == pytest.approx(24.1)
+    assert sorted(planned_tasks(second)) == [0, 1, 1]
+    simulator.AdvanceTo(120.0)
+    visits = {visit.key: visit.time for k in range(2) for visit in progress(k).visits}
+    assert set(visits) == {"t0/pickup", "t0/dropoff", "t1/pickup", "t1/dropoff"}
+    predicted = dict(events[-1].predicted)
+    assert visits["t1/dropoff"] == pytest.approx(predicted[1], abs=0.2)
+    assert visits["t1/dropoff"] <= 200.0
+
+
+@pytest.mark.parametrize("delay, status, late", [(0.0, FEASIBLE, ()), (30.0, INFEASIBLE, (1,))])
+def test_measured_delays_make_a_new_task_late(delay, status, late):
+    # Task 1 (1 -> 2, due 50 s) arrives at 35 s. On time, the robot is idle at 1 and drops it
+    # at 47 s; 30 s late on every stop, it is still driving task 0's drop-off (leg started at
+    # 31 s) and could drop task 1 at 54 s at best.
+    stream = (TaskBatch(0.0, (TaskConfig(0, 1, 500.0),)),
+              TaskBatch(35.0, (TaskConfig(1, 2, 50.0),)))
+    simulator, allocator, _ = simulate(stream, [0], SmtAllocator(), delay)
+    simulator.AdvanceTo(35.5)
+    event = allocator("events")[-1]
+    assert (event.status, event.late_tasks, event.conflict) == (status, late, late)
+    assert dict(event.predicted)[1] == pytest.approx(47.0 if delay == 0 else 54.0, abs=0.2)
+
+
+def test_unconnected_progress_means_robots_at_their_starts():
+    allocator = TaskAllocator((TaskBatch(0.0, (TaskConfig(1, 2, 100.0),)),), ["a"], [0], [2],
+                              TRAVEL, GreedyAllocator(), rate=2.0)
+    simulator = Simulator(allocator)
+    simulator.AdvanceTo(1.0)
+    plan = allocator.GetOutputPort("plan").Eval(simulator.get_context())
+    assert [(stop.key, stop.planned_time) for stop in plan.plans[0].stops] == [
+        ("t0/pickup", 11.0), ("t0/dropoff", 22.0)]
+
+
+def test_bad_stream_is_an_input_error():
+    with pytest.raises(InputError, match=r"tasks_stream\[0\].tasks\[0\].pickup"):
+        TaskAllocator((TaskBatch(0.0, (TaskConfig(9, 2, 100.0),)),), ["a"], [0], [2],
+                      TRAVEL, GreedyAllocator())

@@ -1,0 +1,348 @@
+"""Closed-loop tests of the CBF controller (and the go-to-goal baseline) with kinematic robots."""
+
+import math
+import pathlib
+
+import numpy as np
+import pytest
+from pydrake.common.value import Value
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import ConstantValueSource, LogVectorOutput
+
+from mrta_drake.control.cluster_cbf_controller import CbfParams, ClusterCbfController
+from mrta_drake.control.go_to_goal_controller import GoToGoalController
+from mrta_drake.payloads import PATH_OK, FleetPaths, HumanStates, RobotPath, frozen_array
+from mrta_drake.robots.unicycle_robots import UnicycleRobots
+from mrta_drake.world.obstacles import Box, Obstacles
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+RADIUS = 0.22  # robot body radius, m
+MODES = ["clusters", "decentralized", "centralized"]
+
+
+class _Walker(LeafSystem):
+    """One human walking at constant velocity from ``start`` (test source)."""
+
+    def __init__(self, start, velocity):
+        super().__init__()
+        self.start, self.velocity = np.asarray(start, float), np.asarray(velocity, float)
+        self.DeclareAbstractOutputPort("humans", lambda: Value[object](HumanStates()),
+                                       self._calc)
+
+    def position(self, t):
+        return self.start + self.velocity * t
+
+    def _calc(self, context, output):
+        output.set_value(HumanStates(
+            ("h",), frozen_array(self.position(context.get_time()), shape=(1, 2)),
+            frozen_array(self.velocity, shape=(1, 2)), frozen_array([0.25])))
+
+
+def _run(starts, paths, obstacles, duration, params=None, walker=None, controller=None,
+         priorities=None):
+    """Simulate; returns robot states (T, N, 4) sampled at 20 Hz and the controller."""
+    names = [f"r{i}" for i in range(len(starts))]
+    builder = DiagramBuilder()
+    robots = builder.AddSystem(UnicycleRobots(names, np.asarray(starts, dtype=float)))
+    if controller is None:
+        controller = ClusterCbfController(names, obstacles, params, priorities)
+    builder.AddSystem(controller)
+    fleet = FleetPaths(tuple(RobotPath(name, PATH_OK, frozen_array(points))
+                             for name, points in zip(names, paths, strict=True)))
+    source = builder.AddSystem(ConstantValueSource(Value[object](fleet)))
+    builder.Connect(source.get_output_port(), controller.GetInputPort("paths"))
+    builder.Connect(robots.GetOutputPort("state"), controller.GetInputPort("robot_state"))
+    builder.Connect(controller.GetOutputPort("commands"), robots.GetInputPort("commands"))
+    if walker is not None:
+        builder.AddSystem(walker)
+        builder.Connect(walker.get_output_port(), controller.GetInputPort("humans"))
+    states = LogVectorOutput(robots.GetOutputPort("state"), builder, 0.05)
+    commands = LogVectorOutput(controller.GetOutputPort("commands"), builder, 0.05)
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(duration)
+    context = simulator.get_context()
+    log = states.FindLog(context)
+    n = len(names)
+    cmd = commands.FindLog(context).data().T.reshape(-1, n, 2)
+    assert np.all(np.abs(cmd[:, :, 1]) <= 2.0 + 1e-9)
+    assert np.all((cmd[:, :, 0] >= -0.3 - 1e-9) & (cmd[:, :, 0] <= 1.5 + 1e-9))
+    telemetry = controller.GetOutputPort("telemetry").Eval(
+        controller.GetMyContextFromRoot(context))
+    return log.data().T.reshape(-1, n, 4), telemetry
+
+
+def _arrival_times(states, goals, tolerance=0.1):
+    near = np.linalg.norm(states[:, :, :2] - np.asarray(goals)[None], axis=2) <= tolerance
+    settled = near & near[-1][None]  # and still there at the end
+    return [0.05 * int(np.argmax(settled[:, i])) if settled[-1, i] else math.inf
+            for i in range(states.shape[1])]
+
+
+def _min_separation(states):
+    n = states.shape[1]
+    return min(np.linalg.norm(states[:, i, :2] - states[:, j, :2], axis=1).min()
+               for i in range(n) for j in range(i + 1, n))
+
+
+def _min_wall_distance(states, obstacles):
+    return obstacles.signed_distance(states[:, :, :2].reshape(-1, 2)).min()
+
+
+def _corridor(width=2.8, length=14.0):
+    half, t = width / 2, 0.2
+    return Obstacles((Box("north", (length / 2, half + t / 2), (length + 4, t)),
+                      Box("south", (length / 2, -half - t / 2), (length + 4, t))))
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_head_on_swap_in_corridor(mode):
+    obstacles = _corridor()
+    starts = [[1.0, 0.0, 0.0], [13.0, 0.0, math.pi]]
+    goals = [[13.0, 0.0], [1.0, 0.0]]
+    states, telemetry = _run(starts, [[s[:2], g] for s, g in zip(starts, goals, strict=True)],
+                             obstacles, 34.0, CbfParams(coordination=mode))
+    assert max(_arrival_times(states, goals)) < 34.0
+    assert _min_separation(states) >= 2 * RADIUS
+    assert _min_wall_distance(states, obstacles) >= RADIUS
+    np.testing.assert_allclose(states[-1, :, :2], goals, atol=0.05)  # at rest on the end
+    assert np.all(np.abs(states[-1, :, 3]) < 1e-3)
+    assert telemetry.failures == 0
+
+
+def _crossing():
+    half, size = 1.4, 6.0
+    c = half + size / 2
+    return Obstacles(tuple(Box(f"block{i}{j}", (i * c, j * c), (size, size))
+                           for i in (-1, 1) for j in (-1, 1)))
+
+
+@pytest.mark.parametrize("mode,bound", [("clusters", 55.0), ("decentralized", 22.0),
+                                        ("centralized", 22.0)])
+def test_four_robots_cross_an_intersection(mode, bound):
+    obstacles = _crossing()
+    starts = [[-6.0, 0.0, 0.0], [6.0, 0.0, math.pi], [0.0, -6.0, math.pi / 2],
+              [0.0, 6.0, -math.pi / 2]]
+    goals = [[6.0, 0.0], [-6.0, 0.0], [0.0, 6.0], [0.0, -6.0]]
+    states, telemetry = _run(starts, [[s[:2], g] for s, g in zip(starts, goals, strict=True)],
+                             obstacles, bound, CbfParams(coordination=mode))
+    assert max(_arrival_times(states, goals)) < bound
+    assert _min_separation(states) >= 2 * RADIUS
+    assert _min_wall_distance(states, obstacles) >= RADIUS
+    assert telemetry.failures == 0
+
+
+def _room_with_door(gap=1.4):
+    # A wall at x = 0 with a doorway |y| < gap / 2 between a corridor (x < 0) and a room.
+    h, span = gap / 2, 6.0
+    return Obstacles((Box("jamb_n", (0.0, h + span / 2), (0.2, span)),
+                      Box("jamb_s", (0.0, -h - span / 2), (0.2, span)),
+                      Box("corridor_n", (-5.0, 3.0), (10.0, 0.2)),
+                      Box("corridor_s", (-5.0, -3.0), (10.0, 0.2))))
+
+
+@pytest.mark.parametrize("mode", ["clusters", "centralized"])
+def test_robot_goes_in_through_a_doorway_while_another_comes_out(mode):
+    # Decentralized CBFs (no coordination) deadlock here: the two stop nose to nose in the
+    # doorway. The cluster leader (robot 0, going in) backs the other one out of the way.
+    obstacles = _room_with_door()
+    starts = [[-4.0, 0.0, 0.0], [3.0, 0.0, math.pi]]
+    paths = [[(-4.0, 0.0), (-1.0, 0.0), (1.0, 0.0), (3.5, 1.0)],
+             [(3.0, 0.0), (1.0, 0.0), (-1.0, 0.0), (-4.0, -1.0)]]
+    goals = [p[-1] for p in paths]
+    states, telemetry = _run(starts, paths, obstacles, 28.0, CbfParams(coordination=mode))
+    assert max(_arrival_times(states, goals)) < 28.0
+    assert _min_separation(states) >= 2 * RADIUS
+    assert _min_wall_distance(states, obstacles) >= RADIUS
+
+
+def test_path_cutting_a_corner_is_followed_around_it():
+    # The path passes 0.57 m from the corner of a block, inside the 0.6 m safety distance:
+    # the robot stops nose to the corner; a standing unicycle's barrier rows do not involve
+    # its yaw rate, so it must turn along the corner itself (steer_blocked) to get on.
+    block = Obstacles((Box("block", (2.0, -2.0), (4.0, 4.0)),))  # corner at (0, 0)
+    path = [(-3.0, 0.3), (-0.3, 0.3), (-0.3, -1.0), (-1.5, -3.0)]
+    states, _ = _run([[-3.0, 0.3, 0.0]], [path], block, 25.0)
+    assert _arrival_times(states, [path[-1]])[0] < 25.0
+    assert _min_wall_distance(states, block) >= RADIUS
+
+
+@pytest.mark.parametrize("start,velocity", [((5.0, -5.0), (0.0, 1.0)),
+                                            ((5.0, -3.0), (0.0, 0.5)),
+                                            ((4.0, 2.0), (0.0, -0.8))])
+def test_human_crossing_the_path_is_kept_at_the_safety_distance(start, velocity):
+    walker = _Walker(start, velocity)
+    states, _ = _run([[1.0, 0.0, 0.0]], [[(1.0, 0.0), (10.0, 0.0)]], None, 16.0,
+                     walker=walker)
+    t = 0.05 * np.arange(len(states))
+    human = walker.position(t[:, None])
+    distance = np.linalg.norm(states[:, 0, :2] - human, axis=1)
+    assert distance.min() >= 0.6 - 0.02
+    assert _arrival_times(states, [[10.0, 0.0]])[0] < 16.0
+
+
+def test_human_walking_into_the_robot_makes_it_back_off():
+    # A walker at 1 m/s straight at the robot: the robot cannot keep 0.6 m (it reverses at
+    # most 0.3 m/s), but it stops and backs off instead of driving on.
+    walker = _Walker((9.0, 0.0), (-1.0, 0.0))
+    states, _ = _run([[1.0, 0.0, 0.0]], [[(1.0, 0.0), (12.0, 0.0)]], None, 8.0,
+                     walker=walker)
+    t = 0.05 * np.arange(len(states))
+    distance = np.linalg.norm(states[:, 0, :2] - walker.position(t[:, None]), axis=1)
+    closing = (distance < 1.0) & (np.arange(len(distance)) <= np.argmin(distance))
+    assert closing.any() and np.all(states[closing, 0, 3] <= 0.0)
+
+
+def test_solver_failure_brakes_every_robot_of_the_qp_and_is_counted():
+    controller = ClusterCbfController(["a", "b"])
+    states = np.array([[0.0, 0.0, 0.0, 1.0], [1.0, 0.0, 0.0, 0.02]])
+    paths = FleetPaths(tuple(RobotPath(n, PATH_OK, frozen_array([[0.0, 0.0], [9.0, 0.0]]))
+                             for n in "ab"))
+    broken = HumanStates(("h",), frozen_array([[np.nan, 0.0]]), frozen_array([[0.0, 0.0]]),
+                         frozen_array([0.25]))
+    u, telemetry = controller.control(0.0, states, paths, broken)
+    assert telemetry.failures == 2
+    # Full braking, but never below the reverse speed limit -0.3 m/s after one 0.05 s step.
+    np.testing.assert_allclose(u, [[-1.0, 0.0], [-1.0, 0.0]])
+    u, telemetry = controller.control(0.0, states, paths)
+    assert telemetry.failures == 0 and telemetry.clusters == ((0, 1),)
+
+
+def test_fixed_step_commands_after_a_late_start():
+    # The original derived dt from wall-clock gaps; here dt is 1 / rate whatever the time.
+    names = ["a"]
+    builder = DiagramBuilder()
+    controller = builder.AddSystem(ClusterCbfController(names))
+    robots = builder.AddSystem(UnicycleRobots(names, np.array([[0.0, 0.0, 0.0]])))
+    fleet = FleetPaths((RobotPath("a", PATH_OK, frozen_array([[0.0, 0.0], [9.0, 0.0]])),))
+    source = builder.AddSystem(ConstantValueSource(Value[object](fleet)))
+    builder.Connect(source.get_output_port(), controller.GetInputPort("paths"))
+    builder.Connect(robots.GetOutputPort("state"), controller.GetInputPort("robot_state"))
+    builder.Connect(controller.GetOutputPort("commands"), robots.GetInputPort("commands"))
+    simulator = Simulator(builder.Build())
+    simulator.get_mutable_context().SetTime(1000.0)
+    simulator.AdvanceTo(1000.01)
+    context = controller.GetMyContextFromRoot(simulator.get_context())
+    v, omega = controller.GetOutputPort("commands").Eval(context)
+    assert v == pytest.approx(1.0 * 0.05)  # one step at the acceleration limit
+    telemetry = controller.GetOutputPort("telemetry").Eval(context)
+    assert telemetry.time == pytest.approx(1000.0) and telemetry.clusters == ((0,),)
+
+
+def test_go_to_goal_baseline_reaches_goals_but_collides_head_on():
+    obstacles = _corridor()
+    starts = [[1.0, 0.0, 0.0], [13.0, 0.0, math.pi]]
+    goals = [[13.0, 0.0], [1.0, 0.0]]
+    baseline = GoToGoalController(["r0", "r1"], obstacles)
+    states, telemetry = _run(starts, [[s[:2], g] for s, g in zip(starts, goals, strict=True)],
+                             obstacles, 20.0, controller=baseline)
+    assert max(_arrival_times(states, goals)) < 20.0  # kinematic robots pass through
+    assert _min_separation(states) < 2 * RADIUS
+    assert telemetry.min_barrier_robot > 0.0 and telemetry.clusters == ()
+
+
+FLOOR_PLAN = ROOT / "models/hospital/floor_plan.yaml"
+
+
+@pytest.mark.skipif(not FLOOR_PLAN.is_file(), reason="hospital floor plan not written yet")
+def test_head_on_swap_in_the_hospital_east_corridor():
+    from mrta_drake.world.floor_plan import load_floor_plan
+
+    obstacles = load_floor_plan(FLOOR_PLAN).obstacles
+    x = 5.0  # east corridor, x 3.6 .. 6.4
+    starts = [[x, -2.0, -math.pi / 2], [x, -14.0, math.pi / 2]]
+    goals = [[x, -14.0], [x, -2.0]]
+    states, telemetry = _run(starts, [[s[:2], g] for s, g in zip(starts, goals, strict=True)],
+                             obstacles, 34.0)
+    assert max(_arrival_times(states, goals)) < 34.0
+    assert _min_separation(states) >= 2 * RADIUS
+    assert _min_wall_distance(states, obstacles) >= RADIUS
+
+
+def test_the_telemetry_port_gives_the_tick_s_telemetry():
+    """The telemetry is kept as numbers in the state; the port turns them back into the very
+    telemetry the tick made, clusters (leader first) included."""
+    n = 5
+    controller = ClusterCbfController([f"robot{i}" for i in range(n)])
+    simulator = Simulator(controller)
+    context = simulator.get_mutable_context()
+    starts = [[0.0, 0.0, 0.0, 0.0], [9.0, 0.0, 0.0, 0.0], [1.0, 0.0, math.pi, 0.0],
+              [9.0, 2.0, 0.0, 0.0], [30.0, 0.0, 0.0, 0.0]]
+    controller.get_input_port(0).FixValue(context, np.ravel(starts))
+    paths = FleetPaths(tuple(RobotPath(f"robot{i}", PATH_OK, frozen_array([s[:2], [s[0], 5.0]]))
+                             for i, s in enumerate(starts)))
+    controller.get_input_port(1).FixValue(context, Value[object](paths))
+    simulator.AdvanceTo(0.01)  # one tick, at t = 0
+    telemetry = controller.GetOutputPort("telemetry").Eval(context)
+    _, expected = controller.control(0.0, starts, paths)
+    assert telemetry.clusters == ((0, 2), (1, 3), (4,))
+    assert telemetry == expected
+
+
+def _slowed(params, states, paths):
+    """Per robot, whether one tick's nominal input is the slow-down nominal."""
+    names = [f"r{i}" for i in range(len(states))]
+    fleet = FleetPaths(tuple(RobotPath(name, PATH_OK, frozen_array(points))
+                             for name, points in zip(names, paths, strict=True)))
+    plan = ClusterCbfController(names, params=params).plan(np.asarray(states, float), fleet)
+    assert len(plan.clusters) == 1 and plan.clusters[0][0] == 0  # robot 0 leads
+    return [bool(u[0] <= 0.0 and u[1] == 0.0) for u in plan.u_nominal]
+
+
+def test_only_followers_in_the_way_of_a_robot_ranked_above_get_the_slow_down_nominal():
+    lane = [(0.0, 0.0), (8.0, 0.0)]  # robot 0 (the leader) drives east along y = 0
+    ahead_of_it = [[0.0, 0.0, 0.0, 0.0], [2.5, 0.6, math.pi / 2, 0.0]]
+    beside_it = [[0.0, 0.0, 0.0, 0.0], [2.5, 2.5, 0.0, 0.0]]
+    crossing_it = [[0.0, 0.0, 0.0, 0.0], [0.5, 2.5, -math.pi / 2, 0.0]]
+    on_it = [lane, [(2.5, 0.6), (2.5, 6.0)]]
+    beside = [lane, [(2.5, 2.5), (9.0, 2.5)]]
+    across = [lane, [(0.5, 2.5), (0.5, -4.0)]]  # passes 0.5 m from robot 0
+    default = CbfParams()
+    assert _slowed(default, ahead_of_it, on_it) == [False, True]
+    assert _slowed(default, crossing_it, across) == [False, True]
+    assert _slowed(default, beside_it, beside) == [False, False]
+    # One behind the other on the same way: the barriers keep the gap, nobody waits.
+    behind_it = [[2.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]]
+    ahead_on_it = [[0.0, 0.0, 0.0, 0.0], [2.0, 0.0, 0.0, 0.0]]
+    assert _slowed(default, behind_it, [[(2.0, 0.0), (9.0, 0.0)], lane]) == [False, False]
+    assert _slowed(default, ahead_on_it, [lane, [(2.0, 0.0), (9.0, 0.0)]]) == [False, False]
+    head_on = [[0.0, 0.0, 0.0, 0.0], [2.5, 0.0, math.pi, 0.0]]
+    assert _slowed(default, head_on, [lane, [(2.5, 0.0), (-6.0, 0.0)]]) == [False, True]
+    # The paper's rule: every follower slows down.
+    assert _slowed(CbfParams(followers="all"), beside_it, beside) == [False, True]
+    with pytest.raises(ValueError, match="followers"):
+        CbfParams(followers="none")
+
+
+def test_a_follower_out_of_the_leaders_way_drives_on():
+    # Two robots on parallel lanes 2.5 m apart are one cluster all the way: under the
+    # paper's rule the follower waits until the leader is 4 m away (and then trails it).
+    starts = [[0.0, 0.0, 0.0], [0.0, 2.5, 0.0]]
+    paths = [[(0.0, 0.0), (8.0, 0.0)], [(0.0, 2.5), (8.0, 2.5)]]
+    goals = [p[-1] for p in paths]
+    times = {}
+    for rule in ("in_the_way", "all"):
+        states, _ = _run(starts, paths, None, 20.0, CbfParams(followers=rule))
+        times[rule] = _arrival_times(states, goals)
+    assert abs(times["in_the_way"][1] - times["in_the_way"][0]) < 0.5
+    assert times["all"][1] - times["all"][0] > 3.0
+
+
+def test_a_body_standing_right_of_the_lane_is_passed_on_its_left():
+    # A robot standing 0.4 m right of the lane, 0.43 m from a wall (like one at a queue
+    # slot by the corridor wall): passing it on the right would squeeze between it and the
+    # wall, where there is no room.
+    from mrta_drake.control.nominal import NominalParams, nominal_control
+
+    params = NominalParams()
+    path = RobotPath("r", PATH_OK, frozen_array([(0.0, 0.0), (0.0, 8.0)]))  # north
+    state = [0.0, 0.0, math.pi / 2, 0.75]
+
+    def turn(x, speed):  # the yaw rate with a body at (x, 1.5) moving at speed
+        return nominal_control(state, path, params, bodies=[(x, 1.5, speed)])[1]
+
+    assert turn(0.4, 0.0) > 0.1  # turns left (west), away from the body
+    assert turn(0.1, 0.0) < -0.1  # a body near the lane's middle: passed on the right
+    assert turn(0.4, 0.5) < -0.1  # oncoming traffic: passed on the right
+    assert nominal_control(state, path, params, bodies=[(0.4, 1.5)])[1] < -0.1  # moving

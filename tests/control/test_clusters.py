@@ -1,0 +1,121 @@
+"""Cluster formation (transitive closure) and leader rules."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from mrta_drake.control.cluster_cbf_controller import CbfParams, ClusterCbfController
+from mrta_drake.control.clusters import (
+    LEADER_RULES,
+    by_distance_to_goal,
+    connected_groups,
+    form_clusters,
+    leader_stall_times,
+    register_leader_rule,
+)
+from mrta_drake.payloads import PATH_IDLE, PATH_OK, FleetPaths, RobotPath, frozen_array
+
+
+def _clusters(positions, priorities=None, active=None, distances=None, rule=None):
+    n = len(positions)
+    return form_clusters(positions, 4.0,
+                         np.arange(n) if priorities is None else priorities,
+                         np.zeros(n) if distances is None else distances,
+                         [True] * n if active is None else active,
+                         **({} if rule is None else {"rule": rule}))
+
+
+def test_transitive_chain_is_one_cluster_and_a_gap_splits_it():
+    chain = [[0.0, 0.0], [3.5, 0.0], [7.0, 0.0], [10.5, 0.0], [20.0, 0.0]]
+    assert _clusters(chain) == ((0, 1, 2, 3), (4,))
+    assert connected_groups([[0.0, 0.0], [4.0, 0.0], [8.01, 0.0]], 4.0) == [[0, 1], [2]]
+
+
+def test_clusters_are_ordered_by_lowest_index_and_led_by_priority():
+    positions = [[10.0, 0.0], [0.0, 0.0], [11.0, 0.0], [1.0, 1.0]]
+    # Smaller priority value leads; robot 2 outranks robot 0, robot 3 outranks robot 1.
+    assert _clusters(positions, priorities=[5, 3, 1, 0]) == ((2, 0), (3, 1))
+
+
+def test_inactive_robots_never_lead_unless_all_are_inactive():
+    positions = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]
+    assert _clusters(positions, active=[False, True, True]) == ((1, 2, 0),)
+    assert _clusters(positions, active=[False, False, False]) == ((0, 1, 2),)
+
+
+def test_more_than_nine_robots_rank_by_priority_not_by_name():
+    positions = np.column_stack([np.arange(12) * 1.0, np.zeros(12)])
+    # Names robot1 .. robot12: the original's last-digit rule would put robot10 (digit 0)
+    # first. Scenario order leads here.
+    assert _clusters(positions)[0] == tuple(range(12))
+    assert _clusters(positions, priorities=np.arange(12)[::-1])[0] == tuple(range(12))[::-1]
+
+
+def test_distance_to_goal_rule_and_custom_rules():
+    positions = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]
+    distances = [5.0, 1.0, 3.0]
+    assert LEADER_RULES["distance_to_goal"] is by_distance_to_goal
+    assert _clusters(positions, distances=distances, rule=by_distance_to_goal) == ((1, 2, 0),)
+
+    def farthest_first(priorities, distances_to_goal):
+        return -np.asarray(distances_to_goal)
+
+    assert _clusters(positions, distances=distances, rule=farthest_first) == ((0, 2, 1),)
+
+
+def test_a_leader_standing_too_long_passes_the_lead_on_in_turn():
+    positions = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [9.0, 0.0]]
+    active = np.array([True, True, True, True])
+    speeds = np.array([0.0, 0.0, 0.0, 0.0])
+    stall = np.zeros(4)
+    leaders = []
+    for _ in range(200):  # 10 s at 20 Hz, everyone standing
+        clusters = _clusters(positions, active=active) if not stall.any() else form_clusters(
+            positions, 4.0, np.arange(4), np.zeros(4), active, stalled=stall >= 3.0)
+        leaders.append(clusters[0][0])
+        stall = leader_stall_times(stall, speeds, clusters, active, 0.05, 3.0, 0.05)
+        assert stall[3] == 0.0  # alone: never stalled
+    # Each leads for 3 s (60 ticks), then the next; after all three, the round starts again.
+    runs = [(leader, len(list(run))) for leader, run in itertools.groupby(leaders)]
+    assert [leader for leader, _ in runs] == [0, 1, 2, 0]
+    assert all(60 <= length <= 61 for _, length in runs[:3])
+    moving = leader_stall_times(stall, np.array([0.5, 0, 0, 0]), ((0, 1, 2), (3,)), active,
+                                0.05, 3.0, 0.05)
+    assert moving[0] == 0.0
+
+
+def test_controller_reports_clusters_of_twelve_robots_with_its_leader_rule():
+    n = 12
+    names = [f"robot{i + 1}" for i in range(n)]
+    states = np.zeros((n, 4))
+    states[:, 0] = np.arange(n) * 2.0
+    states[11, 0] = 40.0  # alone
+    goals = [[s[0], 5.0 + i] for i, s in enumerate(states)]
+    paths = FleetPaths(tuple(
+        RobotPath(name, PATH_OK if i != 0 else PATH_IDLE, frozen_array([s[:2], g]))
+        for i, (name, s, g) in enumerate(zip(names, states, goals, strict=True))))
+    by_priority = ClusterCbfController(names, priorities=np.arange(n)[::-1])
+    _, telemetry = by_priority.control(0.0, states, paths)
+    assert telemetry.clusters == ((10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0), (11,))
+    by_goal = ClusterCbfController(names, params=CbfParams(leader_rule="distance_to_goal"))
+    _, telemetry = by_goal.control(0.0, states, paths)
+    # Robot 0 is idle, the rest are 5 + i m from their goals: robot 1 leads.
+    assert telemetry.clusters == ((1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 0), (11,))
+
+
+def test_a_registered_leader_rule_is_chosen_by_name():
+    def last_first(priorities, distances_to_goal):
+        return -np.asarray(priorities)
+
+    register_leader_rule("last_first", last_first)
+    names = ["a", "b", "c"]
+    states = np.zeros((3, 4))
+    states[:, 0] = [0.0, 1.0, 2.0]
+    paths = FleetPaths(tuple(RobotPath(name, PATH_OK, frozen_array([s[:2], [s[0], 5.0]]))
+                             for name, s in zip(names, states, strict=True)))
+    controller = ClusterCbfController(names, params=CbfParams(leader_rule="last_first"))
+    assert controller.control(0.0, states, paths)[1].clusters == ((2, 1, 0),)
+    with pytest.raises(TypeError, match="must be a function"):
+        register_leader_rule("broken", 3)
+    assert "broken" not in LEADER_RULES

@@ -1,0 +1,138 @@
+"""RoomQueues in a Simulator, its requests fixed by hand between steps."""
+
+import random
+
+import pytest
+from pydrake.common.value import Value
+from pydrake.systems.analysis import Simulator
+
+from mrta_drake.navigation.room_queues import RoomQueues
+from mrta_drake.payloads import QueueRequest, RoomQueue
+
+ROOM, OTHER = 7, 8
+
+
+class Bench:
+    """A RoomQueues under a Simulator: ``ask`` sets a robot's request, ``step`` runs one
+    queue update (10 Hz), ``queue`` reads a room's queue."""
+
+    def __init__(self, robots, holders=None):
+        self.queues = RoomQueues(robots, rooms=[ROOM, OTHER], holders=holders)
+        self.simulator = Simulator(self.queues)
+        self.context = self.simulator.get_mutable_context()
+        for robot in robots:
+            self.ask(robot)
+        self.simulator.AdvanceTo(0.05)  # the update at t = 0
+
+    def ask(self, robot, room=None, release=None):
+        port = self.queues.get_request_input_port(robot)
+        port.FixValue(self.context, Value[object](QueueRequest(robot, room, release)))
+
+    def step(self, count=1):
+        self.simulator.AdvanceTo(self.context.get_time() + 0.1 * count)
+
+    def queue(self, room=ROOM) -> RoomQueue:
+        state = self.queues.GetOutputPort("queue_state").Eval(self.context)
+        return state.room(room)
+
+
+def test_four_robots_get_the_room_one_at_a_time_in_request_order():
+    bench = Bench(["r0", "r1", "r2", "r3"])
+    for robot in ("r2", "r0", "r3", "r1"):
+        bench.ask(robot, ROOM)
+        bench.step()
+    assert bench.queue() == RoomQueue(ROOM, "r2", ("r0", "r3", "r1"))
+    holders = []
+    for _ in range(4):
+        holder = bench.queue().holder
+        holders.append(holder)
+        bench.ask(holder, None, release=ROOM)
+        bench.step()
+        assert bench.queue().holder != holder
+        bench.ask(holder)  # done: no request at all
+    assert holders == ["r2", "r0", "r3", "r1"]
+    assert bench.queue() == RoomQueue(ROOM)
+
+
+def test_same_tick_requests_queue_in_robot_order():
+    bench = Bench(["a", "b", "c"])
+    for robot in ("c", "b", "a"):
+        bench.ask(robot, ROOM)
+    bench.step()
+    assert bench.queue() == RoomQueue(ROOM, "a", ("b", "c"))
+
+
+def test_a_non_holder_release_changes_nothing():
+    bench = Bench(["r0", "r1", "r2"])
+    for robot in ("r0", "r1", "r2"):
+        bench.ask(robot, ROOM)
+        bench.step()
+    before = bench.queue()
+    assert before == RoomQueue(ROOM, "r0", ("r1", "r2"))
+    bench.ask("r1", ROOM, release=ROOM)  # waiting, not holding
+    bench.ask("r2", ROOM, release=OTHER)  # a room nobody holds
+    bench.step(3)
+    assert bench.queue() == before
+    assert bench.queue(OTHER) == RoomQueue(OTHER)
+
+
+def test_a_robot_that_stops_needing_the_room_leaves_the_queue():
+    bench = Bench(["r0", "r1", "r2", "r3"])
+    for robot in ("r0", "r1", "r2", "r3"):
+        bench.ask(robot, ROOM)
+        bench.step()
+    bench.ask("r1")  # no longer wants anything
+    bench.ask("r2", OTHER)  # wants another room instead
+    bench.ask("r0", OTHER)  # the holder asks elsewhere but keeps ROOM until it releases it
+    bench.step()
+    assert bench.queue() == RoomQueue(ROOM, "r0", ("r3",))
+    assert bench.queue(OTHER) == RoomQueue(OTHER, "r0", ("r2",))  # same tick: robot order
+    bench.ask("r0", OTHER, release=ROOM)
+    bench.step()
+    assert bench.queue() == RoomQueue(ROOM, "r3")
+
+
+def test_more_robots_than_slots_all_get_the_room_in_order():
+    robots = [f"r{i}" for i in range(6)]  # rooms have 3 slots; the queue is not bounded
+    bench = Bench(robots)
+    for robot in robots:
+        bench.ask(robot, ROOM)
+    bench.step()
+    assert bench.queue() == RoomQueue(ROOM, "r0", tuple(robots[1:]))
+    served = []
+    while bench.queue().holder is not None:
+        holder = bench.queue().holder
+        served.append(holder)
+        bench.ask(holder, release=ROOM)
+        bench.step()
+    assert served == robots
+
+
+def test_initial_holders():
+    bench = Bench(["r0", "r1"], holders={ROOM: "r1"})
+    bench.ask("r0", ROOM)
+    bench.step()
+    assert bench.queue() == RoomQueue(ROOM, "r1", ("r0",))
+    with pytest.raises(ValueError):
+        RoomQueues(["r0"], rooms=[ROOM], holders={ROOM: "nobody"})
+
+
+def test_an_update_keeps_the_state_when_no_rule_applies():
+    # The update keeps the old state object when it finds no rule to apply (most updates):
+    # random requests from reachable states, the shortcut against the rules applied.
+    robots = ["r0", "r1", "r2", "r3"]
+    bench = Bench(robots, holders={OTHER: "r3"})
+    queues, rng = bench.queues, random.Random(0)
+    kept = 0
+    for _ in range(300):
+        for robot in rng.sample(robots, 2):
+            bench.ask(robot, rng.choice([None, ROOM, OTHER, 99]),
+                      rng.choice([None, None, ROOM, OTHER]))
+        old = queues.GetOutputPort("queue_state").Eval(bench.context)
+        requests = [queues.get_request_input_port(r).Eval(bench.context) for r in robots]
+        bench.step()
+        if not queues._changes_anything(old, requests):
+            assert queues._applied(old, requests) == old
+            assert queues.GetOutputPort("queue_state").Eval(bench.context) is old
+            kept += 1
+    assert 30 < kept < 270

@@ -1,0 +1,368 @@
+"""WaypointGenerators, RoomQueues and fake robots in a small lane loop, in a Simulator."""
+
+import math
+
+import numpy as np
+from pydrake.common.value import Value
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
+
+from mrta_drake.allocation.fixed_sequence_allocator import FixedSequenceAllocator
+from mrta_drake.navigation.roadways import Roadways
+from mrta_drake.navigation.room_queues import RoomQueues
+from mrta_drake.navigation.waypoint_generator import (
+    QUEUE,
+    WaypointGenerator,
+    WaypointParams,
+    _Drive,
+)
+from mrta_drake.payloads import (
+    FleetPlan,
+    QueueState,
+    RobotPlan,
+    RoomQueue,
+    Stop,
+    WaypointTarget,
+)
+from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig, RobotConfig
+
+A, B, C = 0, 1, 2
+
+
+def loop_world(parking: bool = False) -> Roadways:
+    """As in test_roadways: an eastbound lane at y = 0 and a westbound one at y = 1.5 joined
+    at x = 0 and 30; rooms A, B, C at x = 5, 15, 25, point at y = 5, door at y = 2.5, three
+    queue slots east of the door on the westbound lane; with ``parking``, a parking spot 2 m
+    east of each point."""
+    xs = (0, 10, 20, 30)
+    nodes = {f"S{x}": [x, 0.0] for x in xs} | {f"N{x}": [x, 1.5] for x in xs}
+    edges = [["S0", "S10"], ["S10", "S20"], ["S20", "S30"], ["S30", "N30"],
+             ["N30", "N20"], ["N20", "N10"], ["N10", "N0"], ["N0", "S0"]]
+    locations = [
+        LocationConfig(
+            id=i, point=[x, 5.0], queue=[[x + 1.0, 1.5], [x + 2.0, 1.5], [x + 3.0, 1.5]],
+            entry=[[x, 2.5]], exit_node=f"N{x - 5}", approach_node=f"N{x + 5}",
+            parking=[[x + 2.0, 5.0], [x + 2.0, 6.5]] if parking else [],
+        )
+        for i, x in enumerate((5, 15, 25))
+    ]
+    return Roadways(RoadwaysConfig(nodes=nodes, edges=edges), locations)
+
+
+class FakeRobots(LeafSystem):
+    """Robots that drive straight at their target's current waypoint at 1 m/s (20 Hz), and
+    pass through each other. Inputs ``target_<i>``; output ``state`` (4N)."""
+
+    def __init__(self, starts, speed=1.0, period=0.05):
+        super().__init__()
+        self._speed, self._period = speed, period
+        initial = np.concatenate([[x, y, 0.0, 0.0] for x, y in starts])
+        self._state = self.DeclareDiscreteState(initial)
+        self._targets = [
+            self.DeclareAbstractInputPort(f"target_{i}", Value[object](WaypointTarget(str(i))))
+            for i in range(len(starts))
+        ]
+        self.DeclareStateOutputPort("state", self._state)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._move)
+
+    def _move(self, context, discrete_state):
+        x = context.get_discrete_state(self._state).get_value().copy()
+        for i, port in enumerate(self._targets):
+            target = port.Eval(context)
+            if not target.active:
+                x[4 * i + 3] = 0.0
+                continue
+            gap = np.asarray(target.current) - x[4 * i:4 * i + 2]
+            distance = float(np.linalg.norm(gap))
+            step = min(distance, self._speed * self._period)
+            if distance > 0:
+                x[4 * i:4 * i + 2] += gap / distance * step
+                x[4 * i + 2] = math.atan2(gap[1], gap[0])
+            x[4 * i + 3] = step / self._period
+        discrete_state.get_mutable_vector(self._state).SetFromVector(x)
+
+
+class ScriptedPlan(LeafSystem):
+    """Output ``plan``: the last of ``plans`` (start time, FleetPlan) that has started."""
+
+    def __init__(self, plans):
+        super().__init__()
+        self._plans = plans
+        self.DeclareAbstractOutputPort(
+            "plan", lambda: Value[object](plans[0][1]), self._calc,
+            prerequisites_of_calc={self.time_ticket()},
+        )
+
+    def _calc(self, context, output):
+        output.set_value([p for t, p in self._plans if t <= context.get_time()][-1])
+
+
+class World:
+    """Robots ``r0, r1, ...`` starting on the points of ``starts`` (location ids)."""
+
+    def __init__(self, starts, plan_source, start_known=True, params=None, parking=False):
+        self.roadways = roadways = loop_world(parking)
+        self.robots = [f"r{i}" for i in range(len(starts))]
+        builder = DiagramBuilder()
+        plan = builder.AddSystem(plan_source)
+        queues = builder.AddSystem(RoomQueues(self.robots, roadways.location_ids))
+        fake = builder.AddSystem(FakeRobots([roadways.place(s).point for s in starts]))
+        self.generators = []
+        for i, (robot, start) in enumerate(zip(self.robots, starts, strict=True)):
+            generator = builder.AddSystem(WaypointGenerator(
+                robot, i, len(starts), roadways, start if start_known else None,
+                params or WaypointParams(),
+            ))
+            builder.Connect(plan.GetOutputPort("plan"), generator.GetInputPort("plan"))
+            builder.Connect(fake.GetOutputPort("state"), generator.GetInputPort("robot_state"))
+            builder.Connect(
+                queues.GetOutputPort("queue_state"), generator.GetInputPort("queue_state")
+            )
+            builder.Connect(
+                generator.GetOutputPort("queue_request"), queues.get_request_input_port(robot)
+            )
+            builder.Connect(generator.GetOutputPort("target"), fake.GetInputPort(f"target_{i}"))
+            if isinstance(plan_source, FixedSequenceAllocator):
+                builder.Connect(
+                    generator.GetOutputPort("progress"), plan.GetInputPort(f"progress_{robot}")
+                )
+            self.generators.append(generator)
+        self.queues, self.fake = queues, fake
+        self.diagram = builder.Build()
+        self.simulator = Simulator(self.diagram)
+        self.context = self.simulator.get_mutable_context()
+        self.log = []  # (t, queue state, positions (N, 2), targets) at every 0.1 s, mid-tick
+
+    def _eval(self, system, port):
+        return system.GetOutputPort(port).Eval(system.GetMyContextFromRoot(self.context))
+
+    def run(self, until):
+        while self.context.get_time() < until:
+            self.simulator.AdvanceTo(round(self.context.get_time() * 10) / 10 + 0.15)
+            positions = self._eval(self.fake, "state").reshape(-1, 4)[:, :2].copy()
+            targets = [self._eval(g, "target") for g in self.generators]
+            self.log.append((self.context.get_time(), self._eval(self.queues, "queue_state"),
+                             positions, targets))
+
+    def progress(self, i):
+        return self._eval(self.generators[i], "progress")
+
+    def distance(self, positions, i, location):
+        return float(np.linalg.norm(positions[i] - self.roadways.place(location).point))
+
+
+def fixed(*routes):
+    return FixedSequenceAllocator(
+        [RobotConfig(name=f"r{i}", route=list(route)) for i, route in enumerate(routes)]
+    )
+
+
+def test_robots_visit_in_order_queue_enter_and_release():
+    world = World([C, C], fixed([B, A, C], [B]))
+    world.run(until=100)
+    r0, r1 = world.progress(0), world.progress(1)
+    assert [(v.key, v.location) for v in r0.visits] == [
+        ("r0/visit0", B), ("r0/visit1", A), ("r0/visit2", C)
+    ]
+    assert [(v.key, v.location) for v in r1.visits] == [("r1/visit0", B)]
+    assert r0.last_location == C and r0.current_stop is None
+    times = [v.time for v in r0.visits]
+    assert times == sorted(times)
+    for (a, b), time in zip(((C, B), (B, A), (A, C)), np.diff([0.0, *times]), strict=True):
+        # Each leg at 1 m/s, cutting corners by at most the tolerances, plus 1 s of service.
+        assert world.roadways.leg_length(a, b) - 6 < time < world.roadways.leg_length(a, b) + 8
+
+    b_queue = [(t, state.room(B), positions, targets)
+               for t, state, positions, targets in world.log]
+    # Both arrive together; r0 (robot order) gets B while r1 waits at the head slot.
+    waiting = [(t, targets[1]) for t, q, _, targets in b_queue
+               if q.holder == "r0" and q.waiting == ("r1",)]
+    assert waiting
+    head = tuple(world.roadways.place(B).queue[0])
+    assert waiting[-1][1].current == head and waiting[-1][1].stop_at_current
+    # r0 releases B only after its visit, once more than 5 m from B's point; then r1 gets it.
+    handover = next(i for i, (_, q, _, _) in enumerate(b_queue) if q.holder == "r1")
+    t_release, _, positions, _ = b_queue[handover]
+    assert t_release > r0.visits[0].time
+    assert world.distance(positions, 0, B) > 5.0
+    assert world.distance(b_queue[handover - 2][2], 0, B) <= 5.0 + 0.3
+    assert r1.visits[0].time > t_release
+    # Done robots release their rooms: all queues empty at the end.
+    _, final, _, targets = world.log[-1]
+    assert all(q.holder is None and not q.waiting for q in final.rooms)
+    assert not any(target.active for target in targets)
+
+
+def test_more_robots_than_slots_wait_at_the_tail_slot():
+    world = World([C] * 5, fixed(*[[B]] * 5))
+    world.run(until=70)
+    times = [world.progress(i).visits[0].time for i in range(5)]
+    assert times == sorted(times) and len(set(times)) == 5
+    place = world.roadways.place(B)
+    tail = tuple(map(float, place.queue[-1]))
+    full = [(q, targets) for _, state, _, targets in world.log
+            if len((q := state.room(B)).waiting) == 4]
+    assert full
+    queue, targets = full[-1]
+    slots = [targets[int(robot[1:])].current for robot in queue.waiting]
+    assert slots == [tuple(map(float, place.queue[k])) for k in (0, 1)] + [tail, tail]
+
+
+def plan(*stops) -> FleetPlan:
+    return FleetPlan((RobotPlan("r0", tuple(Stop(k, loc) for k, loc in stops)),))
+
+
+def test_plan_change_keeps_the_common_prefix():
+    unchanged = World([A], ScriptedPlan([(0.0, plan(("k1", B), ("k2", C)))]))
+    unchanged.run(until=70)
+    first_b = unchanged.progress(0).visits[0]
+    assert (first_b.key, first_b.location) == ("k1", B)
+
+    # Mid-leg (on the eastbound lane) the rest of the plan changes, its first stop does not.
+    changed = World([A], ScriptedPlan([
+        (0.0, plan(("k1", B), ("k2", C))),
+        (12.0, plan(("k1", B), ("k3", A))),
+        # After k1 is done it reappears first: never redone.
+        (first_b.time + 3.0, plan(("k1", B), ("k3", A))),
+    ]))
+    changed.run(until=first_b.time + 40)
+    visits = changed.progress(0).visits
+    assert [(v.key, v.location) for v in visits] == [("k1", B), ("k3", A)]
+    assert visits[0].time == first_b.time
+
+
+def test_plan_change_mid_leg_reroutes_from_the_next_node():
+    world = World([A], ScriptedPlan([(0.0, plan(("k1", B))), (12.0, plan(("k9", C)))]))
+    world.run(until=12.0)
+    _, _, positions, targets = world.log[-1]
+    assert targets[0].current == (10.0, 0.0) and positions[0][0] < 10.0  # eastbound lane
+    world.run(until=60.0)
+    progress = world.progress(0)
+    assert [(v.key, v.location) for v in progress.visits] == [("k9", C)]
+    # It went on east to C, never to B's queue: by the lanes from S10 on.
+    b = world.roadways.place(B)
+    b_points = {tuple(map(float, p)) for p in (*b.queue, *b.entry, b.point)}
+    currents = [targets[0].current for _, _, _, targets in world.log]
+    assert not b_points & set(currents)
+    after = list(dict.fromkeys(currents[currents.index((10.0, 0.0)):]))
+    assert after[:4] == [(10.0, 0.0), (20.0, 0.0), (30.0, 0.0), (30.0, 1.5)]
+    assert progress.visits[0].time < 12.0 + 35.0
+
+
+def test_a_robot_without_stops_is_inactive():
+    world = World([A], fixed([]))
+    world.run(until=1.0)
+    _, state, positions, targets = world.log[-1]
+    assert not targets[0].active
+    np.testing.assert_allclose(positions[0], world.roadways.place(A).point)
+    assert world.progress(0).visits == ()
+
+
+def test_outputs_stay_the_same_objects_while_the_state_does():
+    # Consumers (planner, recorder, queues) may skip work on an unchanged payload by identity.
+    world = World([A], fixed([]))
+    world.run(until=1.0)
+    first, *rest = [targets[0] for _, _, _, targets in world.log]
+    assert rest and all(target is first for target in rest)
+
+
+def test_a_stop_where_the_robot_stands_is_served_in_place():
+    # No start_location: the robot is known to be at A by standing on its point.
+    world = World([A], fixed([A, B]), start_known=False, params=WaypointParams(service_time=3.0))
+    world.run(until=75.0)
+    visits = world.progress(0).visits
+    assert [(v.key, v.location) for v in visits] == [("r0/visit0", A), ("r0/visit1", B)]
+    assert 3.0 <= visits[0].time <= 3.5  # request, grant, then 3 s standing there
+    # It then leaves A by its door, on A's leg to B.
+    currents = [targets[0].current for t, _, _, targets in world.log if t > visits[0].time]
+    assert currents[0] == (5.0, 2.5)
+
+
+def test_a_robot_done_at_a_room_parks_off_the_point_and_frees_the_room():
+    world = World([C, C], fixed([B], [A, B]), parking=True)
+    world.run(until=90.0)
+    r0, r1 = world.progress(0), world.progress(1)
+    assert [v.location for v in r0.visits] == [B]
+    assert [v.location for v in r1.visits] == [A, B]
+    _, final, positions, targets = world.log[-1]
+    # Both wait on B's parking spots, off its point: r0 on the first, r1 on the second.
+    np.testing.assert_allclose(positions, world.roadways.place(B).parking, atol=1e-6)
+    assert [t.current for t in targets] == [(17.0, 5.0), (17.0, 6.5)]
+    # r0 released B once it had left the point, before r1 came for it; r1 released it too.
+    handover = [t for t, q, _, _ in world.log if q.room(B).holder == "r1"]
+    assert handover and handover[0] < r1.visits[1].time
+    assert final.room(B).holder is None
+
+
+def fleet(*routes) -> FleetPlan:
+    """Robot ``r<i>`` gets the stops ``routes[i]`` ((key, location) pairs)."""
+    return FleetPlan(tuple(RobotPlan(f"r{i}", tuple(Stop(k, loc) for k, loc in stops))
+                           for i, stops in enumerate(routes)))
+
+
+def test_a_robot_parked_in_a_room_waits_for_the_holder_before_serving_there():
+    # r0 serves B and parks beside its point; r1 then comes to B and stands on its point for
+    # 10 s. Meanwhile r0 is given another stop at B: it must not drive onto r1.
+    params = WaypointParams(service_time=10.0)
+    first = [(0.0, fleet([("a", B)], [("b", A), ("c", B)]))]
+    alone = World([C, C], ScriptedPlan(first), params=params, parking=True)
+    alone.run(until=120.0)
+    serving = [t for t, q, positions, _ in alone.log
+               if q.room(B).holder == "r1" and alone.distance(positions, 1, B) < 0.1]
+    assert serving, "r1 never stood on B's point holding it"
+    again = serving[0] + 1.0
+    world = World([C, C], ScriptedPlan(first + [(again, fleet(
+        [("a", B), ("d", B)], [("b", A), ("c", B)]))]), params=params, parking=True)
+    world.run(until=again + 40.0)
+    while_held = [(positions, targets) for t, q, positions, targets in world.log
+                  if again + 0.2 <= t and q.room(B).holder == "r1"]
+    assert while_held
+    # r0 stands where it parked (no target) while r1 holds the room ...
+    assert all(not targets[0].active for _, targets in while_held)
+    assert all(world.distance(positions, 0, B) > 1.5 for positions, _ in while_held)
+    # ... then gets the room and serves its second stop at B.
+    assert [v.key for v in world.progress(0).visits] == ["a", "d"]
+
+
+def queueing_at_b(queue: RoomQueue, slot: int):
+    """Robot r0 alone (of two), in the queue phase for its stop at B at ``slot``, with B's
+    ``queue``: (generator, context, B's place)."""
+    roadways = loop_world(parking=True)
+    generator = WaypointGenerator("r0", 0, 2, roadways, A, WaypointParams())
+    context = generator.CreateDefaultContext()
+    generator.GetInputPort("plan").FixValue(context, plan(("a", B)))
+    generator.GetInputPort("queue_state").FixValue(context, QueueState((queue,)))
+    context.SetAbstractState(0, _Drive(phase=QUEUE, stop=Stop("a", B), index=slot,
+                                       last_location=A))
+    return generator, context, roadways.place(B)
+
+
+def test_a_holder_waits_at_its_slot_while_another_robot_moves_in_the_doorway():
+    # r0 queues first at B's door slot; r1, who had parked in B, drives out through the door
+    # just as r0 is granted B. Entering then would stand both in the doorway.
+    generator, context, place = queueing_at_b(RoomQueue(B, holder="r0"), slot=0)
+    slot = place.queue[0]
+    simulator = Simulator(generator, context)
+
+    def step(r1_xy, r1_speed):
+        generator.GetInputPort("robot_state").FixValue(
+            context, [*slot, 0.0, 0.0, *r1_xy, -1.57, r1_speed])
+        simulator.AdvanceTo(context.get_time() + 0.1)
+        return generator.GetOutputPort("target").Eval(context).current
+
+    entry = place.entry[0]
+    # r1 moving 0.6 m from the entry: r0 keeps to its slot, tick after tick.
+    assert step((entry[0], entry[1] + 0.6), 0.5) == tuple(slot)
+    assert step((entry[0] - 0.6, entry[1] - 0.2), 0.5) == tuple(slot)
+    # r1 standing there is no reason to wait (the planner routes around a standing robot).
+    assert step((entry[0] - 0.6, entry[1] - 0.2), 0.0) == tuple(entry)
+
+
+def test_queued_robots_move_up_without_entering_while_another_holds_the_room():
+    # The door rule only holds back the holder: a robot waiting behind it still moves up.
+    generator, context, place = queueing_at_b(RoomQueue(B, holder="r1", waiting=("r0",)),
+                                              slot=2)
+    generator.GetInputPort("robot_state").FixValue(
+        context, [*place.queue[2], 0.0, 0.0, *place.point, 0.0, 0.5])
+    Simulator(generator, context).AdvanceTo(0.05)
+    assert generator.GetOutputPort("target").Eval(context).current == tuple(place.queue[0])

@@ -1,0 +1,82 @@
+"""Scenario loading: valid files load into frozen dataclasses; every broken file in
+tests/data/broken_scenarios gives one clear line naming file, field and value, exit 2."""
+
+import dataclasses
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+from mrta_drake.errors import InputError
+from mrta_drake.scenario.loading import load_scenario, load_task_stream
+from mrta_drake.tools.cli import main
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+BROKEN = sorted(p for p in (ROOT / "tests/data/broken_scenarios").glob("*.yaml")
+                if p.read_text().startswith("# expect:"))
+
+
+def _expectation(path: pathlib.Path) -> str:
+    return path.read_text().splitlines()[0].removeprefix("# expect:").strip()
+
+
+@pytest.mark.parametrize("path", BROKEN, ids=lambda p: p.stem)
+def test_broken_scenario_gives_one_clear_line(path, capsys):
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error: ")
+    assert _expectation(path) in lines[0]
+    named = {path.name, "bad_tasks.json", "bad_agents.yaml"}
+    assert any(name in lines[0] for name in named)
+
+
+def test_broken_files_fail_through_the_console_script_without_traceback():
+    path = ROOT / "tests/data/broken_scenarios/robot_in_wall.yaml"
+    done = subprocess.run([sys.executable, "-m", "mrta_drake.tools.cli", "validate", str(path)],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2
+    assert "Traceback" not in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1
+
+
+def test_hospital_scenario_loads_frozen_with_legacy_task_stream():
+    scenario = load_scenario(ROOT / "scenarios/hospital_6_robots.yaml")
+    assert [r.name for r in scenario.robots] == [f"robot{k}" for k in range(1, 7)]
+    assert [b.arrival for b in scenario.tasks.stream] == [0.0, 40.0]
+    second = scenario.tasks.stream[1].tasks[0]
+    assert (second.pickup, second.dropoff, second.deadline) == (3, 0, 150.0)
+    assert {loc.id for loc in scenario.locations} == set(range(6))
+    assert scenario.roadways.edges
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        scenario.seed = 3
+    assert pathlib.Path(scenario.world.floor_plan).is_absolute()
+
+
+def test_original_robot_setup_is_read_unchanged(tmp_path):
+    scenario_file = tmp_path / "s.yaml"
+    scenario_file.write_text(
+        f"world: {{floor_plan: {ROOT / 'models/hospital/floor_plan.yaml'}}}\n"
+        f"robots: {ROOT / 'scenarios/robots/hospital_2_robots_mrta_sim.yaml'}\n")
+    scenario = load_scenario(scenario_file)
+    assert [(r.name, r.start) for r in scenario.robots] == [
+        ("robot1", [0.0, 2.2]), ("robot2", [4.25, -27.2])]
+
+
+def test_original_task_stream_json_and_our_stream_agree(tmp_path):
+    legacy = tmp_path / "legacy.json"
+    legacy.write_text('{"tasks_stream": [{"arrival": 40, "tasks": [{"start": 3, "end": 0, '
+                      '"deadline": 150}]}], "agents": [0, 1]}')
+    ours = tmp_path / "ours.yaml"
+    ours.write_text("stream:\n  - {arrival: 40, tasks: [{pickup: 3, dropoff: 0, "
+                    "deadline: 150}]}\n")
+    assert load_task_stream(legacy) == load_task_stream(ours)
+
+
+def test_unknown_task_stream_format_is_named(tmp_path):
+    path = tmp_path / "tasks.yaml"
+    path.write_text("batches: []\n")
+    with pytest.raises(InputError, match="tasks.yaml: expected `tasks_stream:`"):
+        load_task_stream(path)
