@@ -22,7 +22,7 @@ class UnicycleParams:
 
 
 class UnicycleRobots(LeafSystem):
-    """N kinematic unicycles, stepped at a fixed rate.
+    """N kinematic unicycles, stepped at ``rate_hz``.
 
     .. pydrake_system::
 
