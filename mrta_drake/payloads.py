@@ -17,6 +17,7 @@ Arrays inside payloads are read-only numpy arrays; never modify a payload, make 
 """
 
 from dataclasses import dataclass, field
+from enum import IntEnum
 from functools import cached_property
 
 import numpy as np
@@ -113,6 +114,21 @@ class RobotProgress:
     last_location: int | None = None
     current_stop: Stop | None = None
     detours: tuple[Detour, ...] = ()
+
+
+class RobotMode(IntEnum):
+    """What a robot is doing. A ``WaypointGenerator`` takes each stop through these phases;
+    a ``RunRecorder`` infers one of the first four for each robot at each sample from the
+    ports (its ``mode_array``), so it counts a robot entering a room as ``DRIVE`` and one
+    parking or waiting as ``IDLE``."""
+
+    IDLE = 0  # no stop to do; the robot stands still
+    DRIVE = 1  # along a roadway leg to the tail slot of the stop's queue
+    QUEUE = 2  # requesting the stop's room, waiting at a queue slot
+    SERVE = 3  # at the point: once holding the room, stand there for the service time
+    ENTER = 4  # holding the room, driving through the queue slots and entry to its point
+    PARK = 5  # no stop to do: wait on a free parking spot of the last location
+    WAIT = 6  # blockages leave no lane to the stop: stand still until they change
 
 
 # --- Waypoints: waypoint generator -> planner, controller -----------------------------------

@@ -15,7 +15,8 @@ your own:
    ``LeafSystem`` that reads the robots' ``state`` port ([x, y, theta, v] per robot) and
    keeps each robot's top speed in its discrete state. Like every block of mrta-drake it
    changes state only in an update event (never in a publish event), so runs stay
-   deterministic.
+   deterministic, takes its rate (``rate_hz``) from the scenario's ``rates:`` section, and
+   lists its ports in its docstring's ``.. pydrake_system::`` block.
 4. Drake's ``Simulator`` runs the built diagram. Afterwards you can evaluate any output port
    in the final context (here the allocator's ``plan`` and the controller's ``telemetry``)
    and read what the ``recorder`` block sampled (``stack.recorder.arrays()``).
@@ -49,17 +50,26 @@ SCENARIO = pathlib.Path(__file__).resolve().parent.parent / "scenarios/hospital_
 class SpeedMonitor(LeafSystem):
     """Each robot's top speed so far (m/s).
 
-    Input ``robot_state`` (4N): [x, y, theta, v] per robot. Output ``top_speed`` (N): the
-    largest |v| seen at its periodic update (``rate`` Hz), kept in discrete state.
+    .. pydrake_system::
+
+        name: SpeedMonitor
+        input_ports:
+        - robot_state
+        output_ports:
+        - top_speed
+
+    Input ``robot_state`` (4N): [x, y, theta, v] per robot in ``robot_names`` order. Output
+    ``top_speed`` (N): the largest |v| seen at its periodic update (``rate_hz``), kept in
+    discrete state.
     """
 
-    def __init__(self, robot_count: int, rate: float = 20.0):
+    def __init__(self, robot_names, *, rate_hz: float):
         super().__init__()
-        self._n = robot_count
-        self.DeclareVectorInputPort("robot_state", ROBOT_STATE_SIZE * robot_count)
-        top = self.DeclareDiscreteState(robot_count)
+        self._n = len(robot_names)
+        self.DeclareVectorInputPort("robot_state", ROBOT_STATE_SIZE * self._n)
+        top = self.DeclareDiscreteState(self._n)
         self.DeclareStateOutputPort("top_speed", top)
-        self.DeclarePeriodicDiscreteUpdateEvent(1.0 / rate, 0.0, self._update)
+        self.DeclarePeriodicDiscreteUpdateEvent(1.0 / rate_hz, 0.0, self._update)
 
     def _update(self, context, discrete_state):
         states = self.get_input_port().Eval(context).reshape(self._n, ROBOT_STATE_SIZE)
@@ -81,11 +91,12 @@ def main(argv=None) -> dict:
     meshcat = open_meshcat(args.meshcat)
     builder = DiagramBuilder()
     stack = add_stack(builder, scenario, meshcat=meshcat, out_dir=args.out)
-    monitor = builder.AddNamedSystem("speed_monitor", SpeedMonitor(len(scenario.robots)))
+    names = [robot.name for robot in scenario.robots]
+    monitor = builder.AddNamedSystem("speed_monitor",
+                                     SpeedMonitor(names, rate_hz=scenario.rates.robots))
     builder.Connect(stack.robots.GetOutputPort("state"), monitor.get_input_port())
     diagram = builder.Build()
 
-    names = [robot.name for robot in scenario.robots]
     print("Blocks and their ports, inputs -> outputs (one port per robot written <robot>):")
     for system in diagram.GetSystems():
         inputs = _port_names(system.get_input_port(i) for i in range(system.num_input_ports()))

@@ -6,36 +6,42 @@ from pydrake.common.value import Value
 from pydrake.systems.framework import LeafSystem
 
 from mrta_drake.payloads import VISIT, FleetPlan, RobotPlan, RobotProgress, Stop
-from mrta_drake.scenario.schema import RobotConfig
 
 
 class FixedSequenceAllocator(LeafSystem):
-    """Outputs a constant ``FleetPlan``: robot ``name`` visits the locations of its
-    ``route`` in order, stop ``k`` keyed ``"<name>/visit<k>"`` (action ``visit``, no task).
+    """Outputs a constant ``FleetPlan``: robot ``robot_names[r]`` visits the locations of
+    ``routes[r]`` (location ids) in order, stop ``k`` keyed ``"<robot>/visit<k>"`` (action
+    ``visit``, no task).
+
+    .. pydrake_system::
+
+        name: FixedSequenceAllocator
+        input_ports:
+        - progress_<robot> (optional)
+        output_ports:
+        - plan
 
     It has the ports of the task allocator so that either can be used: inputs
     ``progress_<robot>`` (abstract ``RobotProgress``, one per robot, not read) and output
     ``plan`` (abstract ``FleetPlan``, revision 0).
     """
 
-    def __init__(self, robots: Sequence[RobotConfig]):
+    def __init__(self, robot_names: Sequence[str], routes: Sequence[Sequence[int]]):
         super().__init__()
         self._fleet_plan = FleetPlan(
             tuple(
                 RobotPlan(
-                    robot.name,
+                    name,
                     tuple(
-                        Stop(f"{robot.name}/visit{k}", location, VISIT)
-                        for k, location in enumerate(robot.route)
+                        Stop(f"{name}/visit{k}", location, VISIT)
+                        for k, location in enumerate(route)
                     ),
                 )
-                for robot in robots
+                for name, route in zip(robot_names, routes, strict=True)
             )
         )
-        for robot in robots:
-            self.DeclareAbstractInputPort(
-                f"progress_{robot.name}", Value[object](RobotProgress(robot.name))
-            )
+        for name in robot_names:
+            self.DeclareAbstractInputPort(f"progress_{name}", Value[object](RobotProgress(name)))
         self.DeclareAbstractOutputPort(
             "plan",
             lambda: Value[object](self._fleet_plan),

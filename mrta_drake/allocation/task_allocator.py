@@ -91,10 +91,19 @@ class _State:
 class TaskAllocator(LeafSystem):
     """Allocates a stream of task batches to a fleet as the batches arrive.
 
-    Input ports ``progress_<robot>`` (one per robot, ``RobotProgress``; an unconnected one
-    means the robot has done nothing yet) and, optional, ``disturbances``
-    (``Disturbances``). Output ports ``plan`` (``FleetPlan``) and ``events`` (a tuple of
-    ``AllocationEvent``, oldest first).
+    .. pydrake_system::
+
+        name: TaskAllocator
+        input_ports:
+        - progress_<robot>
+        - disturbances (optional)
+        output_ports:
+        - plan
+        - events
+
+    Inputs: ``progress_<robot>`` (one per robot, ``RobotProgress``; an unconnected one means
+    the robot has done nothing yet), ``disturbances`` (``Disturbances``). Outputs: ``plan``
+    (``FleetPlan``) and ``events`` (a tuple of ``AllocationEvent``, oldest first).
 
     Breakdowns: at the first check after a robot breaks down it leaves the fleet: its plan
     is emptied, the items it carries are lost (their tasks are never allocated again) and
@@ -112,8 +121,8 @@ class TaskAllocator(LeafSystem):
         allocator: any object with ``allocate(AllocationProblem) -> Allocation``, e.g. an
             ``SmtAllocator`` or a ``GreedyAllocator``.
         service_time: time for one pickup or drop-off (s).
-        rate: how often arrivals are checked (Hz); a batch is allocated at the first check
-            at or after its arrival.
+        rate_hz: how often arrivals are checked (Hz); a batch is allocated at the first
+            check at or after its arrival.
     """
 
     def __init__(
@@ -125,7 +134,8 @@ class TaskAllocator(LeafSystem):
         travel: np.ndarray,
         allocator,
         service_time: float = 1.0,
-        rate: float = 1.0,
+        *,
+        rate_hz: float,
         source: str | None = None,
     ):
         super().__init__()
@@ -133,8 +143,8 @@ class TaskAllocator(LeafSystem):
             raise InputError(source, "robots", f"{len(robot_names)} names, "
                              f"{len(start_locations)} start locations and {len(capacities)} "
                              "capacities")
-        if not rate > 0:
-            raise InputError(source, "rate", f"must be > 0 Hz, got {rate}")
+        if not rate_hz > 0:
+            raise InputError(source, "rate_hz", f"must be > 0 Hz, got {rate_hz}")
         fleet = tuple(
             RobotStart(name, location, 0.0, capacity)
             for name, location, capacity in zip(robot_names, start_locations, capacities,
@@ -174,7 +184,7 @@ class TaskAllocator(LeafSystem):
         )
         self._disturbances = self.DeclareAbstractInputPort(
             "disturbances", AbstractValue.Make(Disturbances()))
-        self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate, 0.0, self._update)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate_hz, 0.0, self._update)
 
     def get_progress_input_port(self, robot: int):
         return self._progress_ports[robot]

@@ -10,6 +10,15 @@ from mrta_drake.payloads import PLANAR_POSITION_SIZE
 class HumanBodyDriver(LeafSystem):
     """Moves M people's planar bodies in a discrete plant onto given positions, mocap-style.
 
+    .. pydrake_system::
+
+        name: HumanBodyDriver
+        input_ports:
+        - plant_state
+        - positions
+        output_ports:
+        - generalized_force
+
     Each step the generalized force on a person's planar joint is the one that, without
     contact, brings the body exactly to its target in that step: with step h, mass matrix
     diag(m, m, I_zz), position q and velocity v at the step's start, f = M ((q* - q) / h - v)

@@ -1,8 +1,9 @@
 """The people of a scenario: named walkers and seeded generated groups.
 
-``generate_people`` turns the scenario's ``humans:`` section (``HumansConfig``), a seed and
-the world's ``Obstacles`` into a fixed tuple of ``Person``: where each one starts, the loop of
-waypoints it walks and how fast, and (for ``stream`` groups) when it enters the world.
+``generate_people`` turns the scenario's ``humans:`` section (``HumansConfig``), the humans
+block's ``SocialForceParams``, a seed and the world's ``Obstacles`` into a fixed tuple of
+``Person``: where each one starts, the loop of waypoints it walks and how fast, and (for
+``stream`` groups) when it enters the world.
 
 Generated loops are routed: a leg whose straight line runs too close to an obstacle is
 replaced by a shortest path on a clearance grid, simplified to line-of-sight waypoints, so
@@ -20,6 +21,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from mrta_drake.errors import InputError
+from mrta_drake.humans.social_force_params import SocialForceParams
 from mrta_drake.scenario.schema import HumanGroupConfig, HumansConfig
 from mrta_drake.world.obstacles import Obstacles
 
@@ -54,6 +56,7 @@ class Person:
 
 def generate_people(
     config: HumansConfig,
+    params: SocialForceParams,
     seed: int,
     obstacles: Obstacles,
     places: Mapping[str, Sequence[float]] | None = None,
@@ -79,34 +82,17 @@ def generate_people(
 
     Points of interest are the group's ``points``, or the values of ``places`` (named places,
     e.g. the floor plan's) when the group gives none. Every generated point has clearance
-    >= ``config.radius`` from all obstacles; start points present at time 0 keep a surface gap
+    >= ``params.radius`` from all obstacles; start points present at time 0 keep a surface gap
     of ``START_GAP`` from each other and from each circle (x, y, radius) in ``keep_clear``
     (e.g. robot start poses). Raises ``InputError`` (naming ``file`` and the field) for an
     invalid config or when no free points can be found.
     """
-    _check_parameters(config, file)
     rngs = np.random.default_rng(seed).spawn(len(config.groups))
-    builder = _Builder(config, obstacles, file, keep_clear)
+    builder = _Builder(config, params, obstacles, file, keep_clear)
     people = builder.walkers()
     for g, (group, rng) in enumerate(zip(config.groups, rngs, strict=True)):
         people += builder.group(g, group, rng, places or {})
     return tuple(people)
-
-
-def _check_parameters(config: HumansConfig, file) -> None:
-    positive = ("radius", "desired_speed", "max_speed", "relaxation_time", "repulsion_range",
-                "wall_range", "waypoint_tolerance")
-    for name in positive:
-        value = getattr(config, name)
-        if not _is_number(value) or not value > 0:
-            raise InputError(file, f"humans.{name}", f"must be a number > 0, got {value!r}")
-    for name in ("repulsion_strength", "wall_strength"):
-        value = getattr(config, name)
-        if not _is_number(value) or not value >= 0:
-            raise InputError(file, f"humans.{name}", f"must be a number >= 0, got {value!r}")
-    if config.desired_speed > config.max_speed:
-        raise InputError(file, "humans.desired_speed",
-                         f"must be <= max_speed {config.max_speed}, got {config.desired_speed}")
 
 
 def _is_number(value) -> bool:
@@ -116,11 +102,13 @@ def _is_number(value) -> bool:
 class _Builder:
     """Validation, sampling and routing shared by all walkers and groups of one config."""
 
-    def __init__(self, config: HumansConfig, obstacles: Obstacles, file, keep_clear):
+    def __init__(self, config: HumansConfig, params: SocialForceParams, obstacles: Obstacles,
+                 file, keep_clear):
         self.config = config
+        self.params = params
         self.obstacles = obstacles
         self.file = file
-        self.radius = float(config.radius)
+        self.radius = float(params.radius)
         self.occupied = [(float(c[0]), float(c[1]), float(c[2])) for c in keep_clear]
         self.names: set[str] = set()
         self._clearance = _ClearanceMap(obstacles)
@@ -150,7 +138,7 @@ class _Builder:
         count = group.count
         if not isinstance(count, int) or isinstance(count, bool) or count < 0:
             raise InputError(self.file, f"{where}.count", f"must be >= 0, got {count!r}")
-        default = self.config.desired_speed
+        default = self.params.desired_speed
         if group.kind == "crowd":
             default = CROWD_SPEED_FACTOR * default
         speed = self._speed(group.desired_speed, f"{where}.desired_speed", default)
@@ -220,10 +208,10 @@ class _Builder:
 
     def _speed(self, value, where: str, default: float | None = None) -> float:
         if value is None:
-            return float(self.config.desired_speed if default is None else default)
-        if not _is_number(value) or not 0 < value <= self.config.max_speed:
+            return float(self.params.desired_speed if default is None else default)
+        if not _is_number(value) or not 0 < value <= self.params.max_speed:
             raise InputError(self.file, where,
-                             f"must be in (0, max_speed {self.config.max_speed}], got {value!r}")
+                             f"must be in (0, max_speed {self.params.max_speed}], got {value!r}")
         return float(value)
 
     def _point(self, value, where: str) -> tuple[float, float]:
@@ -281,7 +269,7 @@ class _Builder:
     def _crowd_stops(self, rng, center, spread: float, where: str) -> list:
         """``LOOP_STOPS`` free points within ``spread`` of ``center``; consecutive ones (and
         the last and first) in sight of each other and at least ``min_leg`` apart."""
-        min_leg = max(2.0 * self.config.waypoint_tolerance, CROWD_MIN_LEG * spread)
+        min_leg = max(2.0 * self.params.waypoint_tolerance, CROWD_MIN_LEG * spread)
 
         def draw():
             for _ in range(MAX_TRIES):

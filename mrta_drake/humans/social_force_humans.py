@@ -9,13 +9,13 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, LeafSystem
 
 from mrta_drake.humans.people import Person
+from mrta_drake.humans.social_force_params import SocialForceParams
 from mrta_drake.payloads import (
     PLANAR_POSITION_SIZE,
     ROBOT_STATE_SIZE,
     HumanStates,
     frozen_array,
 )
-from mrta_drake.scenario.schema import HumansConfig
 from mrta_drake.world.obstacles import Obstacles, closest_points_of
 
 ELLIPSE_TIME = 2.0  # s: the elliptical potential stretches along the other's next 2 s of walk
@@ -32,9 +32,19 @@ PARKING_GAP = 1.0  # m: distance of the parking row from the world's bounds
 
 
 class SocialForceHumans(LeafSystem):
-    """Moves M people with the social force model at a fixed rate (20 Hz by default).
+    """Moves M people with the social force model (``SocialForceParams``) at ``rate_hz``.
 
-    Each update (period ``1/rate`` s, first at t = 0), for every person present:
+    .. pydrake_system::
+
+        name: SocialForceHumans
+        input_ports:
+        - robot_state (optional)
+        output_ports:
+        - human_states
+        - plant_positions
+        - active
+
+    Each update (period ``1 / rate_hz`` s, first at t = 0), for every person present:
 
     1. Waypoint: within ``waypoint_tolerance`` of its target (or within ``TAKEN_REACH`` of a
        target covered by a robot's or another person's body), the person targets the next
@@ -71,7 +81,8 @@ class SocialForceHumans(LeafSystem):
     while slower than ``STOPPED_SPEED``), presence flags ``M`` (1 present, 0 waiting).
 
     Input ports:
-        robot_state: vector ``4N``, ``[x, y, theta, v]`` per robot; unconnected = no robots.
+        robot_state: vector ``4N``, ``[x, y, theta, v]`` per robot in ``robot_names`` order
+            (radii ``robot_radii``, m); unconnected = no robots.
     Output ports:
         human_states: abstract ``HumanStates`` of all M people, in people order.
         plant_positions: vector ``3M``, ``[x, y, heading]`` per person. Parking spots form a
@@ -83,25 +94,26 @@ class SocialForceHumans(LeafSystem):
     def __init__(
         self,
         people: Sequence[Person],
-        params: HumansConfig,
+        params: SocialForceParams,
         obstacles: Obstacles,
-        num_robots: int = 0,
+        robot_names: Sequence[str] = (),
         robot_radii: Sequence[float] = (),
-        rate: float = 20.0,
+        *,
+        rate_hz: float,
         parking: tuple[float, float] | None = None,
     ):
         super().__init__()
         self._people = tuple(people)
         self._params = params
         self._obstacles = obstacles
-        self._num_robots = int(num_robots)
+        self._num_robots = len(robot_names)
         self._robot_radii = np.asarray(robot_radii, dtype=float).reshape(-1)
         if len(self._robot_radii) != self._num_robots:
             raise ValueError(f"robot_radii has {len(self._robot_radii)} entries, "
-                             f"expected num_robots = {self._num_robots}")
-        if not rate > 0:
-            raise ValueError(f"rate must be > 0, got {rate}")
-        self._dt = 1.0 / rate
+                             f"expected one per robot of robot_names ({self._num_robots})")
+        if not rate_hz > 0:
+            raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
+        self._dt = 1.0 / rate_hz
         m = len(self._people)
         if any(not p.waypoints for p in self._people):
             raise ValueError("every person needs at least one waypoint")

@@ -31,12 +31,11 @@ _NO_POINTS = frozen_array(np.zeros((0, 2)))  # of every idle or failed path
 
 @dataclass(frozen=True)
 class PlannerServiceParams:
-    """Costmap and planner parameters of the block, and how often (Hz) it looks for changed
-    targets between its periodic re-plans."""
+    """Costmap and planner parameters of the block (its rates are the scenario's
+    ``rates.planner`` and ``rates.planner_target_check``)."""
 
     costmap: CostmapParams = field(default_factory=CostmapParams)
     planner: PlannerParams = field(default_factory=PlannerParams)
-    target_check_rate: float = 10.0
 
 
 @dataclass(frozen=True)
@@ -58,16 +57,27 @@ class _ServiceState:
 class PlannerService(LeafSystem):
     """Plans a path for every robot with one shared ``GridPlanner``.
 
-    Inputs: ``robot_state`` (vector, 4N: x, y, theta, v per robot, world frame) and
-    ``target_<robot>`` (abstract ``WaypointTarget``), one per robot in ``robots`` order; all
-    must be connected. Output: ``paths`` (abstract ``FleetPaths``), from the state.
+    .. pydrake_system::
 
-    Every ``1 / target_check_rate`` s an unrestricted update re-plans the robots whose target
-    changed since their last plan, and every ``1 / replan_rate`` s (at the first check tick
-    at or after that time) all robots. A robot with an active target gets a path from its
-    position through ``current`` and, unless it must stop there, on to ``next``. If the leg
-    to ``current`` has no path the robot's path is ``failed`` (it waits; re-planned at the
-    next periodic re-plan); if only the leg on to ``next`` fails the path ends at
+        name: PlannerService
+        input_ports:
+        - robot_state
+        - target_<robot>
+        - disturbances (optional)
+        output_ports:
+        - paths
+
+    Inputs: ``robot_state`` (vector, 4N: x, y, theta, v per robot, world frame, m, rad, m/s)
+    and ``target_<robot>`` (abstract ``WaypointTarget``), one per robot in ``robot_names``
+    order; all must be connected. Output: ``paths`` (abstract ``FleetPaths``), from the
+    state.
+
+    Every ``1 / target_check_rate_hz`` s an unrestricted update re-plans the robots whose
+    target changed since their last plan, and every ``1 / replan_rate_hz`` s (at the first
+    check tick at or after that time) all robots. A robot with an active target gets a path
+    from its position through ``current`` and, unless it must stop there, on to ``next``. If
+    the leg to ``current`` has no path the robot's path is ``failed`` (it waits; re-planned
+    at the next periodic re-plan); if only the leg on to ``next`` fails the path ends at
     ``current``. Each failed leg adds one to ``FleetPaths.failures``. A path ends with a stop
     (``stop_at_end``) at ``next``, or at ``current`` when the target says so.
 
@@ -88,16 +98,16 @@ class PlannerService(LeafSystem):
     robot caught inside a blockage has no path (failed) until it opens.
     """
 
-    def __init__(self, planner: GridPlanner, robots: Sequence[str], replan_rate: float = 2.0,
-                 target_check_rate: float = 10.0):
+    def __init__(self, planner: GridPlanner, robot_names: Sequence[str], *,
+                 replan_rate_hz: float, target_check_rate_hz: float):
         super().__init__()
-        if replan_rate <= 0.0 or target_check_rate <= 0.0:
-            raise ValueError("replan_rate and target_check_rate must be positive")
+        if not (replan_rate_hz > 0.0 and target_check_rate_hz > 0.0):
+            raise ValueError("replan_rate_hz and target_check_rate_hz must be positive")
         self._planner = planner
         self._open_costmap = planner.base_costmap
         self._costmaps = {(): self._open_costmap}  # by closures (``_closures``)
-        self._robots = tuple(robots)
-        self._replan_period = 1.0 / replan_rate
+        self._robots = tuple(robot_names)
+        self._replan_period = 1.0 / replan_rate_hz
         n = len(self._robots)
         initial = _ServiceState(
             FleetPaths(tuple(RobotPath(robot) for robot in self._robots)), (None,) * n, 0.0)
@@ -117,24 +127,26 @@ class PlannerService(LeafSystem):
             prerequisites_of_calc={self.abstract_state_ticket(self._state_index)},
         )
         self.DeclareInitializationUnrestrictedUpdateEvent(self._update)
-        self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / target_check_rate, 0.0, self._update)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / target_check_rate_hz, 0.0,
+                                                    self._update)
 
     @classmethod
-    def from_obstacles(cls, obstacles: Obstacles, bounds, robots: Sequence[str],
-                       params: PlannerServiceParams = PlannerServiceParams(),
-                       replan_rate: float = 2.0) -> "PlannerService":
+    def from_obstacles(cls, obstacles: Obstacles, bounds, robot_names: Sequence[str],
+                       params: PlannerServiceParams = PlannerServiceParams(), *,
+                       replan_rate_hz: float, target_check_rate_hz: float
+                       ) -> "PlannerService":
         """A block planning over ``obstacles`` rasterized on ``bounds`` = (x_min, x_max,
         y_min, y_max) (m) at the costmap's default resolution."""
         costmap = Costmap.from_obstacles(obstacles, bounds, params.costmap)
-        return cls(GridPlanner(costmap, params.planner), robots, replan_rate,
-                   params.target_check_rate)
+        return cls(GridPlanner(costmap, params.planner), robot_names,
+                   replan_rate_hz=replan_rate_hz, target_check_rate_hz=target_check_rate_hz)
 
     @property
     def planner(self) -> GridPlanner:
         return self._planner
 
     @property
-    def robots(self) -> tuple[str, ...]:
+    def robot_names(self) -> tuple[str, ...]:
         return self._robots
 
     def get_target_input_port(self, robot: str):

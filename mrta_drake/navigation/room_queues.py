@@ -11,7 +11,16 @@ from mrta_drake.payloads import QueueRequest, QueueState, RoomQueue
 class RoomQueues(LeafSystem):
     """Grants each room to one robot at a time, in request order.
 
-    Inputs: ``request_<robot>`` (abstract ``QueueRequest``), one per robot, in robot order.
+    .. pydrake_system::
+
+        name: RoomQueues
+        input_ports:
+        - request_<robot>
+        output_ports:
+        - queue_state
+
+    Inputs: ``request_<robot>`` (abstract ``QueueRequest``), one per robot, in
+    ``robot_names`` order.
     Output: ``queue_state`` (abstract ``QueueState``), one ``RoomQueue`` per room in ``rooms``
     order, from the state (no direct feedthrough).
 
@@ -33,17 +42,18 @@ class RoomQueues(LeafSystem):
 
     def __init__(
         self,
-        robots: Sequence[str],
+        robot_names: Sequence[str],
         rooms: Sequence[int],
-        rate_hz: float = 10.0,
+        *,
+        rate_hz: float,
         holders: Mapping[int, str] | None = None,
     ):
         super().__init__()
         holders = dict(holders or {})
         for room, robot in holders.items():
-            if room not in rooms or robot not in robots:
+            if room not in rooms or robot not in robot_names:
                 raise ValueError(f"initial holder {robot!r} of room {room}: unknown robot or room")
-        self._robots = tuple(robots)
+        self._robots = tuple(robot_names)
         self._rooms = tuple(rooms)
         initial = QueueState(tuple(RoomQueue(room, holders.get(room)) for room in self._rooms))
         self._state_index = self.DeclareAbstractState(Value[object](initial))

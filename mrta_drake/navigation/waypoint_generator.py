@@ -1,6 +1,7 @@
 """Turns one robot's plan into waypoints: roadway legs, room queues, entries and service."""
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -17,19 +18,15 @@ from mrta_drake.payloads import (
     FleetPlan,
     QueueRequest,
     QueueState,
+    RobotMode,
     RobotProgress,
     Stop,
     Visit,
     WaypointTarget,
 )
 
-IDLE = "idle"  # no stop to do; the robot stands still
-DRIVE = "drive"  # along a roadway leg to the tail slot of the stop's queue
-QUEUE = "queue"  # requesting the stop's room, waiting at a queue slot
-ENTER = "enter"  # holding the room, driving through the queue slots and entry to its point
-SERVE = "serve"  # at the point: once holding the room, stand there for the service time
-PARK = "park"  # no stop to do: wait on a free parking spot of the last location
-WAIT = "wait"  # blockages leave no lane to the stop: stand still until they change
+# The phases in which a robot asks the room queues for its stop's room.
+_ASKING_PHASES = (RobotMode.QUEUE, RobotMode.ENTER, RobotMode.SERVE)
 
 
 @dataclass(frozen=True)
@@ -55,7 +52,7 @@ class _Drive:
     serve at a point whose room another robot still holds (e.g. parked in that room), so
     standing still rather than driving onto the holder."""
 
-    phase: str = IDLE
+    phase: RobotMode = RobotMode.IDLE
     stop: Stop | None = None
     route: tuple[tuple[float, float], ...] = ()
     index: int = 0
@@ -139,11 +136,25 @@ def _distance(a, b) -> float:
 
 
 class WaypointGenerator(LeafSystem):
-    """Drives one robot through its plan's stops, one waypoint at a time.
+    """Drives robot ``robot_names[index]`` through its plan's stops, one waypoint at a time.
+
+    .. pydrake_system::
+
+        name: WaypointGenerator
+        input_ports:
+        - plan
+        - robot_state
+        - queue_state
+        - disturbances (optional)
+        output_ports:
+        - target
+        - queue_request
+        - progress
 
     Inputs:
-      ``plan``: abstract ``FleetPlan``; this robot's ``RobotPlan`` is the one named ``robot``.
-      ``robot_state``: vector 4N, ``[x, y, theta, v]`` per robot; this robot's is at ``index``.
+      ``plan``: abstract ``FleetPlan``; this robot's ``RobotPlan`` is the one named after it.
+      ``robot_state``: vector 4N, ``[x, y, theta, v]`` per robot in ``robot_names`` order,
+      world frame, m, rad, m/s.
       ``queue_state``: abstract ``QueueState`` from ``RoomQueues``.
     Outputs (from the state; no direct feedthrough):
       ``target``: abstract ``WaypointTarget``, world frame, m.
@@ -201,15 +212,16 @@ class WaypointGenerator(LeafSystem):
 
     def __init__(
         self,
-        robot: str,
+        robot_names: Sequence[str],
         index: int,
-        num_robots: int,
         roadways: Roadways,
         start_location: int | None = None,
         params: WaypointParams = WaypointParams(),
-        rate_hz: float = 10.0,
+        *,
+        rate_hz: float,
     ):
         super().__init__()
+        robot = robot_names[index]
         self._robot = robot
         self._index = index
         self._roadways = roadways
@@ -219,7 +231,7 @@ class WaypointGenerator(LeafSystem):
         )
         self._plan = self.DeclareAbstractInputPort("plan", Value[object](FleetPlan(())))
         self._robot_state = self.DeclareVectorInputPort(
-            "robot_state", BasicVector(ROBOT_STATE_SIZE * num_robots)
+            "robot_state", BasicVector(ROBOT_STATE_SIZE * len(robot_names))
         )
         self._queue_state = self.DeclareAbstractInputPort(
             "queue_state", Value[object](QueueState())
@@ -263,24 +275,24 @@ class WaypointGenerator(LeafSystem):
         if outputs is None or outputs.drive is not s:
             outputs = self._last_outputs = _Outputs(
                 s, self._target(s),
-                QueueRequest(self._robot, s.stop.location if s.phase in (QUEUE, ENTER, SERVE)
+                QueueRequest(self._robot, s.stop.location if s.phase in _ASKING_PHASES
                              else None, s.release),
                 RobotProgress(self._robot, s.visits, s.last_location, s.stop, s.detours))
         return outputs
 
     def _target(self, s: _Drive) -> WaypointTarget:
-        if s.phase == PARK:
+        if s.phase == RobotMode.PARK:
             parking = _point(self._roadways.place(s.last_location).parking[s.index])
             return WaypointTarget(self._robot, True, parking, None, True)
-        if s.stop is None or s.phase == WAIT or s.waiting:
+        if s.stop is None or s.phase == RobotMode.WAIT or s.waiting:
             return WaypointTarget(self._robot)
         place = self._roadways.place(s.stop.location)
-        if s.phase in (DRIVE, ENTER):
+        if s.phase in (RobotMode.DRIVE, RobotMode.ENTER):
             last = len(s.route) - 1
             current = s.route[s.index]
             after = s.route[s.index + 1] if s.index < last else None
             stop_here = s.index == last
-        elif s.phase == QUEUE:
+        elif s.phase == RobotMode.QUEUE:
             current, after, stop_here = _point(place.queue[s.index]), None, True
         else:
             current, after, stop_here = _point(place.point), None, True
@@ -303,7 +315,7 @@ class WaypointGenerator(LeafSystem):
             s = self._reroute(s, robots.xy, lanes, closed, t)
         if disturbances.breakdowns and any(b.robot == self._index
                                            for b in disturbances.breakdowns):
-            s = _changed(s, phase=IDLE, stop=None, route=(), index=0, since=None)
+            s = _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0, since=None)
         else:
             stops = self._stops(context)
             s = self._follow_plan(s, _first_to_do(stops, s.visits), robots, lanes, t)
@@ -321,14 +333,15 @@ class WaypointGenerator(LeafSystem):
     def _follow_plan(self, s: _Drive, stop: Stop | None, robots: _Robots, lanes: Roadways,
                      t: float) -> _Drive:
         if stop is None:
-            if s.phase == PARK:
+            if s.phase == RobotMode.PARK:
                 return s
             place = None if s.last_location is None else self._roadways.place(s.last_location)
             if (place is None or not len(place.parking)
                     or _distance(robots.xy, place.point) > self._params.reach_tolerance):
-                return _changed(s, phase=IDLE, stop=None, route=(), index=0, since=None)
+                return _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0,
+                                since=None)
             others = np.delete(robots.states[:, :2], self._index, axis=0)
-            return replace(s, phase=PARK, stop=None, route=(), since=None,
+            return replace(s, phase=RobotMode.PARK, stop=None, route=(), since=None,
                            index=self._free_parking(place, others))
         xy = robots.xy
         if s.stop is None:
@@ -336,13 +349,13 @@ class WaypointGenerator(LeafSystem):
         if stop.location == s.stop.location:
             return _changed(s, stop=stop)
         old = self._roadways.place(s.stop.location)
-        if s.phase == DRIVE:
+        if s.phase == RobotMode.DRIVE:
             def route(roadways):
                 return self._splice(s.route[s.index:], xy, old.exit_node, stop.location,
                                     roadways)
-        elif s.phase == WAIT:
+        elif s.phase == RobotMode.WAIT:
             route = self._way_from(s, stop, xy)
-        elif s.phase == QUEUE:
+        elif s.phase == RobotMode.QUEUE:
             def route(roadways):
                 return _points_or_none(roadways.route_from_node(old.exit_node, stop.location))
         else:
@@ -357,7 +370,7 @@ class WaypointGenerator(LeafSystem):
         waypoints = route(lanes)
         if lanes.closures and waypoints != route(self._roadways):
             s = replace(s, detours=s.detours + (Detour(t, s.closed, waypoints is not None),))
-        return replace(s, phase=DRIVE if waypoints else WAIT, stop=stop,
+        return replace(s, phase=RobotMode.DRIVE if waypoints else RobotMode.WAIT, stop=stop,
                        route=waypoints or (), index=0, since=None)
 
     def _reroute(self, s: _Drive, xy, lanes: Roadways, closed: tuple[str, ...],
@@ -367,9 +380,9 @@ class WaypointGenerator(LeafSystem):
         opened = set(s.closed) - set(closed)
         changed = tuple(sorted(opened | (set(closed) - set(s.closed))))
         s = replace(s, closed=closed)
-        if s.phase == WAIT:
+        if s.phase == RobotMode.WAIT:
             route = self._way_from(s, s.stop, xy)(lanes)
-        elif s.phase == DRIVE:
+        elif s.phase == RobotMode.DRIVE:
             ahead = s.route[s.index:]
             if not opened and not lanes.crosses_closure((xy, *ahead)):
                 return s
@@ -378,7 +391,8 @@ class WaypointGenerator(LeafSystem):
                 return s
         else:
             return s
-        return replace(s, phase=DRIVE if route else WAIT, route=route or (), index=0,
+        return replace(s, phase=RobotMode.DRIVE if route else RobotMode.WAIT,
+                       route=route or (), index=0,
                        detours=s.detours + (Detour(t, changed, route is not None),))
 
     def _free_parking(self, place, others: np.ndarray) -> int:
@@ -393,10 +407,10 @@ class WaypointGenerator(LeafSystem):
     def _start(self, s: _Drive, stop: Stop, xy, lanes: Roadways, t: float) -> _Drive:
         """Begin ``stop`` from standing (at the start, or after finishing a stop)."""
         roadways, tolerance = self._roadways, self._params.reach_tolerance
-        parked = s.phase == PARK
+        parked = s.phase == RobotMode.PARK
         if (_distance(xy, roadways.place(stop.location).point) <= tolerance
                 or (parked and s.last_location == stop.location)):
-            return replace(s, phase=SERVE, stop=stop, route=(), index=0, since=None)
+            return replace(s, phase=RobotMode.SERVE, stop=stop, route=(), index=0, since=None)
         return self._drive_to(s, stop, self._way_from(s, stop, xy), lanes, t)
 
     def _way_from(self, s: _Drive, stop: Stop, xy):
@@ -404,7 +418,7 @@ class WaypointGenerator(LeafSystem):
         the leg from the last location when on its point (or parked there), else the lanes
         from the nearest roadway node."""
         roadways, tolerance = self._roadways, self._params.reach_tolerance
-        parked = s.phase == PARK
+        parked = s.phase == RobotMode.PARK
         last = s.last_location
         if last is None:  # e.g. a robot placed on a location's point without start_location
             last = next(
@@ -460,35 +474,37 @@ class WaypointGenerator(LeafSystem):
         place = self._roadways.place(s.stop.location)
         queue = queues.room(place.id)
         holding = queue is not None and queue.holder == self._robot
-        if s.phase == DRIVE and holding:
-            s = replace(s, phase=ENTER, route=(_point(place.point),), index=0)
-        if s.phase == DRIVE:
+        if s.phase == RobotMode.DRIVE and holding:
+            s = replace(s, phase=RobotMode.ENTER, route=(_point(place.point),), index=0)
+        if s.phase == RobotMode.DRIVE:
             s = _changed(s, index=self._reached(s, xy))
             if (
                 s.index == len(s.route) - 1
                 and _distance(xy, s.route[-1]) <= params.request_distance
             ):
-                s = replace(s, phase=QUEUE, route=(), index=len(place.queue) - 1)
-        if s.phase == QUEUE:
+                s = replace(s, phase=RobotMode.QUEUE, route=(), index=len(place.queue) - 1)
+        if s.phase == RobotMode.QUEUE:
             # Entering while another robot comes out would stand both in the doorway.
             if holding and not self._door_busy(place, robots.states):
                 route = _points(place.queue[s.index::-1]) + _points(place.entry)
-                s = replace(s, phase=ENTER, route=route + (_point(place.point),), index=0)
+                s = replace(s, phase=RobotMode.ENTER, route=route + (_point(place.point),),
+                            index=0)
             elif not holding and queue is not None and queue.slot_of(self._robot) is not None:
                 s = _changed(s, index=min(queue.slot_of(self._robot), len(place.queue) - 1))
-        if s.phase == ENTER:
+        if s.phase == RobotMode.ENTER:
             s = _changed(s, index=self._reached(s, xy))
             if s.index == len(s.route) - 1:
-                s = replace(s, phase=SERVE, route=(), index=0)
-        s = _changed(s, waiting=s.phase == SERVE and not holding)
-        if s.phase == SERVE and holding and _distance(xy, place.point) <= params.reach_tolerance:
+                s = replace(s, phase=RobotMode.SERVE, route=(), index=0)
+        s = _changed(s, waiting=s.phase == RobotMode.SERVE and not holding)
+        if (s.phase == RobotMode.SERVE and holding
+                and _distance(xy, place.point) <= params.reach_tolerance):
             since = t if s.since is None else s.since
             if t - since < params.service_time - 1e-9:
                 return _changed(s, since=since)
             stop = s.stop
             visit = Visit(stop.key, stop.location, t, stop.task, stop.action)
             s = replace(
-                s, phase=IDLE, stop=None, since=None,
+                s, phase=RobotMode.IDLE, stop=None, since=None,
                 visits=s.visits + (visit,), last_location=stop.location,
             )
             following = _first_to_do(stops, s.visits)
@@ -522,7 +538,8 @@ class WaypointGenerator(LeafSystem):
                 continue
             if s.stop is None:
                 point = self._roadways.place(queue.room).point
-                if s.phase != PARK or _distance(robots.xy, point) > self._params.reach_tolerance:
+                if (s.phase != RobotMode.PARK
+                        or _distance(robots.xy, point) > self._params.reach_tolerance):
                     return queue.room
                 continue
             point = self._roadways.place(queue.room).point

@@ -46,6 +46,7 @@ from importlib import metadata
 
 import numpy as np
 
+from mrta_drake.payloads import RobotMode
 from mrta_drake.results.clearances import clearances
 from mrta_drake.results.deadlocks import (
     NEIGHBOUR_RANGE,
@@ -55,7 +56,6 @@ from mrta_drake.results.deadlocks import (
 )
 from mrta_drake.results.human_metrics import human_metrics
 from mrta_drake.results.timing import leg_rows, task_rows, task_totals
-from mrta_drake.stack.run_recorder import DRIVE, IDLE, QUEUE
 
 SLACK_TOLERANCE = 1e-6  # CBF slack above this counts as a relaxed constraint
 
@@ -123,9 +123,10 @@ def _robots(names, times, states, modes, events) -> dict:
         mode = modes[:, k]
         robots[name] = {
             "distance": float(steps[:, k].sum()),
-            "busy_time": float(weights[(mode != IDLE) & (mode != QUEUE)].sum()),
-            "queue_time": float(weights[mode == QUEUE].sum()),
-            "idle_time": float(weights[mode == IDLE].sum()),
+            "busy_time": float(weights[(mode != RobotMode.IDLE)
+                                       & (mode != RobotMode.QUEUE)].sum()),
+            "queue_time": float(weights[mode == RobotMode.QUEUE].sum()),
+            "idle_time": float(weights[mode == RobotMode.IDLE].sum()),
             "stops_completed": sum(e["type"] == "arrival" and e["robot"] == name
                                    for e in events),
             "planner_failures": sum(e["type"] == "planner_failure" and name in e["robots"]
@@ -227,7 +228,7 @@ def _disturbances(config, names, times, xy, radii, events) -> list[dict]:
 
 
 def _deadlocks(names, times, xy, modes, humans, human_names) -> dict:
-    found = find_deadlocks(times, xy, modes == DRIVE, names, humans, human_names)
+    found = find_deadlocks(times, xy, modes == RobotMode.DRIVE, names, humans, human_names)
     end = float(times[-1]) if len(times) else 0.0
     return {
         "count": len(found),

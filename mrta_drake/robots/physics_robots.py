@@ -55,6 +55,17 @@ class PhysicsRobotParams:
 class PhysicsRobots(LeafSystem):
     """N robots that are bodies on planar joints of a stepped (discrete) plant.
 
+    .. pydrake_system::
+
+        name: PhysicsRobots
+        input_ports:
+        - commands (optional)
+        - plant_state
+        output_ports:
+        - generalized_force
+        - state
+        - plant_positions
+
     Each robot is driven like a differential drive: the commanded forward speed v (clipped
     to [-max_reverse_speed, max_speed]) and yaw rate omega (clipped to +-max_yaw_rate) are
     servoed with time constant ``response_time`` by a force along the heading and a torque
@@ -62,7 +73,7 @@ class PhysicsRobots(LeafSystem):
     opposes the sideways velocity (``lateral_damping``, limited to ``max_lateral_force``).
     Contact with walls, furniture, people and other robots is the plant's (SAP).
 
-    Input ``commands`` (2N): [v, omega] per robot, m/s and rad/s.
+    Input ``commands`` (2N): [v, omega] per robot, m/s and rad/s; unconnected: all zero.
     Input ``plant_state``: the plant's state [q; v].
     Output ``generalized_force`` (the plant's nv): the drive forces, [f_x, f_y, tau_z] on
         each robot's planar joint (world frame, N, N m), zero for the plant's other joints;
@@ -89,7 +100,7 @@ class PhysicsRobots(LeafSystem):
         self._mass = np.array([b.default_mass() for b in bodies])
         self._inertia = np.array([b.default_rotational_inertia().get_moments()[2]
                                   for b in bodies])
-        self.names = tuple(plant.GetModelInstanceName(m) for m in robot_models)
+        self.robot_names = tuple(plant.GetModelInstanceName(m) for m in robot_models)
         self._commands = self.DeclareVectorInputPort("commands", ROBOT_COMMAND_SIZE * self._n)
         self._plant_state = self.DeclareVectorInputPort("plant_state", nq + nv)
         plant_state = {self._plant_state.ticket()}

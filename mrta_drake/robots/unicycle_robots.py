@@ -22,26 +22,36 @@ class UnicycleParams:
 
 
 class UnicycleRobots(LeafSystem):
-    """N kinematic unicycles, stepped at a fixed rate.
+    """N kinematic unicycles, stepped at ``rate_hz``.
+
+    .. pydrake_system::
+
+        name: UnicycleRobots
+        input_ports:
+        - commands (optional)
+        output_ports:
+        - state
+        - plant_positions
 
     Each step (dt = 1 / rate_hz) the commanded speed is reached as far as the acceleration
     limit allows, the commanded yaw rate is clipped, and the pose advances exactly along the
     circular arc driven at the step's mean speed and that yaw rate (a straight line when the
     yaw rate is zero).
 
-    Input ``commands`` (2N): [v, omega] per robot, m/s and rad/s.
+    Input ``commands`` (2N): [v, omega] per robot in ``robot_names`` order, m/s and rad/s;
+    unconnected: all zero.
     Output ``state`` (4N): [x, y, theta, v] per robot, world frame, m, rad, m/s.
     Output ``plant_positions`` (3N): [x, y, theta] per robot, the planar joints' positions.
     """
 
-    def __init__(self, names, starts, params: UnicycleParams = UnicycleParams(),
-                 rate_hz: float = 20.0):
+    def __init__(self, robot_names, starts, params: UnicycleParams = UnicycleParams(), *,
+                 rate_hz: float):
         super().__init__()
-        starts = np.asarray(starts, dtype=float).reshape(len(names), 3)
-        self._n = len(names)
+        starts = np.asarray(starts, dtype=float).reshape(len(robot_names), 3)
+        self._n = len(robot_names)
         self._params = params
         self._dt = 1.0 / rate_hz
-        self.names = tuple(names)
+        self.robot_names = tuple(robot_names)
         initial = np.zeros((self._n, ROBOT_STATE_SIZE))
         initial[:, :3] = starts
         state = self.DeclareDiscreteState(initial.ravel())

@@ -154,20 +154,11 @@ class HumanGroupConfig:
 
 @dataclass(frozen=True)
 class HumansConfig:
-    """People in the building: named walkers, generated groups, and the social-force
-    parameters shared by all (defaults as in the original)."""
+    """People in the building: named walkers and generated groups. How they walk (body
+    radius, speeds, social forces) is the humans block's ``blocks.humans.params``."""
 
     walkers: list[HumanConfig] = field(default_factory=list)
     groups: list[HumanGroupConfig] = field(default_factory=list)
-    radius: float = 0.25
-    desired_speed: float = 1.0
-    max_speed: float = 1.5
-    relaxation_time: float = 0.5
-    repulsion_strength: float = 0.3  # V0, m^2/s^2
-    repulsion_range: float = 0.3  # sigma, m
-    wall_strength: float = 10.0  # U0, m^2/s^2
-    wall_range: float = 0.2  # R, m
-    waypoint_tolerance: float = 0.3
 
 
 @dataclass(frozen=True)
@@ -238,12 +229,16 @@ class BlocksConfig:
 
 @dataclass(frozen=True)
 class RatesConfig:
-    """Update rates of the blocks, Hz."""
+    """Update rates of the blocks, Hz, the only place blocks take their rates from. The
+    planner re-plans every robot at ``planner`` and looks for changed targets at
+    ``planner_target_check``; ``logging`` is the recorder's sampling rate, ``meshcat`` the
+    drawing rate."""
 
     allocator: float = 1.0
     waypoints: float = 10.0
     queues: float = 10.0
     planner: float = 2.0
+    planner_target_check: float = 10.0
     controller: float = 20.0
     robots: float = 20.0
     humans: float = 20.0

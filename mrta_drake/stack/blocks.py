@@ -12,7 +12,7 @@ allocator   progress_<robot> (RobotProgress)      plan (FleetPlan)
 waypoints   plan, robot_state, queue_state        target, queue_request, progress (per robot)
 queues      request_<robot> (QueueRequest)        queue_state (QueueState)
 planner     robot_state, target_<robot>           paths (FleetPaths)
-controller  robot_state, paths, humans            commands (2N), telemetry
+controller  robot_state, paths, human_states      commands (2N), telemetry
 robots      commands (2N)                         state (4N), plant_positions (3N)
 humans      robot_state (4N)                      human_states (HumanStates), plant_positions
 =========== ===================================== ============================================
@@ -22,6 +22,8 @@ an input ``plant_state`` and an output ``generalized_force`` (see
 ``mrta_drake.robots.plant_stepping``).
 Any block may also have an input ``disturbances`` (``payloads.Disturbances``): ``add_stack``
 connects it when the scenario schedules disturbances (see ``mrta_drake.scenario.disturbances``).
+Each block's class docstring lists its ports in a ``.. pydrake_system::`` block, and takes its
+rate (``rate_hz``) from the scenario's ``rates:`` section only.
 """
 
 import dataclasses
@@ -161,7 +163,7 @@ def _kinematic_robots() -> BlockType:
     from mrta_drake.robots.unicycle_robots import UnicycleParams, UnicycleRobots
 
     return BlockType(UnicycleParams, lambda ctx, params: UnicycleRobots(
-        ctx.robot_names, ctx.robot_starts, params, ctx.rates.robots))
+        ctx.robot_names, ctx.robot_starts, params, rate_hz=ctx.rates.robots))
 
 
 def _physics_robots() -> BlockType:
@@ -198,8 +200,8 @@ def task_allocator_block(allocator_class, params_class) -> BlockType:
         return TaskAllocator(
             ctx.scenario.tasks.stream, ctx.robot_names, starts,
             [r.capacity for r in ctx.scenario.robots], ctx.travel_times,
-            allocator_class(params), ctx.scenario.tasks.service_time, ctx.rates.allocator,
-            ctx.scenario.source)
+            allocator_class(params), ctx.scenario.tasks.service_time,
+            rate_hz=ctx.rates.allocator, source=ctx.scenario.source)
 
     return BlockType(params_class, make)
 
@@ -219,7 +221,8 @@ def _greedy_allocator() -> BlockType:
 def _fixed_allocator() -> BlockType:
     from mrta_drake.allocation.fixed_sequence_allocator import FixedSequenceAllocator
 
-    return BlockType(NoParams, lambda ctx, params: FixedSequenceAllocator(ctx.scenario.robots))
+    return BlockType(NoParams, lambda ctx, params: FixedSequenceAllocator(
+        ctx.robot_names, [r.route for r in ctx.scenario.robots]))
 
 
 def _roadway_waypoints() -> BlockType:
@@ -230,9 +233,9 @@ def _roadway_waypoints() -> BlockType:
             raise InputError(ctx.scenario.source, "blocks.waypoints.params.service_time",
                              "set tasks.service_time instead (the allocator uses it too)")
         params = dataclasses.replace(params, service_time=ctx.scenario.tasks.service_time)
-        return WaypointGenerator(ctx.robot_names[index], index, len(ctx.robot_names),
-                                 ctx.roadways, ctx.start_locations[index], params,
-                                 ctx.rates.waypoints)
+        return WaypointGenerator(ctx.robot_names, index, ctx.roadways,
+                                 ctx.start_locations[index], params,
+                                 rate_hz=ctx.rates.waypoints)
 
     return BlockType(WaypointParams, make)
 
@@ -246,7 +249,8 @@ def _fifo_queues() -> BlockType:
         for name, location in zip(ctx.robot_names, ctx.start_locations, strict=True):
             if location is not None:
                 holders.setdefault(location, name)
-        return RoomQueues(ctx.robot_names, ctx.roadways.location_ids, ctx.rates.queues, holders)
+        return RoomQueues(ctx.robot_names, ctx.roadways.location_ids, rate_hz=ctx.rates.queues,
+                          holders=holders)
 
     return BlockType(NoParams, make)
 
@@ -255,23 +259,25 @@ def _grid_astar_planner() -> BlockType:
     from mrta_drake.navigation.planner_service import PlannerService, PlannerServiceParams
 
     return BlockType(PlannerServiceParams, lambda ctx, params: PlannerService.from_obstacles(
-        ctx.obstacles, ctx.floor_plan.bounds, ctx.robot_names, params, ctx.rates.planner))
+        ctx.obstacles, ctx.floor_plan.bounds, ctx.robot_names, params,
+        replan_rate_hz=ctx.rates.planner, target_check_rate_hz=ctx.rates.planner_target_check))
 
 
 def _social_force_humans() -> BlockType:
     from mrta_drake.humans.people import generate_people
     from mrta_drake.humans.social_force_humans import SocialForceHumans
+    from mrta_drake.humans.social_force_params import SocialForceParams
 
-    def make(ctx: BuildContext, params):
+    def make(ctx: BuildContext, params: SocialForceParams):
         robots = ctx.scenario.robots
         keep_clear = [(r.start[0], r.start[1], r.radius + 0.3) for r in robots]
-        people = generate_people(ctx.scenario.humans, ctx.scenario.seed, ctx.obstacles,
+        people = generate_people(ctx.scenario.humans, params, ctx.scenario.seed, ctx.obstacles,
                                  places=ctx.floor_plan.places, keep_clear=keep_clear,
                                  file=ctx.scenario.source)
-        return SocialForceHumans(people, ctx.scenario.humans, ctx.obstacles, len(robots),
-                                 [r.radius for r in robots], ctx.rates.humans)
+        return SocialForceHumans(people, params, ctx.obstacles, ctx.robot_names,
+                                 [r.radius for r in robots], rate_hz=ctx.rates.humans)
 
-    return BlockType(NoParams, make)
+    return BlockType(SocialForceParams, make)
 
 
 def _priorities(ctx: BuildContext) -> list[int]:

@@ -30,6 +30,12 @@ class ContactRecorder(LeafSystem):
     """Notes the plant's point contacts at every plant step (publish events only: it never
     changes the run).
 
+    .. pydrake_system::
+
+        name: ContactRecorder
+        input_ports:
+        - contact_results
+
     A body is named by its model instance (a robot's or person's name); the building's
     geometry, all on the world body, by the geometry's name (e.g. ``wall_12``). For every
     pair of bodies that touched: how many times contact began, when first, for how long,

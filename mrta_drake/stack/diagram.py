@@ -112,7 +112,7 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
         contacts = add_plant_stepping(builder, world, robots, human_positions)
 
     recorder = builder.AddNamedSystem("recorder", RunRecorder(
-        names, human_bodies, scenario.rates.logging, out_dir))
+        names, human_bodies, rate_hz=scenario.rates.logging, out_dir=out_dir))
     builder.Connect(state, recorder.GetInputPort("robot_state"))
     builder.Connect(controller.GetOutputPort("telemetry"), recorder.GetInputPort("telemetry"))
     builder.Connect(planner.GetOutputPort("paths"), recorder.GetInputPort("paths"))
@@ -140,14 +140,14 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
             MeshcatVisualizerParams(publish_period=1.0 / scenario.rates.meshcat,
                                     role=Role.kIllustration, prefix="hospital"))
         overlay = builder.AddNamedSystem("meshcat_overlay", MeshcatOverlay(
-            meshcat, scenario, publish_rate=scenario.rates.meshcat))
+            meshcat, scenario, rate_hz=scenario.rates.meshcat))
         builder.Connect(planner.GetOutputPort("paths"), overlay.GetInputPort("paths"))
         builder.Connect(queues.GetOutputPort("queue_state"), overlay.GetInputPort("queue_state"))
 
     schedule = None
     if has_disturbances(scenario.disturbances):
         schedule = builder.AddNamedSystem("disturbances", DisturbanceSchedule(
-            len(names), blockages(scenario), breakdowns(scenario), outage_windows(scenario)))
+            names, blockages(scenario), breakdowns(scenario), outage_windows(scenario)))
         builder.Connect(state, schedule.GetInputPort("robot_state"))
         readers = [controller, planner, allocator, *generators, recorder]
         if meshcat is not None:

@@ -25,9 +25,18 @@ class DisturbanceSchedule(LeafSystem):
     and end of each scheduled window (``disturbances.in_force``: from ``start`` on, no
     longer at ``end``).
 
-    Input ``robot_state`` (4N): [x, y, theta, v] per robot, world frame, m, rad, m/s; read
-    when an outage starts, to freeze the states the cut-off robot and the others last
-    exchanged. Output ``disturbances`` (abstract ``Disturbances``), from the state.
+    .. pydrake_system::
+
+        name: DisturbanceSchedule
+        input_ports:
+        - robot_state
+        output_ports:
+        - disturbances
+
+    Input ``robot_state`` (4N): [x, y, theta, v] per robot in ``robot_names`` order, world
+    frame, m, rad, m/s; read when an outage starts, to freeze the states the cut-off robot
+    and the others last exchanged. Output ``disturbances`` (abstract ``Disturbances``), from
+    the state.
 
     The abstract state is the output payload; one unrestricted update at each distinct
     start or end time (an event at every later time only repeats the same state) recomputes
@@ -38,7 +47,7 @@ class DisturbanceSchedule(LeafSystem):
     ``disturbances.blockages``); ``outages``: (robot index, start, end) s.
     """
 
-    def __init__(self, num_robots: int, blockages: Sequence[Blockage] = (),
+    def __init__(self, robot_names: Sequence[str], blockages: Sequence[Blockage] = (),
                  breakdowns: Sequence[Breakdown] = (),
                  outages: Sequence[tuple[int, float, float]] = ()):
         super().__init__()
@@ -46,7 +55,7 @@ class DisturbanceSchedule(LeafSystem):
         self._breakdowns = tuple(breakdowns)
         self._outages = tuple(sorted(outages, key=lambda o: (o[1], o[0])))
         self._robot_state = self.DeclareVectorInputPort(
-            "robot_state", BasicVector(ROBOT_STATE_SIZE * num_robots))
+            "robot_state", BasicVector(ROBOT_STATE_SIZE * len(robot_names)))
         self._state_index = self.DeclareAbstractState(Value[object](Disturbances()))
         self.DeclareStateOutputPort("disturbances", self._state_index)
         windows = [(w.start, w.end) for w in self._blockages + self._breakdowns]

@@ -21,12 +21,22 @@ Z = 0.02  # m above the floor, so lines are not hidden by it
 
 class MeshcatOverlay(LeafSystem):
     """Draws the scenario's roadway lanes (with arrowheads), rooms' queue slots and service
-    points once, then each robot's planned path and which rooms are held, at
-    ``publish_rate`` Hz (publish events only). Inputs: ``paths`` (FleetPaths),
-    ``queue_state`` (QueueState), ``disturbances`` (Disturbances, optional): each of the
-    scenario's blockages is a red translucent box, shown only while it is in force."""
+    points once, then each robot's planned path and which rooms are held, at ``rate_hz``
+    (publish events only).
 
-    def __init__(self, meshcat: Meshcat, scenario: Scenario, publish_rate: float = 10.0,
+    .. pydrake_system::
+
+        name: MeshcatOverlay
+        input_ports:
+        - paths
+        - queue_state
+        - disturbances (optional)
+
+    Inputs: ``paths`` (FleetPaths), ``queue_state`` (QueueState), ``disturbances``
+    (Disturbances): each of the scenario's blockages is a red translucent box, shown only
+    while it is in force."""
+
+    def __init__(self, meshcat: Meshcat, scenario: Scenario, *, rate_hz: float,
                  prefix: str = "traffic"):
         super().__init__()
         self._meshcat = meshcat
@@ -37,7 +47,7 @@ class MeshcatOverlay(LeafSystem):
         self.DeclareAbstractInputPort("queue_state", Value[object](QueueState()))
         self._disturbances = self.DeclareAbstractInputPort("disturbances",
                                                            Value[object](Disturbances()))
-        self.DeclarePeriodicPublishEvent(1.0 / publish_rate, 0.0, self._draw)
+        self.DeclarePeriodicPublishEvent(1.0 / rate_hz, 0.0, self._draw)
         self._draw_static(scenario)
 
     def _draw_static(self, scenario: Scenario) -> None:

@@ -19,24 +19,35 @@ from mrta_drake.payloads import (
     FleetPlan,
     HumanStates,
     QueueState,
+    RobotMode,
     RobotProgress,
     WaypointTarget,
 )
 
-# What a robot is doing at a sample (``RunRecorder.mode_array``).
-IDLE = 0  # no stop to do (standing, or driving to its parking spot)
-DRIVE = 1  # has a stop and should be moving towards it
-QUEUE = 2  # waiting in a room's queue
-SERVE = 3  # holding its stop's room, at the room's point
-
 
 class RunRecorder(LeafSystem):
-    """Samples the run at a fixed rate (publish events only: it never changes the run).
+    """Samples the run at ``rate_hz`` (publish events only: it never changes the run).
+
+    .. pydrake_system::
+
+        name: RunRecorder
+        input_ports:
+        - robot_state
+        - telemetry
+        - paths
+        - queue_state
+        - plan
+        - progress_<robot>
+        - target_<robot>
+        - human_states (optional)
+        - human_active (optional)
+        - allocator_events (optional)
+        - disturbances (optional)
 
     Keeps in memory, per sample: the time, the robot states (T, N, 4) [x, y, theta, v]
     (world frame, m, rad, m/s), the human positions (T, M, 2) (NaN while a human is not yet
-    present), each robot's mode (T, N) (``IDLE``, ``DRIVE``, ``QUEUE``, ``SERVE``) and the
-    controller telemetry; and notes events (dicts, ``time`` the sample time, s):
+    present), each robot's ``RobotMode`` (T, N) (``IDLE``, ``DRIVE``, ``QUEUE`` or ``SERVE``)
+    and the controller telemetry; and notes events (dicts, ``time`` the sample time, s):
 
     - ``plan``: the allocator's plan changed: ``revision`` and, per robot, its stops
       (``key``, ``task``, ``action``, ``location``, ``planned``: predicted completion, s).
@@ -69,8 +80,8 @@ class RunRecorder(LeafSystem):
     of event objects; new ones are noted), ``disturbances``.
     """
 
-    def __init__(self, robot_names, humans=(), rate_hz: float = 10.0,
-                 out_dir: str | None = None, serve_radius: float = 1.0):
+    def __init__(self, robot_names, humans=(), *, rate_hz: float, out_dir: str | None = None,
+                 serve_radius: float = 1.0):
         super().__init__()
         self.robot_names = tuple(robot_names)
         self.human_names = tuple(h.name for h in humans)
@@ -177,7 +188,7 @@ class RunRecorder(LeafSystem):
                progress: list[RobotProgress]) -> np.ndarray:
         waiting = {robot for queue in queues.rooms for robot in queue.waiting}
         holders = {queue.room: queue.holder for queue in queues.rooms}
-        modes = np.full(self._n, IDLE, dtype=np.int8)
+        modes = np.full(self._n, RobotMode.IDLE, dtype=np.int8)
         for k, name in enumerate(self.robot_names):
             stop = progress[k].current_stop
             if stop is None:
@@ -186,13 +197,13 @@ class RunRecorder(LeafSystem):
             if not target.active:
                 continue
             if name in waiting:
-                modes[k] = QUEUE
+                modes[k] = RobotMode.QUEUE
             elif (holders.get(stop.location) == name and target.next is None
                   and target.current is not None
                   and math.dist(states[k, :2], target.current) <= self._serve_radius):
-                modes[k] = SERVE
+                modes[k] = RobotMode.SERVE
             else:
-                modes[k] = DRIVE
+                modes[k] = RobotMode.DRIVE
         return modes
 
     def _note_plan(self, context, t: float) -> None:
@@ -297,7 +308,7 @@ class RunRecorder(LeafSystem):
         return times, states, humans
 
     def mode_array(self) -> np.ndarray:
-        """(T, N) int8: each robot's mode at each sample (``IDLE``, ``DRIVE``, ...)."""
+        """(T, N) int8: each robot's ``RobotMode`` at each sample."""
         return np.array(self.modes, dtype=np.int8).reshape(len(self.modes), self._n)
 
 

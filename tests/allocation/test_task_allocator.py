@@ -57,7 +57,7 @@ def simulate(stream, starts, allocator, delay=0.0):
     builder = DiagramBuilder()
     names = [f"robot{k}" for k in range(len(starts))]
     allocator_system = builder.AddSystem(
-        TaskAllocator(stream, names, starts, [2] * len(starts), TRAVEL, allocator))
+        TaskAllocator(stream, names, starts, [2] * len(starts), TRAVEL, allocator, rate_hz=1.0))
     robots = []
     for k, (name, start) in enumerate(zip(names, starts, strict=True)):
         robot = builder.AddSystem(FakeRobot(k, name, start, delay))
@@ -123,7 +123,7 @@ def test_measured_delays_make_a_new_task_late(delay, status, late):
 
 def test_unconnected_progress_means_robots_at_their_starts():
     allocator = TaskAllocator((TaskBatch(0.0, (TaskConfig(1, 2, 100.0),)),), ["a"], [0], [2],
-                              TRAVEL, GreedyAllocator(), rate=2.0)
+                              TRAVEL, GreedyAllocator(), rate_hz=2.0)
     simulator = Simulator(allocator)
     simulator.AdvanceTo(1.0)
     plan = allocator.GetOutputPort("plan").Eval(simulator.get_context())
@@ -134,4 +134,4 @@ def test_unconnected_progress_means_robots_at_their_starts():
 def test_bad_stream_is_an_input_error():
     with pytest.raises(InputError, match=r"tasks_stream\[0\].tasks\[0\].pickup"):
         TaskAllocator((TaskBatch(0.0, (TaskConfig(9, 2, 100.0),)),), ["a"], [0], [2],
-                      TRAVEL, GreedyAllocator())
+                      TRAVEL, GreedyAllocator(), rate_hz=1.0)

@@ -44,7 +44,8 @@ def _run(starts, paths, obstacles, duration, params=None, walker=None, controlle
     """Simulate; returns robot states (T, N, 4) sampled at 20 Hz and the controller."""
     names = [f"r{i}" for i in range(len(starts))]
     builder = DiagramBuilder()
-    robots = builder.AddSystem(UnicycleRobots(names, np.asarray(starts, dtype=float)))
+    robots = builder.AddSystem(UnicycleRobots(names, np.asarray(starts, dtype=float),
+                                              rate_hz=20.0))
     if controller is None:
         controller = ClusterCbfController(names, obstacles, params, priorities)
     builder.AddSystem(controller)
@@ -214,7 +215,7 @@ def test_fixed_step_commands_after_a_late_start():
     names = ["a"]
     builder = DiagramBuilder()
     controller = builder.AddSystem(ClusterCbfController(names))
-    robots = builder.AddSystem(UnicycleRobots(names, np.array([[0.0, 0.0, 0.0]])))
+    robots = builder.AddSystem(UnicycleRobots(names, np.array([[0.0, 0.0, 0.0]]), rate_hz=20.0))
     fleet = FleetPaths((RobotPath("a", PATH_OK, frozen_array([[0.0, 0.0], [9.0, 0.0]])),))
     source = builder.AddSystem(ConstantValueSource(Value[object](fleet)))
     builder.Connect(source.get_output_port(), controller.GetInputPort("paths"))

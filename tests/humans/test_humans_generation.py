@@ -5,6 +5,7 @@ from hypothesis import strategies as st
 
 from mrta_drake.errors import InputError
 from mrta_drake.humans.people import CROWD_SPEED_FACTOR, START_GAP, Person, generate_people
+from mrta_drake.humans.social_force_params import SocialForceParams
 from mrta_drake.scenario.schema import HumanConfig, HumanGroupConfig, HumansConfig
 from mrta_drake.world.obstacles import Box, Obstacles
 
@@ -15,7 +16,8 @@ ROOMS = Obstacles(boxes=(
     Box("middle_n", (0.0, 1.85), (0.2, 2.3)), Box("middle_s", (0.0, -1.85), (0.2, 2.3)),
     Box("desk", (5.0, 0.0), (1.0, 1.0)),
 ))
-RADIUS = 0.25
+PARAMS = SocialForceParams()
+RADIUS = PARAMS.radius
 POINTS = [[-8.0, -2.0], [8.0, 2.0], [-5.0, 2.0], [8.0, -2.0]]
 
 
@@ -43,13 +45,14 @@ def _check_starts(people):
 def test_walkers_start_on_their_first_waypoint_and_loop_as_given():
     config = _config(walkers=[HumanConfig("ann", [[-8, 2], [-2, 2], [-2, -2]]),
                               HumanConfig("", [[5, 2.5]], desired_speed=0.7)])
-    ann, other = generate_people(config, 0, ROOMS)
+    ann, other = generate_people(config, PARAMS, 0, ROOMS)
     assert ann == Person("ann", (-8.0, 2.0), ((-2.0, 2.0), (-2.0, -2.0), (-8.0, 2.0)), 1.0)
     assert other == Person("walker1", (5.0, 2.5), ((5.0, 2.5),), 0.7)
 
 
 def test_visitors_walk_routed_loops_between_points_of_interest():
-    people = generate_people(_config(HumanGroupConfig("visitors", 8, points=POINTS)), 3, ROOMS)
+    people = generate_people(_config(HumanGroupConfig("visitors", 8, points=POINTS)), PARAMS, 3,
+                             ROOMS)
     assert [p.name for p in people] == [f"visitors0_{k}" for k in range(8)]
     _check_starts(people)
     crossing = 0
@@ -65,7 +68,7 @@ def test_visitors_walk_routed_loops_between_points_of_interest():
 
 def test_crowd_mills_within_spread_of_its_centre():
     group = HumanGroupConfig("crowd", 6, center=[5.0, 0.0], spread=2.0)
-    people = generate_people(_config(group), 1, ROOMS)
+    people = generate_people(_config(group), PARAMS, 1, ROOMS)
     assert len(people) == 6
     _check_starts(people)
     for person in people:
@@ -80,7 +83,7 @@ def test_crowd_mills_within_spread_of_its_centre():
 def test_stream_enters_at_its_centre_at_fixed_intervals():
     group = HumanGroupConfig("stream", 4, center=[-9.0, 0.0], points=[[8.0, 0.0], [3.0, 2.0]],
                              interval=5.0, desired_speed=1.2)
-    people = generate_people(_config(group), 2, ROOMS)
+    people = generate_people(_config(group), PARAMS, 2, ROOMS)
     assert [p.entry_time for p in people] == [0.0, 5.0, 10.0, 15.0]
     for person in people:
         assert person.start == (-9.0, 0.0)
@@ -91,15 +94,16 @@ def test_stream_enters_at_its_centre_at_fixed_intervals():
 
 def test_named_places_are_the_default_points_of_interest():
     places = {"lobby": (-8.0, -2.0), "ward": (8.0, 2.0)}
-    people = generate_people(_config(HumanGroupConfig("visitors", 2)), 0, ROOMS, places=places)
+    people = generate_people(_config(HumanGroupConfig("visitors", 2)), PARAMS, 0, ROOMS,
+                             places=places)
     for person in people:
         assert {(-8.0, -2.0), (8.0, 2.0)} <= set(person.waypoints)
 
 
 def test_starts_keep_clear_of_given_circles():
     robots = [(x, y, 0.3) for x in range(-9, 10) for y in (-2.0, 0.0, 2.0) if abs(x) > 1]
-    people = generate_people(_config(HumanGroupConfig("visitors", 5, points=POINTS)), 4, ROOMS,
-                             keep_clear=robots)
+    people = generate_people(_config(HumanGroupConfig("visitors", 5, points=POINTS)), PARAMS, 4,
+                             ROOMS, keep_clear=robots)
     for person in people:
         gaps = [np.hypot(person.start[0] - x, person.start[1] - y) - r - RADIUS
                 for x, y, r in robots]
@@ -109,17 +113,17 @@ def test_starts_keep_clear_of_given_circles():
 def test_same_seed_same_people_other_seed_other_people():
     config = _config(HumanGroupConfig("visitors", 4, points=POINTS),
                      HumanGroupConfig("crowd", 3, center=[-5.0, 0.0]))
-    assert generate_people(config, 11, ROOMS) == generate_people(config, 11, ROOMS)
-    assert generate_people(config, 11, ROOMS) != generate_people(config, 12, ROOMS)
+    assert generate_people(config, PARAMS, 11, ROOMS) == generate_people(config, PARAMS, 11, ROOMS)
+    assert generate_people(config, PARAMS, 11, ROOMS) != generate_people(config, PARAMS, 12, ROOMS)
 
 
 def test_groups_draw_independent_streams():
     crowd = HumanGroupConfig("crowd", 3, center=[-5.0, 0.0])
     east = [[8.0, 2.0], [8.0, -2.0]]  # far from the crowd: no start conflicts between them
-    alone = generate_people(_config(HumanGroupConfig("visitors", 0, points=east), crowd), 5,
-                            ROOMS)
-    after = generate_people(_config(HumanGroupConfig("visitors", 3, points=east), crowd), 5,
-                            ROOMS)
+    alone = generate_people(_config(HumanGroupConfig("visitors", 0, points=east), crowd),
+                            PARAMS, 5, ROOMS)
+    after = generate_people(_config(HumanGroupConfig("visitors", 3, points=east), crowd),
+                            PARAMS, 5, ROOMS)
     assert alone == after[3:]
 
 
@@ -128,7 +132,7 @@ def test_groups_draw_independent_streams():
 def test_generated_points_are_always_free(seed, visitors, crowd):
     config = _config(HumanGroupConfig("visitors", visitors, points=POINTS),
                      HumanGroupConfig("crowd", crowd, center=[-5.0, 0.0], spread=2.5))
-    people = generate_people(config, seed, ROOMS)
+    people = generate_people(config, PARAMS, seed, ROOMS)
     assert len(people) == visitors + crowd
     if people:
         _check_starts(people)
@@ -158,12 +162,10 @@ def test_generated_points_are_always_free(seed, visitors, crowd):
     (_config(walkers=[HumanConfig("a", [[-8, 2]]), HumanConfig("b", [[-8, 2.2]])]),
      "humans.walkers[1].waypoints[0]", "too close"),
     (_config(walkers=[HumanConfig("a", [])]), "humans.walkers[0].waypoints", "at least one"),
-    (HumansConfig(radius=0.0), "humans.radius", "must be a number > 0"),
-    (HumansConfig(desired_speed=2.0), "humans.desired_speed", "<= max_speed"),
 ])
 def test_invalid_configs_name_the_field(config, field, message):
     with pytest.raises(InputError, match="humans") as error:
-        generate_people(config, 0, ROOMS, file="scenario.yaml")
+        generate_people(config, PARAMS, 0, ROOMS, file="scenario.yaml")
     assert error.value.file == "scenario.yaml"
     assert error.value.field == field
     assert message in str(error.value)
@@ -173,11 +175,12 @@ def test_exact_error_message_for_a_negative_count():
     config = _config(HumanGroupConfig("visitors", 1, points=POINTS),
                      HumanGroupConfig("crowd", -3))
     with pytest.raises(InputError) as error:
-        generate_people(config, 0, ROOMS, file="s.yaml")
+        generate_people(config, PARAMS, 0, ROOMS, file="s.yaml")
     assert str(error.value) == "s.yaml: humans.groups[1].count: must be >= 0, got -3"
 
 
 def test_unreachable_point_of_interest_is_an_input_error():
     closed = ROOMS.added(boxes=[Box("door", (0.0, 0.0), (0.2, 1.6))])
     with pytest.raises(InputError, match="no walkable path"):
-        generate_people(_config(HumanGroupConfig("visitors", 1, points=POINTS)), 0, closed)
+        generate_people(_config(HumanGroupConfig("visitors", 1, points=POINTS)), PARAMS, 0,
+                        closed)

@@ -6,12 +6,13 @@ from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
 
 from mrta_drake.humans.people import Person, generate_people
 from mrta_drake.humans.social_force_humans import SocialForceHumans
+from mrta_drake.humans.social_force_params import SocialForceParams
 from mrta_drake.scenario.schema import HumanGroupConfig, HumansConfig
 from mrta_drake.world.obstacles import Box, Cylinder, Obstacles
 
 PERIOD = 0.05
 OPEN = Obstacles()
-DEFAULTS = HumansConfig()
+DEFAULTS = SocialForceParams()
 CORRIDOR = Obstacles(boxes=(Box("north", (0.0, 1.6), (20.0, 0.2)),
                             Box("south", (0.0, -1.6), (20.0, 0.2))))
 
@@ -21,9 +22,10 @@ def _run(people, duration, obstacles=OPEN, params=DEFAULTS, robots=None,
     """Simulates the humans; returns times (T,), positions (T, M, 2), headings (T, M),
     presence (T, M), the system and its context. ``robots``: constant robot state rows."""
     builder = DiagramBuilder()
-    n = 0 if robots is None else len(robots)
-    humans = builder.AddSystem(SocialForceHumans(people, params, obstacles, n,
-                                                 np.full(n, robot_radius)))
+    names = [] if robots is None else [f"r{k}" for k in range(len(robots))]
+    humans = builder.AddSystem(SocialForceHumans(people, params, obstacles, names,
+                                                 np.full(len(names), robot_radius),
+                                                 rate_hz=1.0 / PERIOD))
     if robots is not None:
         source = builder.AddSystem(ConstantVectorSource(np.ravel(robots)))
         builder.Connect(source.get_output_port(), humans.GetInputPort("robot_state"))
@@ -80,7 +82,7 @@ def test_human_never_enters_a_wall(wall_strength):
     people = [Person("slanted", (0.0, 0.0), ((6.0, 3.5),), 1.0),
               Person("cornered", (-2.0, 0.0), ((-6.0, 4.0),), 1.2),
               Person("pillar", (0.0, -1.0), ((0.0, -5.0),), 1.5)]
-    params = HumansConfig(wall_strength=wall_strength)
+    params = SocialForceParams(wall_strength=wall_strength)
     _, xy, _, _, _, _ = _run(people, 12.0, walls, params)
     clearance = walls.signed_distance(xy.reshape(-1, 2))
     assert clearance.min() >= params.radius - 1e-9
@@ -119,8 +121,8 @@ def test_deterministic_under_a_seed():
     robots = [[0.0, 0.0, 0.0, 0.5], [3.0, -0.5, np.pi, 0.3]]
 
     def run():
-        people = generate_people(config, 7, CORRIDOR)
-        return _run(people, 8.0, CORRIDOR, config, robots=robots)[1]
+        people = generate_people(config, DEFAULTS, 7, CORRIDOR)
+        return _run(people, 8.0, CORRIDOR, robots=robots)[1]
 
     first, second = run(), run()
     assert np.array_equal(first, second)
@@ -157,8 +159,8 @@ def test_heading_follows_velocity():
 
 
 def test_no_humans_and_bad_robot_radii():
-    system = SocialForceHumans([], HumansConfig(), Obstacles())
+    system = SocialForceHumans([], DEFAULTS, Obstacles(), rate_hz=20.0)
     context = system.CreateDefaultContext()
     assert system.GetOutputPort("plant_positions").Eval(context).shape == (0,)
     with pytest.raises(ValueError, match="robot_radii"):
-        SocialForceHumans([], HumansConfig(), Obstacles(), num_robots=2, robot_radii=[0.2])
+        SocialForceHumans([], DEFAULTS, Obstacles(), ["r0", "r1"], [0.2], rate_hz=20.0)

@@ -50,9 +50,10 @@ class SwitchingTarget(LeafSystem):
                                                else after))
 
 
-def build(planner, sources: dict, replan_rate=2.0, states=STATES):
+def build(planner, sources: dict, replan_rate_hz=2.0, states=STATES):
     builder = DiagramBuilder()
-    service = builder.AddSystem(PlannerService(planner, ROBOTS, replan_rate=replan_rate))
+    service = builder.AddSystem(PlannerService(planner, ROBOTS, replan_rate_hz=replan_rate_hz,
+                                               target_check_rate_hz=10.0))
     states = builder.AddSystem(ConstantVectorSource(np.array(states)))
     builder.Connect(states.get_output_port(), service.GetInputPort("robot_state"))
     for robot in ROBOTS:
@@ -105,7 +106,7 @@ def test_a_changed_target_is_planned_at_the_next_check_tick(planner):
     sources = {"r0": SwitchingTarget(before, after, 0.22),
                "r1": WaypointTarget("r1", True, current=(7.0, 3.0)),
                "r2": WaypointTarget("r2", True, current=(6.5, 2.0))}  # through the gap
-    simulator, paths = build(planner, sources, replan_rate=1.0)
+    simulator, paths = build(planner, sources, replan_rate_hz=1.0)
     simulator.AdvanceTo(0.25)
     assert paths().paths[0].planned_at == 0.0
     simulator.AdvanceTo(0.35)
@@ -146,8 +147,9 @@ def test_paths_go_around_robots_standing_in_the_way(planner):
 
 
 def test_from_obstacles_builds_the_costmap_and_planner():
-    service = PlannerService.from_obstacles(WALLS, BOUNDS, ROBOTS, PlannerServiceParams())
-    assert service.robots == ROBOTS
+    service = PlannerService.from_obstacles(WALLS, BOUNDS, ROBOTS, PlannerServiceParams(),
+                                            replan_rate_hz=2.0, target_check_rate_hz=10.0)
+    assert service.robot_names == ROBOTS
     assert service.planner.costmap.shape == (80, 160)
     assert service.GetInputPort("robot_state").size() == 12
     assert service.get_target_input_port("r2").get_name() == "target_r2"
@@ -168,10 +170,11 @@ def test_a_column_standing_along_the_hospital_east_wall_gets_moving():
     north = ((5.4, -15.1), (5.4, -14.0))
     targets = (north, north, ((6.0, -21.85), (5.85, -23.05)))
     builder = DiagramBuilder()
-    robots = builder.AddSystem(UnicycleRobots(names, np.array(starts)))
+    robots = builder.AddSystem(UnicycleRobots(names, np.array(starts), rate_hz=20.0))
     controller = builder.AddSystem(ClusterCbfController(names, obstacles))
     service = builder.AddSystem(PlannerService.from_obstacles(
-        obstacles, (2.0, 9.0, -26.0, -12.0), names))
+        obstacles, (2.0, 9.0, -26.0, -12.0), names, replan_rate_hz=2.0,
+        target_check_rate_hz=10.0))
     builder.Connect(robots.GetOutputPort("state"), controller.GetInputPort("robot_state"))
     builder.Connect(robots.GetOutputPort("state"), service.GetInputPort("robot_state"))
     builder.Connect(service.GetOutputPort("paths"), controller.GetInputPort("paths"))

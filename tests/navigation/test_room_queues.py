@@ -17,7 +17,7 @@ class Bench:
     queue update (10 Hz), ``queue`` reads a room's queue."""
 
     def __init__(self, robots, holders=None):
-        self.queues = RoomQueues(robots, rooms=[ROOM, OTHER], holders=holders)
+        self.queues = RoomQueues(robots, rooms=[ROOM, OTHER], rate_hz=10.0, holders=holders)
         self.simulator = Simulator(self.queues)
         self.context = self.simulator.get_mutable_context()
         for robot in robots:
@@ -114,7 +114,7 @@ def test_initial_holders():
     bench.step()
     assert bench.queue() == RoomQueue(ROOM, "r1", ("r0",))
     with pytest.raises(ValueError):
-        RoomQueues(["r0"], rooms=[ROOM], holders={ROOM: "nobody"})
+        RoomQueues(["r0"], rooms=[ROOM], rate_hz=10.0, holders={ROOM: "nobody"})
 
 
 def test_an_update_keeps_the_state_when_no_rule_applies():

@@ -10,21 +10,17 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from mrta_drake.allocation.fixed_sequence_allocator import FixedSequenceAllocator
 from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.room_queues import RoomQueues
-from mrta_drake.navigation.waypoint_generator import (
-    QUEUE,
-    WaypointGenerator,
-    WaypointParams,
-    _Drive,
-)
+from mrta_drake.navigation.waypoint_generator import WaypointGenerator, WaypointParams, _Drive
 from mrta_drake.payloads import (
     FleetPlan,
     QueueState,
+    RobotMode,
     RobotPlan,
     RoomQueue,
     Stop,
     WaypointTarget,
 )
-from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig, RobotConfig
+from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig
 
 A, B, C = 0, 1, 2
 
@@ -105,13 +101,13 @@ class World:
         self.robots = [f"r{i}" for i in range(len(starts))]
         builder = DiagramBuilder()
         plan = builder.AddSystem(plan_source)
-        queues = builder.AddSystem(RoomQueues(self.robots, roadways.location_ids))
+        queues = builder.AddSystem(RoomQueues(self.robots, roadways.location_ids, rate_hz=10.0))
         fake = builder.AddSystem(FakeRobots([roadways.place(s).point for s in starts]))
         self.generators = []
         for i, (robot, start) in enumerate(zip(self.robots, starts, strict=True)):
             generator = builder.AddSystem(WaypointGenerator(
-                robot, i, len(starts), roadways, start if start_known else None,
-                params or WaypointParams(),
+                self.robots, i, roadways, start if start_known else None,
+                params or WaypointParams(), rate_hz=10.0,
             ))
             builder.Connect(plan.GetOutputPort("plan"), generator.GetInputPort("plan"))
             builder.Connect(fake.GetOutputPort("state"), generator.GetInputPort("robot_state"))
@@ -152,9 +148,7 @@ class World:
 
 
 def fixed(*routes):
-    return FixedSequenceAllocator(
-        [RobotConfig(name=f"r{i}", route=list(route)) for i, route in enumerate(routes)]
-    )
+    return FixedSequenceAllocator([f"r{i}" for i in range(len(routes))], routes)
 
 
 def test_robots_visit_in_order_queue_enter_and_release():
@@ -328,11 +322,11 @@ def queueing_at_b(queue: RoomQueue, slot: int):
     """Robot r0 alone (of two), in the queue phase for its stop at B at ``slot``, with B's
     ``queue``: (generator, context, B's place)."""
     roadways = loop_world(parking=True)
-    generator = WaypointGenerator("r0", 0, 2, roadways, A, WaypointParams())
+    generator = WaypointGenerator(["r0", "r1"], 0, roadways, A, WaypointParams(), rate_hz=10.0)
     context = generator.CreateDefaultContext()
     generator.GetInputPort("plan").FixValue(context, plan(("a", B)))
     generator.GetInputPort("queue_state").FixValue(context, QueueState((queue,)))
-    context.SetAbstractState(0, _Drive(phase=QUEUE, stop=Stop("a", B), index=slot,
+    context.SetAbstractState(0, _Drive(phase=RobotMode.QUEUE, stop=Stop("a", B), index=slot,
                                        last_location=A))
     return generator, context, roadways.place(B)
 

@@ -19,6 +19,7 @@ from mrta_drake.payloads import (
     FleetPaths,
     FleetPlan,
     QueueState,
+    RobotMode,
     RobotPlan,
     RobotProgress,
     RoomQueue,
@@ -30,7 +31,7 @@ from mrta_drake.results.deadlocks import find_deadlocks
 from mrta_drake.results.timing import leg_rows, task_rows, task_totals
 from mrta_drake.scenario.schema import HumanConfig, HumansConfig, TaskBatch, TaskConfig
 from mrta_drake.stack.diagram import add_stack
-from mrta_drake.stack.run_recorder import DRIVE, IDLE, QUEUE, SERVE, RunRecorder, _jsonable
+from mrta_drake.stack.run_recorder import RunRecorder, _jsonable
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 ROUTES = ROOT / "scenarios/hospital_routes_6_robots.yaml"
@@ -207,7 +208,7 @@ def test_deadlock_detection_rejects_mismatched_shapes():
 
 
 def test_recorder_notes_modes_plans_starts_arrivals_and_allocator_events(tmp_path):
-    recorder = RunRecorder(["a", "b", "c", "d"], out_dir=str(tmp_path))
+    recorder = RunRecorder(["a", "b", "c", "d"], rate_hz=10.0, out_dir=str(tmp_path))
     context = recorder.CreateDefaultContext()
     state = np.zeros(16)
     state[4:6] = [5.0, 5.2]  # b is 0.2 m from its room point
@@ -239,8 +240,9 @@ def test_recorder_notes_modes_plans_starts_arrivals_and_allocator_events(tmp_pat
     recorder.ForcedPublish(context)
     recorder.close()
 
-    assert recorder.mode_array().tolist() == [[DRIVE, SERVE, QUEUE, IDLE],
-                                              [IDLE, SERVE, QUEUE, IDLE]]
+    idle, drive, queue, serve = RobotMode.IDLE, RobotMode.DRIVE, RobotMode.QUEUE, RobotMode.SERVE
+    assert recorder.mode_array().tolist() == [[drive, serve, queue, idle],
+                                              [idle, serve, queue, idle]]
     kinds = [e["type"] for e in recorder.events]
     assert kinds.count("plan") == 1 and kinds.count("arrival") == 1
     assert [e["key"] for e in recorder.events if e["type"] == "start"] == [
@@ -298,7 +300,7 @@ def test_robot_times_split_the_run_and_legs_match_arrivals(run):
         assert 0.0 < leg["actual"] < 30.0
     # Every robot sets off at once to its first stop.
     modes = result.stack.recorder.mode_array()
-    assert (modes[1:50] == DRIVE).all()
+    assert (modes[1:50] == RobotMode.DRIVE).all()
 
 
 def test_events_file_holds_every_recorded_event(run):

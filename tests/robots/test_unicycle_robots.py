@@ -10,7 +10,7 @@ from mrta_drake.robots.unicycle_robots import UnicycleParams, UnicycleRobots, un
 def _run(starts, commands, duration, params=None):
     builder = DiagramBuilder()
     robots = builder.AddSystem(UnicycleRobots([f"r{i}" for i in range(len(starts))], starts,
-                                              params or UnicycleParams()))
+                                              params or UnicycleParams(), rate_hz=20.0))
     source = builder.AddSystem(ConstantVectorSource(np.ravel(commands)))
     builder.Connect(source.get_output_port(), robots.GetInputPort("commands"))
     diagram = builder.Build()

@@ -21,7 +21,7 @@ from mrta_drake.navigation.costmap import MAX_NON_OBSTACLE, Costmap
 from mrta_drake.navigation.grid_planner import GridPlanner
 from mrta_drake.navigation.planner_service import PlannerService
 from mrta_drake.navigation.roadways import Roadways
-from mrta_drake.navigation.waypoint_generator import WAIT, WaypointGenerator
+from mrta_drake.navigation.waypoint_generator import WaypointGenerator
 from mrta_drake.payloads import (
     DROPOFF,
     PATH_FAILED,
@@ -35,6 +35,7 @@ from mrta_drake.payloads import (
     FleetPlan,
     Outage,
     QueueState,
+    RobotMode,
     RobotPath,
     RobotPlan,
     RobotProgress,
@@ -145,7 +146,8 @@ def _paths(planner, starts, goals, schedule, times):
     driving to ``goals`` (None: nothing to do), under the ``schedule``."""
     robots = tuple(f"r{k}" for k in range(len(starts)))
     builder = DiagramBuilder()
-    service = builder.AddSystem(PlannerService(planner, robots))
+    service = builder.AddSystem(PlannerService(planner, robots, replan_rate_hz=2.0,
+                                               target_check_rate_hz=10.0))
     states = builder.AddSystem(ConstantVectorSource(
         np.array([[*xy, 0.0, 0.0] for xy in starts]).ravel()))
     schedule = builder.AddSystem(schedule)
@@ -165,7 +167,8 @@ def _paths(planner, starts, goals, schedule, times):
 def test_planner_paths_go_around_a_blockage_only_while_it_is_in_force(planner):
     before, during, after = _paths(
         planner, [(3.0, -14.5), (0.0, -14.5)], [(-3.0, -14.5)] * 2,
-        DisturbanceSchedule(2, [Blockage("cross_2", CROSS_2, 1.0, 3.0)]), (0.5, 1.5, 3.5))
+        DisturbanceSchedule(["r0", "r1"], [Blockage("cross_2", CROSS_2, 1.0, 3.0)]),
+        (0.5, 1.5, 3.5))
     assert [p.status for p in before.paths] == [PATH_OK, PATH_OK]
     assert _crosses(before.paths[0].points, CROSS_2) and before.failures == 0
     # Re-planned at once (1.1 s): around through another cross corridor; the robot inside
@@ -184,7 +187,8 @@ def test_planner_paths_pass_a_broken_down_robot_at_rest(planner):
     # r0 drives north up the east corridor's northbound lane; r1 stands in it, broken down
     # from 1 s on.
     before, during = _paths(planner, [(5.4, -20.0), (5.4, -17.0)], [(5.4, -14.0), None],
-                            DisturbanceSchedule(2, breakdowns=[Breakdown(1, 1.0)]), (0.5, 1.5))
+                            DisturbanceSchedule(["r0", "r1"], breakdowns=[Breakdown(1, 1.0)]),
+                            (0.5, 1.5))
 
     def closest(paths):
         return np.linalg.norm(paths.paths[0].points - [5.4, -17.0], axis=1).min()
@@ -197,12 +201,13 @@ def _generator(roadways, location, blockage, xy):
     """A waypoint generator for one robot standing at ``xy`` (its start location room 1,
     which it holds), asked to go to ``location``, with ``blockage`` scheduled."""
     builder = DiagramBuilder()
-    generator = builder.AddSystem(WaypointGenerator("r", 0, 1, roadways, start_location=1))
+    generator = builder.AddSystem(WaypointGenerator(["r"], 0, roadways, start_location=1,
+                                                    rate_hz=10.0))
     state = builder.AddSystem(ConstantVectorSource(np.array([*xy, 0.0, 0.0])))
     plan = FleetPlan((RobotPlan("r", (Stop("go", location),)),), 1)
     queues = QueueState(tuple(RoomQueue(room, "r" if room == 1 else None)
                               for room in roadways.location_ids))
-    schedule = builder.AddSystem(DisturbanceSchedule(1, [blockage]))
+    schedule = builder.AddSystem(DisturbanceSchedule(["r"], [blockage]))
     sources = {"plan": builder.AddSystem(ConstantValueSource(AbstractValue.Make(plan))),
                "queue_state": builder.AddSystem(ConstantValueSource(AbstractValue.Make(queues))),
                "robot_state": state, "disturbances": schedule}
@@ -226,8 +231,8 @@ def test_a_robot_driving_through_a_closing_corridor_is_rerouted_and_back(hospita
     diagram, read = _generator(roadways, 4, Blockage("cross_2", CROSS_2, 1.0, 2.0), point)
     (before, _, _), (during, _, progress_during), (after, target, progress) = _run(
         diagram, (0.5, 1.5, 2.5), read)
-    assert before.phase == "drive" and _crosses(before.route, CROSS_2)
-    assert during.phase == "drive" and not _crosses(during.route, CROSS_2)
+    assert before.phase == RobotMode.DRIVE and _crosses(before.route, CROSS_2)
+    assert during.phase == RobotMode.DRIVE and not _crosses(during.route, CROSS_2)
     assert during.route[-1] == before.route[-1]  # still to room 4's queue
     assert after.route[after.index:] == before.route[before.index:] and target.active
     first, back = progress.detours
@@ -242,10 +247,10 @@ def test_a_robot_with_no_lane_left_waits_until_the_blockage_ends(hospital):
                                roadways.place(1).point)
     (before, _, _), (during, waiting, progress), (after, target, _) = _run(
         diagram, (0.5, 1.5, 2.5), read)
-    assert before.phase == "drive" and _crosses(before.route, EAST)
-    assert during.phase == WAIT and not waiting.active
+    assert before.phase == RobotMode.DRIVE and _crosses(before.route, EAST)
+    assert during.phase == RobotMode.WAIT and not waiting.active
     assert [(d.blockages, d.found) for d in progress.detours] == [(("east",), False)]
-    assert after.phase == "drive" and target.active
+    assert after.phase == RobotMode.DRIVE and target.active
     assert after.route[after.index:] == before.route[before.index:]
 
 
@@ -255,9 +260,9 @@ def test_blockages_show_in_meshcat_only_while_in_force(hospital):
         blockages=[BlockageConfig("cross_2", list(CROSS_2), 1.0, 2.0)]))
     meshcat = Meshcat()
     builder = DiagramBuilder()
-    overlay = builder.AddSystem(MeshcatOverlay(meshcat, scenario, publish_rate=10.0))
-    schedule = builder.AddSystem(DisturbanceSchedule(6, [Blockage("cross_2", CROSS_2, 1.0,
-                                                                  2.0)]))
+    overlay = builder.AddSystem(MeshcatOverlay(meshcat, scenario, rate_hz=10.0))
+    schedule = builder.AddSystem(DisturbanceSchedule([r.name for r in scenario.robots],
+                                                     [Blockage("cross_2", CROSS_2, 1.0, 2.0)]))
     builder.Connect(builder.AddSystem(ConstantVectorSource(np.zeros(24))).get_output_port(),
                     schedule.GetInputPort("robot_state"))
     builder.Connect(schedule.GetOutputPort("disturbances"),
@@ -329,7 +334,7 @@ def test_items_on_a_broken_down_robot_are_lost_and_the_rest_reassigned():
     stream = (TaskBatch(0.0, (TaskConfig(1, 2, 500.0), TaskConfig(0, 2, 500.0))),)
     builder = DiagramBuilder()
     allocator = builder.AddSystem(TaskAllocator(stream, ["a", "b"], [1, 2], [2, 2], travel,
-                                                GreedyAllocator()))
+                                                GreedyAllocator(), rate_hz=1.0))
     # Robot a picks task 0 up at 1.5 s and drives to drop it; it breaks down at 2.5 s.
     picked = RobotProgress("a", (Visit("t0/pickup", 1, 1.5, 0, PICKUP),), 1,
                            Stop("t0/dropoff", 2, DROPOFF, 0))
@@ -338,7 +343,7 @@ def test_items_on_a_broken_down_robot_are_lost_and_the_rest_reassigned():
                                             RobotProgress("b", last_location=2), 0.0))):
         builder.Connect(builder.AddSystem(progress).get_output_port(),
                         allocator.get_progress_input_port(k))
-    schedule = builder.AddSystem(DisturbanceSchedule(2, breakdowns=[Breakdown(0, 2.5)]))
+    schedule = builder.AddSystem(DisturbanceSchedule(["a", "b"], breakdowns=[Breakdown(0, 2.5)]))
     builder.Connect(builder.AddSystem(ConstantVectorSource(np.zeros(8))).get_output_port(),
                     schedule.GetInputPort("robot_state"))
     builder.Connect(schedule.GetOutputPort("disturbances"),
@@ -376,7 +381,8 @@ class _Moving(LeafSystem):
 def test_an_outage_freezes_the_states_robots_exchange():
     builder = DiagramBuilder()
     moving = builder.AddSystem(_Moving([0.0, 0.0, 0.0], [0.0, 1.0, 2.0]))
-    schedule = builder.AddSystem(DisturbanceSchedule(3, outages=[(1, 1.0, 3.0), (2, 2.0, 4.0)]))
+    schedule = builder.AddSystem(DisturbanceSchedule(["r0", "r1", "r2"],
+                                                     outages=[(1, 1.0, 3.0), (2, 2.0, 4.0)]))
     builder.Connect(moving.get_output_port(), schedule.GetInputPort("robot_state"))
     seen = _run(builder.Build(), (0.5, 2.5, 3.5, 4.5), lambda context: (
         schedule.GetOutputPort("disturbances").Eval(schedule.GetMyContextFromRoot(context))))
