@@ -9,7 +9,8 @@ import sys
 import pytest
 
 from mrta_drake.errors import InputError
-from mrta_drake.scenario.loading import load_scenario, load_task_stream
+from mrta_drake.scenario.loading import load_scenario
+from mrta_drake.scenario.section_files import load_task_file
 from mrta_drake.tools.cli import main
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
@@ -72,11 +73,11 @@ def test_original_task_stream_json_and_our_stream_agree(tmp_path):
     ours = tmp_path / "ours.yaml"
     ours.write_text("stream:\n  - {arrival: 40, tasks: [{pickup: 3, dropoff: 0, "
                     "deadline: 150}]}\n")
-    assert load_task_stream(legacy) == load_task_stream(ours)
+    assert load_task_file(legacy).batches == load_task_file(ours).batches
 
 
 def test_unknown_task_stream_format_is_named(tmp_path):
     path = tmp_path / "tasks.yaml"
     path.write_text("batches: []\n")
     with pytest.raises(InputError, match="tasks.yaml: expected `tasks_stream:`"):
-        load_task_stream(path)
+        load_task_file(path)
