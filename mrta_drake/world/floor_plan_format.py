@@ -31,6 +31,14 @@ def check_number(value: float | tuple[float, ...], where: str, positive: bool = 
             raise InputError(None, here, f"must be > 0, got {number:g}")
 
 
+def check_numbers(spec, finite: tuple[str, ...] = (), positive: tuple[str, ...] = ()) -> None:
+    """``check_number`` on the fields of ``spec`` named in ``finite`` and in ``positive``."""
+    for name in finite:
+        check_number(getattr(spec, name), name)
+    for name in positive:
+        check_number(getattr(spec, name), name, positive=True)
+
+
 def _check_name(name: str | None) -> None:
     if name is not None and not name:
         raise InputError(None, "name", "expected a non-empty string, got ''")
@@ -46,8 +54,7 @@ class DoorSpec:
     width: float
 
     def __post_init__(self):
-        check_number(self.center, "center")
-        check_number(self.width, "width", positive=True)
+        check_numbers(self, finite=("center",), positive=("width",))
 
 
 @dataclass(frozen=True)
@@ -124,10 +131,7 @@ class BoxSpec:
     height: float = 1.0
 
     def __post_init__(self):
-        check_number(self.center, "center")
-        check_number(self.size, "size", positive=True)
-        check_number(self.yaw, "yaw")
-        check_number(self.height, "height", positive=True)
+        check_numbers(self, finite=("center", "yaw"), positive=("size", "height"))
 
 
 @dataclass(frozen=True)
@@ -139,9 +143,7 @@ class CylinderSpec:
     height: float = 1.0
 
     def __post_init__(self):
-        check_number(self.center, "center")
-        check_number(self.radius, "radius", positive=True)
-        check_number(self.height, "height", positive=True)
+        check_numbers(self, finite=("center",), positive=("radius", "height"))
 
 
 @dataclass(frozen=True)
@@ -159,20 +161,16 @@ class ArcSpec:
     height: float = 1.0
 
     def __post_init__(self):
-        check_number(self.center, "center")
-        check_number(self.radius, "radius", positive=True)
-        check_number(self.thickness, "thickness", positive=True)
+        check_numbers(self, finite=("center", "start", "end"),
+                      positive=("radius", "thickness", "height"))
         if self.thickness >= 2.0 * self.radius:
             raise InputError(None, "thickness", f"{self.thickness:g} must be less than twice "
                              f"the radius ({self.radius:g})")
-        check_number(self.start, "start")
-        check_number(self.end, "end")
         if not 0.0 < self.end - self.start <= 2.0 * math.pi + _EPS:
             raise InputError(None, "end", f"{self.end:g} must be in (start, start + 2 pi], "
                              f"start is {self.start:g}")
         if self.segments < 1:
             raise InputError(None, "segments", f"must be >= 1, got {self.segments}")
-        check_number(self.height, "height", positive=True)
 
 
 SHAPES = ("box", "cylinder", "arc")
@@ -246,8 +244,7 @@ class FloorPlanFile:
         if not (x_min < x_max and y_min < y_max):
             raise InputError(None, "bounds", f"need x_min < x_max and y_min < y_max, got "
                              f"{list(self.bounds)}")
-        check_number(self.wall_height, "wall_height", positive=True)
-        check_number(self.wall_thickness, "wall_thickness", positive=True)
+        check_numbers(self, positive=("wall_height", "wall_thickness"))
         names: dict[str, str] = {}  # wall or furniture name -> where it was defined
 
         def claim(name: str, where: str) -> None:

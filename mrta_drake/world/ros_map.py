@@ -30,7 +30,7 @@ from PIL import Image
 from mrta_drake.errors import InputError
 from mrta_drake.scenario.typed_yaml import load_typed, read_yaml
 from mrta_drake.world.floor_plan import FloorPlan
-from mrta_drake.world.floor_plan_format import check_number
+from mrta_drake.world.floor_plan_format import check_number, check_numbers
 from mrta_drake.world.obstacles import Box, Obstacles
 from mrta_drake.world.occupancy_grid import OccupancyGrid
 
@@ -65,8 +65,7 @@ class RosMapFile:
                              "(rotated maps), use 0")
         if self.negate not in (0, 1):
             raise InputError(None, "negate", f"expected 0 or 1, got {self.negate!r}")
-        check_number(self.occupied_thresh, "occupied_thresh")
-        check_number(self.free_thresh, "free_thresh")
+        check_numbers(self, finite=("occupied_thresh", "free_thresh"))
         if not 0.0 <= self.free_thresh < self.occupied_thresh <= 1.0:
             raise InputError(None, "free_thresh", f"need 0 <= free_thresh < occupied_thresh "
                              f"<= 1, got {self.free_thresh:g} and {self.occupied_thresh:g}")
