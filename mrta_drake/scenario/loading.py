@@ -4,8 +4,8 @@
 scenario YAML (schema in ``schema.py``) with ``typed_yaml``, resolves the sections that may
 live in files of their own, reads the original MRTA-Sim robot-setup and task-stream files
 unchanged (``section_files.py``), and checks everything it can without building the
-diagram. Every problem is an ``InputError``
-whose one-line message names the file, the field and the value.
+diagram. Every problem is an ``InputError`` whose one-line message names the file, the field
+and the value.
 
 Sections that may be a path (relative to the scenario file) instead of inline data:
 ``robots`` (our list, or an MRTA-Sim ``agents:`` setup in YAML or JSON), ``locations`` and
