@@ -10,5 +10,17 @@ class InputError(ValueError):
     def __init__(self, file: str | None, field: str | None, message: str):
         self.file = file
         self.field = field
+        self.message = message
         where = ": ".join(part for part in (str(file) if file else None, field) if part)
         super().__init__(f"{where}: {message}" if where else message)
+
+    def nested(self, file: str | None, path: str | None) -> "InputError":
+        """This error for a value found at field ``path`` of ``file``: its own field, if
+        any, is taken relative to ``path`` (``walls[3]`` + ``doors[0].width``)."""
+        if not self.field:
+            field = path or None
+        elif not path:
+            field = self.field
+        else:
+            field = path + ("" if self.field.startswith("[") else ".") + self.field
+        return InputError(file or self.file, field, self.message)

@@ -9,8 +9,10 @@ import re
 import sys
 import typing
 
-from mrta_drake.scenario import schema
+from mrta_drake.scenario import schema, section_files
+from mrta_drake.scenario.typed_yaml import yaml_key
 from mrta_drake.stack.blocks import block_kinds, block_type
+from mrta_drake.world import floor_plan_format, ros_map
 
 SECTIONS = [
     (schema.Scenario, ""),
@@ -32,6 +34,24 @@ SECTIONS = [
     (schema.BlockageConfig, "disturbances.blockages[]."),
     (schema.BreakdownConfig, "disturbances.breakdowns[]."),
     (schema.OutageConfig, "disturbances.outages[]."),
+]
+
+FILES = [  # files a scenario names, with their own formats
+    (floor_plan_format.FloorPlanFile, ""),
+    (floor_plan_format.WallSpec, "walls[]."),
+    (floor_plan_format.DoorSpec, "walls[].doors[]."),
+    (floor_plan_format.FurnitureSpec, "furniture[]."),
+    (floor_plan_format.BoxSpec, "furniture[].box."),
+    (floor_plan_format.CylinderSpec, "furniture[].cylinder."),
+    (floor_plan_format.ArcSpec, "furniture[].arc."),
+    (ros_map.RosMapFile, ""),
+    (section_files.RobotSetupFile, ""),
+    (section_files.MrtaSimRobotSetupFile, ""),
+    (section_files.MrtaSimAgent, "agents.<name>."),
+    (section_files.TaskStreamFile, ""),
+    (section_files.MrtaSimTaskFile, ""),
+    (section_files.MrtaSimBatch, "tasks_stream[]."),
+    (section_files.MrtaSimTask, "tasks_stream[].tasks[]."),
 ]
 
 
@@ -64,7 +84,7 @@ def _rows(cls, prefix: str) -> list[str]:
         if dataclasses.is_dataclass(hints[f.name]) and prefix.startswith("blocks"):
             rows += _rows(hints[f.name], f"{prefix}{f.name}.")
             continue
-        rows.append(f"| `{prefix}{f.name}` | {_type_name(hints[f.name])} | {_default(f)} |")
+        rows.append(f"| `{prefix}{yaml_key(f)}` | {_type_name(hints[f.name])} | {_default(f)} |")
     return rows
 
 
@@ -95,6 +115,11 @@ def reference() -> str:
         "",
     ]
     parts += [_section(cls.__name__, cls, prefix) for cls, prefix in SECTIONS]
+    parts += ["## Files a scenario names", "",
+              "Floor plans (`world.floor_plan`), ROS maps (`world.kind: ros_map`), robot "
+              "setups (`robots: <file>`) and task files (`tasks.file`), ours and the original "
+              "MRTA-Sim ones; every field without a default is required.", ""]
+    parts += [_section(cls.__name__, cls, prefix) for cls, prefix in FILES]
     parts += ["## Block implementations (`blocks.<slot>.kind`, `blocks.<slot>.params`)", ""]
     for slot in ("allocator", "waypoints", "queues", "planner", "controller", "robots",
                  "humans"):

@@ -1,15 +1,17 @@
 """Loading and validating scenario files.
 
 ``load_scenario(path)`` is the one loader the CLI, tests and tutorials use. It reads the
-scenario YAML (schema in ``scenario_schema.py``), resolves the sections that may live in files
-of their own, reads the original MRTA-Sim robot-setup and task-stream files unchanged, and
-checks everything it can without building the diagram. Every problem is an ``InputError``
-whose one-line message names the file, the field and the value.
+scenario YAML (schema in ``schema.py``) with ``typed_yaml``, resolves the sections that may
+live in files of their own, reads the original MRTA-Sim robot-setup and task-stream files
+unchanged (``section_files.py``), and checks everything it can without building the
+diagram. Every problem is an ``InputError`` whose one-line message names the file, the field
+and the value.
 
 Sections that may be a path (relative to the scenario file) instead of inline data:
 ``robots`` (our list, or an MRTA-Sim ``agents:`` setup in YAML or JSON), ``locations`` and
 ``roadways`` (a YAML file holding that key), and ``tasks.file`` (our ``stream:`` list or an
-MRTA-Sim ``tasks_stream`` file).
+MRTA-Sim ``tasks_stream`` file, whose ``agents`` must then match the robots' start
+locations).
 
 A ``tasks.generate`` block is expanded into seeded random batches (``task_generation.py``)
 with the scenario's seed, after ``overrides`` (e.g. ``{"seed": 3}``) are applied.
@@ -23,16 +25,15 @@ from collections.abc import Mapping
 
 from mrta_drake.errors import InputError
 from mrta_drake.scenario.disturbances import check_blockages_inside, check_disturbances
-from mrta_drake.scenario.schema import (
-    LocationConfig,
-    RoadwaysConfig,
-    RobotConfig,
-    Scenario,
-    TaskBatch,
-    TaskConfig,
+from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig, RobotConfig, Scenario
+from mrta_drake.scenario.section_files import (
+    TaskFile,
+    check_agents,
+    load_task_file,
+    read_robot_setup,
 )
 from mrta_drake.scenario.task_streams import add_generated_tasks
-from mrta_drake.scenario.typed_yaml import check_shape, load_typed, read_yaml
+from mrta_drake.scenario.typed_yaml import load_typed, read_yaml
 
 
 def load_scenario(path: str, *, check_world: bool = True,
@@ -43,8 +44,6 @@ def load_scenario(path: str, *, check_world: bool = True,
     scenario is checked; a field under a list cannot be set."""
     path = os.fspath(path)
     raw = read_yaml(path, "scenario file")
-    if raw is None:
-        raw = {}
     if not isinstance(raw, dict):
         raise InputError(path, None, f"expected a mapping of sections, got {type(raw).__name__}")
     if "agents" in raw and "robots" not in raw:
@@ -58,7 +57,7 @@ def load_scenario(path: str, *, check_world: bool = True,
     robots_file = None
     if isinstance(raw.get("robots"), str):
         robots_file = _resolve(base, raw["robots"])
-        raw["robots"] = _read_robot_setup(robots_file)
+        raw["robots"] = read_robot_setup(robots_file)
     for key in ("locations", "roadways"):
         if isinstance(raw.get(key), str):
             section_file = _resolve(base, raw[key])
@@ -70,7 +69,10 @@ def load_scenario(path: str, *, check_world: bool = True,
     raw = _with_overrides(raw, overrides or {}, path)
     scenario = load_typed(raw, Scenario, path)
     scenario = _resolve_files(scenario, base, path)
+    task_file = load_task_file(scenario.tasks.file) if scenario.tasks.file else TaskFile([])
+    scenario = _with_task_file(scenario, task_file)
     check_scenario(scenario, robots_file or path)
+    check_agents(task_file, scenario)
     if scenario.tasks.generate is not None:
         scenario = add_generated_tasks(scenario)
         check_scenario(scenario, robots_file or path)  # with the generated tasks
@@ -105,7 +107,7 @@ def _resolve(base: str, name: str) -> str:
 
 
 def _resolve_files(scenario: Scenario, base: str, path: str) -> Scenario:
-    """Make file references absolute and fold a task file's batches into the stream."""
+    """Make file references absolute (the files must exist)."""
     world = scenario.world
     if not world.floor_plan:
         raise InputError(path, "world.floor_plan", "is required (a floor-plan or ROS map YAML)")
@@ -113,10 +115,7 @@ def _resolve_files(scenario: Scenario, base: str, path: str) -> Scenario:
     if not os.path.isfile(floor_plan):
         raise InputError(path, "world.floor_plan", f"file not found: {world.floor_plan!r}")
     tasks = scenario.tasks
-    stream = list(tasks.stream)
     task_file = _resolve(base, tasks.file) if tasks.file else ""
-    if task_file:
-        stream += load_task_stream(task_file)
     travel = _resolve(base, tasks.travel_times) if tasks.travel_times else ""
     if travel and not os.path.isfile(travel):
         raise InputError(path, "tasks.travel_times", f"file not found: {tasks.travel_times!r}")
@@ -126,69 +125,16 @@ def _resolve_files(scenario: Scenario, base: str, path: str) -> Scenario:
     return dataclasses.replace(
         scenario,
         world=dataclasses.replace(world, floor_plan=floor_plan, scenic=scenic),
-        tasks=dataclasses.replace(tasks, file=task_file, stream=stream, travel_times=travel),
+        tasks=dataclasses.replace(tasks, file=task_file, travel_times=travel),
         source=os.path.abspath(path),
     )
 
 
-def _read_robot_setup(path: str) -> list[dict]:
-    """Robots from our list format or the original MRTA-Sim setup
-    (``agents: {robot1: {start: [x, y]}}``, YAML or JSON), as raw robot dicts."""
-    content = read_yaml(path, "robot setup file")
-    if isinstance(content, dict) and "agents" in content:
-        agents = content["agents"]
-        if not isinstance(agents, dict) or not agents:
-            raise InputError(path, "agents", f"expected a mapping of robots, got {agents!r}")
-        robots = []
-        for name, entry in agents.items():
-            if not isinstance(entry, dict) or "start" not in entry:
-                raise InputError(path, f"agents.{name}", "expected {start: [x, y]}")
-            check_shape(entry["start"], list[float], path, f"agents.{name}.start")
-            robots.append({"name": str(name), "start": entry["start"]})
-        return robots
-    if isinstance(content, dict) and "robots" in content:
-        return content["robots"]
-    raise InputError(path, None, "expected `agents:` (MRTA-Sim) or `robots:`")
-
-
-def load_task_stream(path: str) -> list[TaskBatch]:
-    """Task batches from our format (``stream: [{arrival, tasks: [{pickup, dropoff,
-    deadline}]}]``) or the original MRTA-Sim one (``tasks_stream: [{arrival, tasks:
-    [{start, end, deadline}]}]``, JSON or YAML)."""
-    content = read_yaml(path, "task file")
-    if isinstance(content, dict) and "tasks_stream" in content:
-        stream = content["tasks_stream"]
-        check_shape(stream, list[dict], path, "tasks_stream")
-        batches = []
-        for i, batch in enumerate(stream):
-            where = f"tasks_stream[{i}]"
-            _require_keys(batch, ("arrival", "tasks"), path, where)
-            check_shape(batch["arrival"], float, path, f"{where}.arrival")
-            check_shape(batch["tasks"], list[dict], path, f"{where}.tasks")
-            tasks = []
-            for j, task in enumerate(batch["tasks"]):
-                here = f"{where}.tasks[{j}]"
-                _require_keys(task, ("start", "end", "deadline"), path, here)
-                for key, schema in (("start", int), ("end", int), ("deadline", float)):
-                    check_shape(task[key], schema, path, f"{here}.{key}")
-                tasks.append(TaskConfig(task["start"], task["end"], float(task["deadline"])))
-            batches.append(TaskBatch(float(batch["arrival"]), tasks))
-        agents = content.get("agents")
-        if agents is not None:
-            check_shape(agents, list, path, "agents")
-        return batches
-    if isinstance(content, dict) and "stream" in content:
-        return load_typed(content["stream"], list[TaskBatch], path, "stream")
-    raise InputError(path, None, "expected `tasks_stream:` (MRTA-Sim) or `stream:`")
-
-
-def _require_keys(entry, keys, file, where) -> None:
-    for key in keys:
-        if key not in entry:
-            raise InputError(file, f"{where}.{key}", "is required")
-    extra = sorted(set(entry) - set(keys))
-    if extra:
-        raise InputError(file, f"{where}.{extra[0]}", f"unknown field (known: {', '.join(keys)})")
+def _with_task_file(scenario: Scenario, task_file: TaskFile) -> Scenario:
+    """The scenario with the task file's batches after its inline stream."""
+    tasks = scenario.tasks
+    stream = list(tasks.stream) + task_file.batches
+    return dataclasses.replace(scenario, tasks=dataclasses.replace(tasks, stream=stream))
 
 
 def check_scenario(scenario: Scenario, file: str) -> None:

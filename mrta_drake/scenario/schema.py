@@ -1,7 +1,7 @@
 """The scenario file's schema: frozen dataclasses, one per YAML section.
 
 Units: metres, radians, seconds, Hz; world frame x east, y north. Every field has a default
-unless a scenario cannot do without it. ``load_scenario`` (in ``scenario.py``) reads a YAML
+unless a scenario cannot do without it. ``load_scenario`` (in ``loading.py``) reads a YAML
 file into ``Scenario`` and validates it; docs/scenario.md describes every field.
 """
 
@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 @dataclass(frozen=True)
 class WorldConfig:
-    """The building. ``floor_plan`` is a floor-plan YAML (see ``floor_plan.py``) or a ROS
+    """The building. ``floor_plan`` is a floor-plan YAML (``FloorPlanFile``) or a ROS
     ``map_server`` YAML (``kind: ros_map``); paths are relative to the scenario file.
     ``scenic``: a Scenic 3 program placing objects (beds, carts...) for the scenario's seed,
     with ``scenic_params`` overriding its ``param`` values (see ``scenic_objects.py``)."""

@@ -97,7 +97,8 @@ def write_mrta_sim_json(path: str, batches: Sequence[TaskBatch],
                         agents: Sequence[int] = ()) -> None:
     """Write ``batches`` as an original MRTA-Sim task stream (``{"tasks_stream": [{"arrival",
     "tasks": [{"start", "end", "deadline"}]}], "agents": [...]}``); whole-second times are
-    written as integers; ``agents`` (robot indices) is left out when empty."""
+    written as integers; ``agents`` (each robot's start location id, robot order) is left
+    out when empty."""
     content = {"tasks_stream": [
         {"arrival": _number(batch.arrival),
          "tasks": [{"start": task.pickup, "end": task.dropoff,

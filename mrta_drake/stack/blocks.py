@@ -35,6 +35,7 @@ import numpy as np
 
 from mrta_drake.errors import InputError
 from mrta_drake.scenario.schema import BlockConfig, Scenario
+from mrta_drake.scenario.section_files import start_locations
 from mrta_drake.scenario.typed_yaml import load_typed
 
 
@@ -90,16 +91,7 @@ class BuildContext:
     def start_locations(self) -> list[int | None]:
         """Each robot's start location: as given, else the location whose point is within
         1 m of its start position, else None."""
-        result = []
-        for robot in self.scenario.robots:
-            found = robot.start_location
-            if found is None:
-                for location in self.scenario.locations:
-                    if np.hypot(*np.subtract(location.point, robot.start[:2])) <= 1.0:
-                        found = location.id
-                        break
-            result.append(found)
-        return result
+        return start_locations(self.scenario.robots, self.scenario.locations)
 
 
 @dataclass(frozen=True)

@@ -1,12 +1,7 @@
 """Importer for ROS ``map_server`` maps (a YAML file and a PGM/PNG image) as a ``FloorPlan``.
 
-YAML keys, with ROS semantics: ``image`` (path relative to the YAML file), ``resolution`` (m per
-pixel), ``origin`` ([x, y] or [x, y, yaw]: world position of the lower-left pixel's corner; yaw
-must be 0), ``negate`` (0/1, default 0), ``occupied_thresh`` (default 0.65), ``free_thresh``
-(default 0.25) and ``mode`` (``trinary`` default, ``scale`` or ``raw``).
-
-A pixel's value v is the mean of its colour channels (alpha excluded); ``negate`` replaces v
-by 255 - v. Then:
+The YAML file is read into ``RosMapFile``. A pixel's value v is the mean of its colour
+channels (alpha excluded); ``negate`` replaces v by 255 - v. Then:
 
 - trinary: p = (255 - v) / 255; occupied if p > occupied_thresh, free if p < free_thresh,
   unknown otherwise.
@@ -26,16 +21,57 @@ frame is x east, y north, metres.
 """
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
-from mrta_drake.world.floor_plan import FieldReader, FloorPlan, read_yaml
+from mrta_drake.errors import InputError
+from mrta_drake.scenario.typed_yaml import load_typed, read_yaml
+from mrta_drake.world.floor_plan import FloorPlan
+from mrta_drake.world.floor_plan_format import check_number, check_numbers
 from mrta_drake.world.obstacles import Box, Obstacles
 from mrta_drake.world.occupancy_grid import OccupancyGrid
 
 _MODES = ("trinary", "scale", "raw")
+
+
+@dataclass(frozen=True)
+class RosMapFile:
+    """A ``map_server`` map YAML, with ROS semantics: ``image`` (path relative to the YAML
+    file), ``resolution`` (m per pixel), ``origin`` ([x, y] or [x, y, yaw]: world position of
+    the lower-left pixel's corner, m; yaw must be 0), ``negate`` (0 or 1), the thresholds
+    (0 <= ``free_thresh`` < ``occupied_thresh`` <= 1) and ``mode`` (``trinary``, ``scale``
+    or ``raw``)."""
+
+    image: str
+    resolution: float
+    origin: list[float]
+    negate: int = 0
+    occupied_thresh: float = 0.65
+    free_thresh: float = 0.25
+    mode: str = "trinary"
+
+    def __post_init__(self):
+        if not self.image:
+            raise InputError(None, "image", "expected a non-empty string, got ''")
+        check_number(self.resolution, "resolution", positive=True)
+        if len(self.origin) not in (2, 3):
+            raise InputError(None, "origin", f"expected [x, y] or [x, y, yaw], got {self.origin}")
+        check_number(tuple(self.origin), "origin")
+        if len(self.origin) == 3 and self.origin[2] != 0.0:
+            raise InputError(None, "origin", f"yaw {self.origin[2]:g} is not supported "
+                             "(rotated maps), use 0")
+        if self.negate not in (0, 1):
+            raise InputError(None, "negate", f"expected 0 or 1, got {self.negate!r}")
+        check_numbers(self, finite=("occupied_thresh", "free_thresh"))
+        if not 0.0 <= self.free_thresh < self.occupied_thresh <= 1.0:
+            raise InputError(None, "free_thresh", f"need 0 <= free_thresh < occupied_thresh "
+                             f"<= 1, got {self.free_thresh:g} and {self.occupied_thresh:g}")
+        if self.mode not in _MODES:
+            raise InputError(None, "mode", f"expected one of {', '.join(_MODES)}, got "
+                             f"{self.mode!r}")
 
 
 def load_ros_map(yaml_path, unknown_is_occupied: bool = False, simplify: float = 0.15,
@@ -63,62 +99,45 @@ def read_ros_map(yaml_path, unknown_is_occupied: bool = False) -> OccupancyGrid:
     """The occupancy of a ROS map (row 0 = south edge), unknown cells counted as
     ``unknown_is_occupied``."""
     path = str(yaml_path)
-    r = FieldReader(path)
-    meta = r.mapping(read_yaml(path), "", required=("image", "resolution", "origin"),
-                     optional=("negate", "occupied_thresh", "free_thresh", "mode"))
-    image_path = Path(path).parent / r.string(meta["image"], "image")
-    resolution = r.number(meta["resolution"], "resolution", positive=True)
-    origin = meta["origin"]
-    if not isinstance(origin, list) or len(origin) not in (2, 3):
-        r.fail("origin", f"expected [x, y] or [x, y, yaw], got {origin!r}")
-    origin = r.numbers(origin, "origin", len(origin))
-    if len(origin) == 3 and origin[2] != 0.0:
-        r.fail("origin", f"yaw {origin[2]:g} is not supported (rotated maps), use 0")
-    negate = meta.get("negate", 0)
-    if not isinstance(negate, int) or negate not in (0, 1):
-        r.fail("negate", f"expected 0 or 1, got {negate!r}")
-    occupied_thresh = r.number(meta.get("occupied_thresh", 0.65), "occupied_thresh")
-    free_thresh = r.number(meta.get("free_thresh", 0.25), "free_thresh")
-    if not 0.0 <= free_thresh < occupied_thresh <= 1.0:
-        r.fail("free_thresh", f"need 0 <= free_thresh < occupied_thresh <= 1, got "
-               f"{free_thresh:g} and {occupied_thresh:g}")
-    mode = meta.get("mode", "trinary")
-    if mode not in _MODES:
-        r.fail("mode", f"expected one of {', '.join(_MODES)}, got {mode!r}")
-    value, alpha = _read_image(r, image_path)
-    if negate:
+    meta = load_typed(read_yaml(path, "ROS map file"), RosMapFile, path)
+    image_path = Path(path).parent / meta.image
+    value, alpha = _read_image(path, image_path)
+    if meta.negate:
         value = 255.0 - value
-    if mode == "raw":
+    if meta.mode == "raw":
         unknown = value > 100.0
-        occupied = ~unknown & (value / 100.0 > occupied_thresh)
+        occupied = ~unknown & (value / 100.0 > meta.occupied_thresh)
     else:
         p = (255.0 - value) / 255.0
-        occupied = p > occupied_thresh
-        if mode == "trinary":
-            unknown = ~occupied & (p >= free_thresh)
+        occupied = p > meta.occupied_thresh
+        if meta.mode == "trinary":
+            unknown = ~occupied & (p >= meta.free_thresh)
         else:
             unknown = alpha < 255
             occupied &= ~unknown
     if unknown_is_occupied:
         occupied |= unknown
-    return OccupancyGrid(np.ascontiguousarray(occupied[::-1]), resolution,
-                         (origin[0], origin[1]))
+    return OccupancyGrid(np.ascontiguousarray(occupied[::-1]), meta.resolution,
+                         (meta.origin[0], meta.origin[1]))
 
 
-def _read_image(r: FieldReader, image_path: Path) -> tuple[np.ndarray, np.ndarray]:
+def _read_image(yaml_path: str, image_path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Grey value (mean of colour channels) and alpha (255 when absent) per pixel, float
-    arrays in image row order (top row first)."""
+    arrays in image row order (top row first); InputError naming the map file's ``image``
+    when it cannot be read."""
     if not image_path.is_file():
-        r.fail("image", f"file not found: {image_path}")
+        raise InputError(yaml_path, "image", f"file not found: {image_path}")
     try:
         with Image.open(image_path) as image:
             image.load()
     except (OSError, ValueError, SyntaxError) as e:  # Pillow's errors for corrupt files
-        r.fail("image", f"{image_path}: cannot read the image ({e})")
+        raise InputError(yaml_path, "image",
+                         f"{image_path}: cannot read the image ({e})") from None
     if image.mode in ("1", "P"):
         image = image.convert("L" if image.mode == "1" else "RGBA")
     if image.mode not in ("L", "LA", "RGB", "RGBA"):
-        r.fail("image", f"{image_path}: unsupported pixel format {image.mode}")
+        raise InputError(yaml_path, "image",
+                         f"{image_path}: unsupported pixel format {image.mode}")
     pixels = np.asarray(image, dtype=float)
     if pixels.ndim == 2:
         return pixels, np.full(pixels.shape, 255.0)

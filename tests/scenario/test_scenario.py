@@ -9,12 +9,15 @@ import sys
 import pytest
 
 from mrta_drake.errors import InputError
-from mrta_drake.scenario.loading import load_scenario, load_task_stream
+from mrta_drake.scenario.loading import load_scenario
+from mrta_drake.scenario.section_files import load_task_file
 from mrta_drake.tools.cli import main
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
-BROKEN = sorted(p for p in (ROOT / "tests/data/broken_scenarios").glob("*.yaml")
-                if p.read_text().startswith("# expect:"))
+BROKEN_DIR = ROOT / "tests/data/broken_scenarios"
+BROKEN = sorted(p for p in BROKEN_DIR.glob("*.yaml") if p.read_text().startswith("# expect:"))
+# The files the broken scenarios name (robot setups, task files, maps), and the paper's tasks.
+NAMED = {p.name for p in BROKEN_DIR.iterdir() if p not in BROKEN} | {"hospital_paper_stream.json"}
 
 
 def _expectation(path: pathlib.Path) -> str:
@@ -29,12 +32,12 @@ def test_broken_scenario_gives_one_clear_line(path, capsys):
     assert len(lines) == 1, err
     assert lines[0].startswith("error: ")
     assert _expectation(path) in lines[0]
-    named = {path.name, "bad_tasks.json", "bad_agents.yaml"}
-    assert any(name in lines[0] for name in named)
+    assert any(name in lines[0] for name in NAMED | {path.name})
 
 
-def test_broken_files_fail_through_the_console_script_without_traceback():
-    path = ROOT / "tests/data/broken_scenarios/robot_in_wall.yaml"
+@pytest.mark.parametrize("name", ["robot_in_wall", "duplicate_key", "task_file_agents_differ"])
+def test_broken_files_fail_through_the_console_script_without_traceback(name):
+    path = BROKEN_DIR / f"{name}.yaml"
     done = subprocess.run([sys.executable, "-m", "mrta_drake.tools.cli", "validate", str(path)],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 2
@@ -65,6 +68,36 @@ def test_original_robot_setup_is_read_unchanged(tmp_path):
         ("robot1", [0.0, 2.2]), ("robot2", [4.25, -27.2])]
 
 
+def test_task_file_agents_are_the_start_locations_of_robots_placed_by_their_start(tmp_path):
+    """MRTA-Sim robots have no start_location: each starts at the location within 1 m."""
+    navigation = ROOT / "models/hospital/navigation.yaml"
+    scenario_file = tmp_path / "s.yaml"
+    scenario_file.write_text(
+        f"world: {{floor_plan: {ROOT / 'models/hospital/floor_plan.yaml'}}}\n"
+        f"locations: {navigation}\nroadways: {navigation}\n"
+        f"robots: {ROOT / 'scenarios/robots/hospital_2_robots_mrta_sim.yaml'}\n"
+        "tasks: {file: tasks.json}\n")
+    tasks = tmp_path / "tasks.json"
+    stream = '"tasks_stream": [{"arrival": 0, "tasks": [{"start": 0, "end": 3, "deadline": 99}]}]'
+    tasks.write_text(f'{{{stream}, "agents": [0, 3]}}')
+    assert load_scenario(scenario_file, check_world=False).tasks.stream[0].tasks[0].dropoff == 3
+    tasks.write_text(f'{{{stream}, "agents": [0, 1]}}')
+    with pytest.raises(InputError) as error:
+        load_scenario(scenario_file, check_world=False)
+    assert str(error.value) == f"{tasks}: agents[1]: 1, but robot2 (robots[1]) starts at location 3"
+
+
+def test_robot_setup_in_our_format_names_its_own_file(tmp_path):
+    robots = tmp_path / "robots.yaml"
+    robots.write_text("robots:\n  - {name: robot1, start: [0.0, 2.2], radius: big}\n")
+    scenario_file = tmp_path / "s.yaml"
+    scenario_file.write_text(f"world: {{floor_plan: {ROOT / 'models/hospital/floor_plan.yaml'}}}\n"
+                             "robots: robots.yaml\n")
+    with pytest.raises(InputError) as error:
+        load_scenario(scenario_file)
+    assert str(error.value) == f"{robots}: robots[0].radius: expected a number, got 'big'"
+
+
 def test_original_task_stream_json_and_our_stream_agree(tmp_path):
     legacy = tmp_path / "legacy.json"
     legacy.write_text('{"tasks_stream": [{"arrival": 40, "tasks": [{"start": 3, "end": 0, '
@@ -72,11 +105,11 @@ def test_original_task_stream_json_and_our_stream_agree(tmp_path):
     ours = tmp_path / "ours.yaml"
     ours.write_text("stream:\n  - {arrival: 40, tasks: [{pickup: 3, dropoff: 0, "
                     "deadline: 150}]}\n")
-    assert load_task_stream(legacy) == load_task_stream(ours)
+    assert load_task_file(legacy).batches == load_task_file(ours).batches
 
 
 def test_unknown_task_stream_format_is_named(tmp_path):
     path = tmp_path / "tasks.yaml"
     path.write_text("batches: []\n")
     with pytest.raises(InputError, match="tasks.yaml: expected `tasks_stream:`"):
-        load_task_stream(path)
+        load_task_file(path)

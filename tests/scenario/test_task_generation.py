@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from mrta_drake.errors import InputError
-from mrta_drake.scenario.loading import load_scenario, load_task_stream
+from mrta_drake.scenario.loading import load_scenario
 from mrta_drake.scenario.schema import LocationConfig, TaskGenerationConfig
+from mrta_drake.scenario.section_files import load_task_file
 from mrta_drake.scenario.task_streams import generate_tasks, write_mrta_sim_json
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
@@ -182,4 +183,5 @@ def test_mrta_sim_json_round_trips(tmp_path):
     first = content["tasks_stream"][0]
     assert isinstance(first["arrival"], int)
     assert set(first["tasks"][0]) == {"start", "end", "deadline"}
-    assert load_task_stream(str(path)) == batches
+    assert load_task_file(str(path)).batches == batches
+    assert load_task_file(str(path)).agents == [0, 1, 2]

@@ -14,6 +14,7 @@ from mrta_drake.tools.sweep import load_sweep, sweep_scenario
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 ROUTES = ROOT / "scenarios/hospital_routes_6_robots.yaml"
 HOSPITAL = ROOT / "scenarios/hospital_6_robots.yaml"
+BROKEN = sorted((ROOT / "tests/data/broken_sweeps").glob("*.yaml"))
 
 
 def write_spec(path: pathlib.Path, kinds: str, scenario=ROUTES, extra: str = "") -> str:
@@ -115,6 +116,16 @@ def test_spec_without_scenario_or_grid(tmp_path, capsys):
     spec.write_text(f"scenario: {ROUTES}\ngrids: {{}}\n")
     with pytest.raises(InputError, match="unknown field"):
         load_sweep(str(spec))
+
+
+@pytest.mark.parametrize("path", BROKEN, ids=lambda p: p.stem)
+def test_broken_spec_gives_one_clear_line(path, tmp_path, capsys):
+    """Each broken spec states the line it must produce in its first line: ``# expect: ...``."""
+    assert main(["sweep", str(path), "--out", str(tmp_path / "out")]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    expected = path.read_text().splitlines()[0].removeprefix("# expect:").strip()
+    assert len(lines) == 1 and lines[0].startswith("error: ")
+    assert expected in lines[0]
 
 
 def test_ray_without_ray_is_one_line(tmp_path, capsys, monkeypatch):

@@ -137,7 +137,7 @@ def test_missing_file(tmp_path):
     path = tmp_path / "nowhere.yaml"
     with pytest.raises(InputError) as info:
         load_floor_plan(path)
-    assert str(info.value) == f"{path}: file not found"
+    assert str(info.value) == f"{path}: floor-plan file not found"
 
 
 @pytest.mark.parametrize("path", BROKEN, ids=[p.stem for p in BROKEN])

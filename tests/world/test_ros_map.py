@@ -141,8 +141,8 @@ def test_merge_cells_empty():
     ({"negate": 2}, "negate", "expected 0 or 1, got 2"),
     ({"free_thresh": 0.7}, "free_thresh",
      "need 0 <= free_thresh < occupied_thresh <= 1, got 0.7 and 0.65"),
-    ({"colour": "red"}, "colour", "unknown key (allowed: image, resolution, origin, negate, "
-     "occupied_thresh, free_thresh, mode)"),
+    ({"colour": "red"}, "colour", "unknown field (known: free_thresh, image, mode, negate, "
+     "occupied_thresh, origin, resolution)"),
 ])
 def test_bad_map_yaml(tmp_path, change, field, message):
     path = write_map(tmp_path, [ROW], **change)
@@ -168,7 +168,7 @@ def test_missing_and_unreadable_image(tmp_path):
 def test_missing_yaml(tmp_path):
     with pytest.raises(InputError) as info:
         load_ros_map(tmp_path / "none.yaml")
-    assert str(info.value) == f"{tmp_path / 'none.yaml'}: file not found"
+    assert str(info.value) == f"{tmp_path / 'none.yaml'}: ROS map file not found"
 
 
 @pytest.fixture(scope="module")
