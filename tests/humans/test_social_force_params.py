@@ -42,5 +42,5 @@ def test_a_bad_param_in_a_scenario_is_one_line_naming_file_field_and_value():
                              overrides={"blocks.humans.params": {"waypoint_tolerance": -0.1}})
     with pytest.raises(InputError) as error:
         resolve_block(scenario, "humans")
-    assert str(error.value).endswith("hospital_6_robots.yaml: blocks.humans.params: "
+    assert str(error.value).endswith("hospital_6_robots.yaml: blocks.humans.params."
                                      "waypoint_tolerance: must be a number > 0, got -0.1")
