@@ -5,6 +5,7 @@ The lane and location derivations take clearance as any function from world poin
 floor plan's boxes) or a ``ClearanceField`` (a distance transform of an occupancy grid).
 """
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -18,10 +19,11 @@ Clearance = Callable[[np.ndarray], np.ndarray]
 
 @dataclass(frozen=True, eq=False)
 class ClearanceField:
-    """Distance (m) from each free cell of ``grid`` to the nearest occupied cell: from the
-    cell's centre to the near side of that cell (the distance between the two centres less
-    half a cell; exact along a row or column, within 0.21 cells otherwise). Occupied cells
-    and points off the grid have clearance 0."""
+    """Clearance (m) of each cell of ``grid``: a lower bound on the distance from any point
+    in the cell to any occupied cell, namely the distance from the cell's centre to the
+    nearest occupied cell's centre less a cell's diagonal (half of it for each cell), so at
+    most 1.42 cells short. The grid's surroundings count as occupied; occupied cells and
+    points off the grid have clearance 0."""
 
     grid: OccupancyGrid
     distance: np.ndarray  # (rows, cols), m, read-only
@@ -29,11 +31,9 @@ class ClearanceField:
     @classmethod
     def from_grid(cls, grid: OccupancyGrid) -> "ClearanceField":
         occupied = np.asarray(grid.occupied, dtype=bool)
-        if occupied.any():
-            centres = ndimage.distance_transform_edt(~occupied) * grid.resolution
-            distance = np.where(occupied, 0.0, centres - 0.5 * grid.resolution)
-        else:
-            distance = np.full(occupied.shape, np.inf)
+        walled = np.pad(occupied, 1, constant_values=True)  # nothing is known beyond the grid
+        centres = ndimage.distance_transform_edt(~walled)[1:-1, 1:-1] * grid.resolution
+        distance = np.maximum(centres - math.sqrt(2.0) * grid.resolution, 0.0)
         distance.flags.writeable = False
         return cls(grid, distance)
 

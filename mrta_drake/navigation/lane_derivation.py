@@ -14,15 +14,16 @@ distance from world points to the nearest obstacle, m). Output: ``Lanes``, the
 - A one-way edge is one lane on its centre line.
 - Corners: at a vertex, the lane arriving on one edge and the lane leaving on the next edge
   counterclockwise meet where their lines cross (a right turn); where the lines do not cross
-  ahead of the vertex (a straight run, a reflex angle) each lane ends beside the vertex and a
-  short link joins them.
+  ahead of the vertex and near it (a straight run, a reflex or a sharp angle) each lane ends
+  beside the vertex and a short link joins them.
 - Junctions (three or more edges): the corners are also joined counterclockwise across each
   edge's mouth, a small loop like a roundabout for right-hand traffic: a robot turns right at
   the corner it arrives at, and drives around the loop to go straight, turn left or U-turn.
 - Dead ends (one edge): a single node on the vertex itself, where both lanes meet.
 
 A lane that comes closer to obstacles than ``robot_radius + margin`` or runs backwards (its
-edge too short for the corners at its ends) turns its edge single file; a junction link that
+edge too short for the corners at its ends; allowed for a single-file dead end, whose lanes
+then both meet on it from beside) turns its edge single file; a junction link that
 does turns every edge at its vertex single file; then the corners are laid out again. Lanes
 still short of the clearance (a centre line itself too close to obstacles) are listed in
 ``Lanes.tight``.
@@ -220,9 +221,12 @@ class _Layout:
         narrow = set()
         for k, edge in enumerate(self.graph.edges):
             along = self.position[edge.b] - self.position[edge.a]
+            dead_end = 1 in (len(self.neighbours[edge.a]), len(self.neighbours[edge.b]))
             for index, (start, end) in enumerate(self.lanes_of(k)):
                 ahead = np.subtract(self.node_position[end], self.node_position[start]) @ along
                 backwards = ahead * (1 if index == 0 else -1) <= 0.0
+                if backwards and k in self.single and dead_end:
+                    backwards = False  # a stub shorter than the lanes' offset: both meet on it
                 if backwards or self._short(clearance, start, end):
                     if edge.one_way or k in self.single:
                         narrow |= self._two_way_at(edge.a) | self._two_way_at(edge.b)
@@ -305,7 +309,9 @@ def _corner(here: np.ndarray, towards_in: np.ndarray, offset_in: float,
     """Where the lane arriving at vertex ``here`` from ``towards_in`` (``offset_in`` to its
     right) ends and where the lane leaving towards ``towards_out`` (the next edge
     counterclockwise, ``offset_out`` to its right) starts: the crossing of their lines when
-    it lies ahead of the vertex on both edges, else each lane's point beside the vertex."""
+    it lies ahead of the vertex on both edges and within twice the larger offset of it (an
+    angle of 60 degrees or more between two-lane edges), else each lane's point beside the
+    vertex."""
     u_in = (towards_in - here) / np.linalg.norm(towards_in - here)
     u_out = (towards_out - here) / np.linalg.norm(towards_out - here)
     n_in = np.array([-u_in[1], u_in[0]])  # right of travel towards ``here``
@@ -313,6 +319,7 @@ def _corner(here: np.ndarray, towards_in: np.ndarray, offset_in: float,
     normals = np.array([n_in, n_out])
     if abs(np.linalg.det(normals)) > 1e-9:
         crossing = np.linalg.solve(normals, [offset_in, offset_out])
-        if crossing @ u_in >= -1e-9 and crossing @ u_out >= -1e-9:
+        if (crossing @ u_in >= -1e-9 and crossing @ u_out >= -1e-9
+                and np.linalg.norm(crossing) <= 2.0 * max(offset_in, offset_out) + 1e-9):
             return here + crossing, here + crossing
     return here + offset_in * n_in, here + offset_out * n_out
