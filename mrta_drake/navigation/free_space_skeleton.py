@@ -33,7 +33,12 @@ from skimage.morphology import skeletonize
 
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.clearance_field import ClearanceField, segment_clearance
-from mrta_drake.navigation.lane_derivation import CentrelineEdge, CentrelineGraph, LaneParams
+from mrta_drake.navigation.lane_derivation import (
+    CentrelineEdge,
+    CentrelineGraph,
+    LaneParams,
+    vertex_degrees,
+)
 
 _ORTHOGONAL = ((0, 1), (1, 0))
 _DIAGONAL = ((1, 1), (1, -1))
@@ -114,9 +119,9 @@ def _kept_components(pixels: nx.Graph, field: ClearanceField, keep_near) -> set:
 
 @dataclass
 class _Branch:
-    u: int
-    v: int
-    points: np.ndarray  # (k, 2) world points from u's position to v's
+    a: int
+    b: int
+    points: np.ndarray  # (k, 2) world points from a's position to b's
 
     @property
     def length(self) -> float:
@@ -158,23 +163,19 @@ class _Skeleton:
         return skeleton
 
     def degree(self) -> dict[int, int]:
-        degree = dict.fromkeys(self.position, 0)
-        for branch in self.branches:
-            degree[branch.u] += 1
-            degree[branch.v] += 1
-        return degree
+        return vertex_degrees(self.position, self.branches)
 
     def prune_spurs(self, min_spur: float) -> None:
         while True:
             degree = self.degree()
-            spurs = [b for b in self.branches if b.u != b.v and b.length < min_spur
-                     and sorted((degree[b.u], degree[b.v]))[0] == 1
-                     and max(degree[b.u], degree[b.v]) >= 3]
+            spurs = [b for b in self.branches if b.a != b.b and b.length < min_spur
+                     and sorted((degree[b.a], degree[b.b]))[0] == 1
+                     and max(degree[b.a], degree[b.b]) >= 3]
             if not spurs:
                 return
             for spur in spurs:
                 self.branches.remove(spur)
-                del self.position[spur.u if degree[spur.u] == 1 else spur.v]
+                del self.position[spur.a if degree[spur.a] == 1 else spur.b]
             self._join_through_nodes()
 
     def _join_through_nodes(self) -> None:
@@ -182,40 +183,40 @@ class _Skeleton:
         while True:
             degree = self.degree()
             node = next((n for n, d in degree.items() if d == 2 and not any(
-                b.u == b.v == n for b in self.branches)), None)
+                b.a == b.b == n for b in self.branches)), None)
             if node is None:
                 return
-            first, second = (b for b in self.branches if node in (b.u, b.v))
+            first, second = (b for b in self.branches if node in (b.a, b.b))
             self.branches.remove(first)
             self.branches.remove(second)
-            a = first.points if first.v == node else first.points[::-1]
-            b = second.points if second.u == node else second.points[::-1]
-            ends = (first.u if first.v == node else first.v,
-                    second.v if second.u == node else second.u)
-            self.branches.append(_Branch(ends[0], ends[1], np.concatenate([a, b[1:]])))
+            before = first.points if first.b == node else first.points[::-1]
+            after = second.points if second.a == node else second.points[::-1]
+            ends = (first.a if first.b == node else first.b,
+                    second.b if second.a == node else second.a)
+            self.branches.append(_Branch(ends[0], ends[1], np.concatenate([before, after[1:]])))
             del self.position[node]
 
     def merge_junctions(self, distance: float) -> None:
         while True:
             degree = self.degree()
-            short = next((b for b in self.branches if b.u != b.v and b.length < distance
-                          and degree[b.u] >= 3 and degree[b.v] >= 3), None)
+            short = next((b for b in self.branches if b.a != b.b and b.length < distance
+                          and degree[b.a] >= 3 and degree[b.b] >= 3), None)
             if short is None:
                 self._join_through_nodes()
                 return
             self.branches.remove(short)
             middle = short.points[len(short.points) // 2]
-            self.position[short.u] = middle
-            del self.position[short.v]
+            self.position[short.a] = middle
+            del self.position[short.b]
             for branch in self.branches:
-                if short.v in (branch.u, branch.v):
-                    branch.u = short.u if branch.u == short.v else branch.u
-                    branch.v = short.u if branch.v == short.v else branch.v
+                if short.b in (branch.a, branch.b):
+                    branch.a = short.a if branch.a == short.b else branch.a
+                    branch.b = short.a if branch.b == short.b else branch.b
             for branch in self.branches:
                 points = branch.points.copy()
-                if branch.u == short.u:
+                if branch.a == short.a:
                     points[0] = middle
-                if branch.v == short.u:
+                if branch.b == short.a:
                     points[-1] = middle
                 branch.points = points
 
@@ -232,22 +233,22 @@ class _Skeleton:
             name_of[k] = f"v{len(nodes)}"
             nodes[name_of[k]] = _xy(self.position[k])
         edges: dict[frozenset, CentrelineEdge] = {}
-        for branch in sorted(self.branches, key=lambda b: (b.u, b.v, len(b.points))):
+        for branch in sorted(self.branches, key=lambda b: (b.a, b.b, len(b.points))):
             points = branch.points
             wide = field(points) >= lanes.offset + lanes.clearance
             cuts = _width_changes(points, wide, params.min_width_run)
             keep = sorted({index for i, j in zip(cuts[:-1], cuts[1:], strict=True)
                            for index in _simplified(points, i, j, params.simplify_tolerance,
                                                     clear)})
-            if branch.u == branch.v and len(keep) < 4:  # a loop needs two inner vertices
+            if branch.a == branch.b and len(keep) < 4:  # a loop needs two inner vertices
                 keep = sorted({*keep, len(points) // 3, 2 * len(points) // 3})
-            if len(keep) == 2 and frozenset((name_of[branch.u], name_of[branch.v])) in edges:
+            if len(keep) == 2 and frozenset((name_of[branch.a], name_of[branch.b])) in edges:
                 keep = [0, len(points) // 2, len(points) - 1]
-            names = [name_of[branch.u]]
+            names = [name_of[branch.a]]
             for index in keep[1:-1]:
                 names.append(f"v{len(nodes)}")
                 nodes[names[-1]] = _xy(points[index])
-            names.append(name_of[branch.v])
+            names.append(name_of[branch.b])
             for a, b in zip(names[:-1], names[1:], strict=True):
                 edges[frozenset((a, b))] = CentrelineEdge(a, b)
         return CentrelineGraph(nodes=nodes, edges=tuple(edges.values()))

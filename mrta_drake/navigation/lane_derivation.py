@@ -76,6 +76,19 @@ class CentrelineGraph:
                                  f"zero length: {edge.a!r} and {edge.b!r} coincide")
             seen.add(pair)
 
+    def degree(self) -> dict[str, int]:
+        """The number of edges at each vertex."""
+        return vertex_degrees(self.nodes, self.edges)
+
+
+def vertex_degrees(vertices, edges) -> dict:
+    """The number of ``edges`` (with ends ``a`` and ``b``) at each of ``vertices``."""
+    count = dict.fromkeys(vertices, 0)
+    for edge in edges:
+        count[edge.a] += 1
+        count[edge.b] += 1
+    return count
+
 
 @dataclass(frozen=True)
 class LaneParams:

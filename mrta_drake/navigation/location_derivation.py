@@ -177,10 +177,7 @@ def _nearest_in_sight(nodes, edges, xy, clearance, needed, step):
     """(edge index, point on it) of the nearest centre-line point that a straight line from
     ``xy`` reaches keeping ``needed`` from obstacles, or None. Access edges (single file, to
     a dead end) are left out."""
-    degree = {}
-    for edge in edges:
-        degree[edge.a] = degree.get(edge.a, 0) + 1
-        degree[edge.b] = degree.get(edge.b, 0) + 1
+    degree = CentrelineGraph(nodes=nodes, edges=tuple(edges)).degree()
     candidates = []  # (distance, edge index, point on the edge)
     for k, edge in enumerate(edges):
         if edge.single_file and 1 in (degree[edge.a], degree[edge.b]):

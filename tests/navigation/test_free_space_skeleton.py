@@ -19,17 +19,9 @@ def graph_of(free_rects, params=None, keep_near=None):
     return graph, walls(grid)
 
 
-def degrees(graph) -> dict[str, int]:
-    degree = dict.fromkeys(graph.nodes, 0)
-    for edge in graph.edges:
-        degree[edge.a] += 1
-        degree[edge.b] += 1
-    return degree
-
-
 def test_plus_crossing_is_one_junction_and_four_straight_arms():
     graph, obstacles = graph_of(PLUS)
-    degree = degrees(graph)
+    degree = graph.degree()
     (junction,) = [v for v, d in degree.items() if d == 4]
     assert np.linalg.norm(graph.nodes[junction]) < 0.2
     ends = np.array([graph.nodes[v] for v, d in degree.items() if d == 1])
@@ -46,9 +38,9 @@ def test_short_spurs_are_pruned():
     # A corridor with a 1.4 m wide alcove 0.4 m deep on its north side.
     alcove = [(-8.0, 8.0, -1.2, 1.2), (-0.7, 0.7, 1.0, 1.6)]
     graph, _ = graph_of(alcove)
-    assert sorted(degrees(graph).values()).count(1) == 2  # only the corridor's ends
+    assert sorted(graph.degree().values()).count(1) == 2  # only the corridor's ends
     kept, _ = graph_of(alcove, SkeletonParams(min_spur=0.0))
-    assert sorted(degrees(kept).values()).count(1) == 3
+    assert sorted(kept.degree().values()).count(1) == 3
 
 
 def test_narrowing_is_an_edge_of_its_own():
