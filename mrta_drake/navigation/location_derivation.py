@@ -10,19 +10,20 @@ World frame, x east, y north, m. The steps, for each point:
    the dead ends nobody uses are dropped it must be a dead end, whose last ``access_stub``
    is marked single file. The point is a dead end: its lanes meet on it, unshifted.
 2. Access zone (``access_zone``): the part of the graph holding the point that a single-file
-   edge cuts off from the rest (a bridge; the access itself is one), the farthest such edge
-   from the point, e.g. a room behind its doorway. One robot at a time holds it, the
-   location's room, so only its shortest path to the point is kept, single file: its
-   roadway nodes make the ``entry`` path, and ``exit_node`` is where its lane out ends.
+   edge cuts off from the rest (a bridge; the access itself is one) and that no robot going
+   elsewhere uses, the largest such part, e.g. a room behind its doorway. One robot at a
+   time holds it, the location's room, so only its shortest path to the point is kept,
+   single file: its roadway nodes make the ``entry`` path, and ``exit_node`` is where its
+   lane out ends.
 3. Queue (``location_config``): ``queue_slots`` slots, ``slot_spacing`` apart, the head
-   ``head_gap`` before the zone, back along the lane that leads into it (and on along the
-   lanes feeding that one, keeping to lanes over junction links, and out of single-file
-   segments, where waiting robots would block both ways; fewer slots where the lanes
-   there are too short), each moved up to
-   ``queue_shift`` to the right of the lane (off it, so traffic can pass) where it stays
-   ``wall_safety`` from obstacles, or further back where it would not or where it would be
-   nearer than ``slot_spacing`` to another slot (the lanes may turn back). ``approach_node``:
-   the node the tail slot's lane segment starts at.
+   ``head_gap`` before the zone, back along the lane that leads into it and on along the
+   lanes feeding that one (keeping to lanes over junction links, and out of single-file
+   segments, where waiting robots would block both ways: fewer slots where the lanes there
+   are too short). Each slot is moved up to ``queue_shift`` to the right of its lane (off
+   it, so traffic can pass) where it stays ``wall_safety`` from obstacles, or goes further
+   back where it would not or where it would be nearer than ``slot_spacing`` to another
+   slot (the lanes may turn back). ``approach_node``: where the tail slot's lane segment
+   starts.
 4. Parking (points marked ``parking``): up to ``parking_spots`` spots ``parking_distance``
    from the point in sight of it, ``wall_safety`` from obstacles, ``aside`` from every lane
    (the zone's included) and queue slot, and ``aside`` from each other; the most open first.
