@@ -4,8 +4,9 @@ As in the MRTA-Sim paper: the robot drives at the first path point at least ``lo
 (the local goal) with desired speed ``min(k_x dist, max_speed)``, acceleration
 ``k_v (v_des - v)`` and yaw rate ``k_theta * heading_error``; when the heading error exceeds
 the heading gate (``heading_gate`` alone, ``heading_gate_cluster`` in a cluster) it turns in
-place (``v_des = 0``). A robot with nothing to do, or a cluster member that is not the leader,
-gets the slow-down nominal ``a = clip(-k_slow v, -slow_accel, slow_accel)``, ``omega = 0``.
+place (``v_des = 0``). A robot with nothing to do, or a cluster follower
+(``mrta_drake.control.followers``), gets the slow-down nominal
+``a = clip(-k_slow v, -slow_accel, slow_accel)``, ``omega = 0``.
 With dense (grid-planner) paths the local goal is about ``lookahead`` ahead, so robots cruise at
 ``k_x lookahead`` = 0.75 m/s; ``max_speed`` caps the speed on sparse paths.
 
