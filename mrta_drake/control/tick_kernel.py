@@ -83,7 +83,8 @@ def plan_tick(robots, world, paths, settings, out):
     """
     states, shared, keys, active, stalled, reachable, slowed = robots
     human_positions, human_velocities, hits, hit_mask = world
-    priorities, gains, limits, follower_rule, yield_clearance, yield_horizon, radius2 = settings
+    priorities, gains, limits, follower_rule, yield_clearance, yield_horizon, radius2 = (
+        settings)
     order, labels, starts, u_nominal, lower, upper, minima = out
     n = len(states)
     labels[:] = cluster_labels(states[:, :2].copy(), radius2, reachable)
