@@ -33,8 +33,9 @@ import cvxpy as cp
 import numpy as np
 from pydrake.solvers import ClarabelSolver, MathematicalProgram, OsqpSolver
 
-from mrta_drake.control.cbf_qp import CbfParams, CbfQp
+from mrta_drake.control.cbf_params import CbfParams
 from mrta_drake.control.cluster_cbf_controller import ClusterCbfController
+from mrta_drake.control.qp_solver import CbfQp, QpParams
 from mrta_drake.payloads import PATH_OK, FleetPaths, RobotPath, frozen_array
 from mrta_drake.world.obstacles import Box, Obstacles
 
@@ -139,7 +140,8 @@ def run(calls: int) -> dict:
         names = [p.robot for p in paths.paths]
         row = {"robots": k}
         for solver in ("clarabel", "osqp"):
-            controller = ClusterCbfController(names, obstacles, CbfParams(solver=solver))
+            controller = ClusterCbfController(names, obstacles,
+                                              CbfParams(qp=QpParams(solver=solver)), rate_hz=20.0)
             row[f"tick_{solver}"], ticks = _time(
                 lambda s, c=controller, p=paths: c.control(0.0, s, p), states)
             clusters = {t[1].clusters for t in ticks}
@@ -149,12 +151,12 @@ def run(calls: int) -> dict:
                 (problem,) = controller.plan(s, paths).problems
                 problems.append((problem.u_nominal, problem.rows.G, problem.rows.b,
                                  problem.lower, problem.upper))
-            qp = CbfQp(solver, controller.params.slack_weight)
+            qp = CbfQp(solver, controller.params.qp.slack_weight)
             row[f"qp_{solver}"], solutions = _time(lambda p, q=qp: q.solve(*p), problems)
             assert all(s.success and s.solved for s in solutions), "a call skipped the solver"
             row["rows"] = m = max(len(p[2]) for p in problems)
             cpu, wall = time.process_time(), time.perf_counter()
-            cvx = _CvxpyQp(k, m, solver, controller.params.slack_weight)
+            cvx = _CvxpyQp(k, m, solver, controller.params.qp.slack_weight)
             build_cpu, build_wall = time.process_time() - cpu, time.perf_counter() - wall
             timing, u = _time(lambda p, c=cvx: c.solve(*p), problems)
             timing["first_ms"] += 1e3 * build_cpu

@@ -230,7 +230,7 @@ def profile(simulator, until: float) -> dict:
 def warm_up_qp() -> None:
     """One CBF-QP that needs the solver (the short warm-up run may solve none), so that its
     kernels are loaded before the timed runs."""
-    from mrta_drake.control.cbf_qp import CbfQp
+    from mrta_drake.control.qp_solver import CbfQp
 
     solution = CbfQp().solve([[1.0, 0.0]], [[-1.0, 0.0]], [0.5], [[-1.0, -2.0]], [[1.0, 2.0]])
     assert solution.solved and solution.success

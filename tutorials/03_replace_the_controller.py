@@ -12,15 +12,16 @@ or, in Python, ``replace_block(scenario, "controller", "go_to_goal")``. ``go_to_
 (``GoToGoalController``) is the same path following with no safety filter at all.
 
 A controller of your own is a ``LeafSystem`` with the slot's ports: inputs ``robot_state``
-(4N: [x, y, theta, v] per robot, world frame), ``paths`` (``FleetPaths``), ``humans``
-(``HumanStates``) and, optionally, ``disturbances`` (``Disturbances``: robots broken down
+(4N: [x, y, theta, v] per robot, world frame), ``paths`` (``FleetPaths``) and, optionally,
+``human_states`` (``HumanStates``) and ``disturbances`` (``Disturbances``: robots broken down
 or cut off from messages, corridors blocked), outputs ``commands`` (2N: [v, omega], m/s,
-rad/s) and ``telemetry`` (``ControllerTelemetry``). The quickest way is to subclass one
+rad/s) and ``telemetry`` (``ControllerTelemetry``); ``mrta_drake.control.controller_common``
+declares them and runs the update for you. The quickest way is to subclass one controller
 and change its ``control`` method, which maps the states to accelerations and turn rates
 ``[a, omega]`` per robot each tick. ``StopAndGoController`` below is go-to-goal plus the
 simplest safety rule there is: brake while anyone is less than a metre ahead.
-``register_block`` makes it the ``stop_and_go`` kind of the controller slot, with the CBF
-controllers' parameters.
+``register_block`` makes it the ``stop_and_go`` kind of the controller slot, with the
+go-to-goal parameters (``GoToGoalParams``: ``blocks.controller.params.nominal`` and so on).
 
 All three drive the six-robot hospital scenario with its people for the same time. The
 table compares the runs' figures (``summary.json``): the smallest surface-to-surface
@@ -42,7 +43,7 @@ import numpy as np
 from tutorial_common import options, run_each
 
 from mrta_drake import GoToGoalController, load_scenario, register_block
-from mrta_drake.control import CbfParams, slow_down
+from mrta_drake.control import GoToGoalParams, slow_down
 from mrta_drake.payloads import ROBOT_STATE_SIZE, HumanStates
 from mrta_drake.results.report import format_runs
 from mrta_drake.stack.blocks import BlockType, replace_block
@@ -56,10 +57,10 @@ class StopAndGoController(GoToGoalController):
     """Go-to-goal path following; a robot brakes (``control.slow_down``) while another robot
     or a person is within ``STOP_DISTANCE`` of it and ``AHEAD`` of its heading."""
 
-    def control(self, time, states, paths, humans=None, disturbances=None):
-        u, telemetry = super().control(time, states, paths, humans, disturbances)
+    def control(self, time, states, paths, human_states=None, disturbances=None):
+        u, telemetry = super().control(time, states, paths, human_states, disturbances)
         states = np.asarray(states, dtype=float).reshape(-1, ROBOT_STATE_SIZE)
-        people = (humans or HumanStates()).positions.reshape(-1, 2)
+        people = (human_states or HumanStates()).positions.reshape(-1, 2)
         bodies = np.vstack([states[:, :2], people])
         for i, (x, y, theta, v) in enumerate(states):
             offsets = bodies - (x, y)
@@ -67,12 +68,13 @@ class StopAndGoController(GoToGoalController):
             ahead = offsets @ (math.cos(theta), math.sin(theta)) > distance * math.cos(AHEAD)
             ahead[i] = False
             if np.any(ahead & (distance < STOP_DISTANCE)):
-                u[i] = slow_down(v, self.params)
+                u[i] = slow_down(v, self.params.nominal)
         return u, telemetry
 
 
-register_block("controller", "stop_and_go", BlockType(CbfParams, lambda ctx, params: (
-    StopAndGoController(ctx.robot_names, ctx.obstacles, params, ctx.rates.controller))))
+register_block("controller", "stop_and_go", BlockType(GoToGoalParams, lambda ctx, params: (
+    StopAndGoController(ctx.robot_names, ctx.obstacles, params,
+                        rate_hz=ctx.rates.controller))))
 
 CONTROLLERS = ("cluster_cbf", "go_to_goal", "stop_and_go")
 

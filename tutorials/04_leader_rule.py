@@ -1,19 +1,20 @@
 """Tutorial 4: change who leads a cluster of robots.
 
-The ``cluster_cbf`` controller groups robots within ``cluster_radius`` (4 m) of each other,
-transitively, into clusters (``mrta_drake/control/clusters.py``). In each cluster one robot
-leads: it keeps its path-following command, the others get a slow-down command, and one QP
-over all members' inputs keeps everyone safe. So the leader is the robot that goes first.
+The ``cluster_cbf`` controller groups robots within ``coordination.cluster_radius`` (4 m) of
+each other, transitively, into clusters (``mrta_drake/control/clusters.py``). In each cluster
+one robot leads: it keeps its path-following command, the others in its way get a slow-down
+command (``mrta_drake/control/followers.py``), and one QP over all members' inputs keeps
+everyone safe. So the leader is the robot that goes first.
 Which one leads is a *leader rule*: a function of the members' ``priorities`` (smaller leads;
 the robots' ``priority:`` fields, by default their order in the scenario) and their
 ``distances_to_goal`` (m, straight line to the end of their path) that returns one sort key
 per robot, smallest leads. (Robots with nowhere to go, and leaders that stood still for
-``stall_time``, come after the others whatever the rule.)
+``coordination.stall_time``, come after the others whatever the rule.)
 
 The rule is a controller parameter, by name::
 
     blocks:
-      controller: {kind: cluster_cbf, params: {leader_rule: distance_to_goal}}
+      controller: {kind: cluster_cbf, params: {coordination: {leader_rule: distance_to_goal}}}
 
 Built in: ``priority`` (default) and ``distance_to_goal`` (the robot nearest its goal leads:
 it clears the way soonest). Your own is a plain function registered under a name with
@@ -77,7 +78,8 @@ def main(argv=None) -> dict:
     args = options(__doc__, duration=40.0).parse_args(argv)
     scenario = load_scenario(SCENARIO)
     names = [robot.name for robot in scenario.robots]
-    runs = run_each({rule: replace_block(scenario, "controller", "cluster_cbf", leader_rule=rule)
+    runs = run_each({rule: replace_block(scenario, "controller", "cluster_cbf",
+                                         coordination={"leader_rule": rule})
                      for rule in RULES}, args)
     led = {rule: leaders(run.stack.recorder.telemetry) for rule, run in runs.items()}
 

@@ -44,24 +44,12 @@ def register_leader_rule(name: str, rule: LeaderRule) -> None:
     LEADER_RULES[name] = rule
 
 
-def connected_groups(positions, radius: float, reachable=None) -> list[list[int]]:
-    """Indices of robots (positions (N, 2), m) grouped by transitive closure of being at most
-    ``radius`` apart; groups and members in ascending index order. Robots not ``reachable``
-    (N bools; None: all are), e.g. cut off from messages, are groups of their own."""
-    p = np.ascontiguousarray(positions, dtype=float).reshape(-1, 2)
-    reachable = (np.ones(len(p), dtype=bool) if reachable is None
-                 else np.ascontiguousarray(reachable, dtype=bool))
-    groups: list[list[int]] = []
-    for i, label in enumerate(_labels(p, float(radius) ** 2, reachable).tolist()):
-        if label == len(groups):
-            groups.append([])
-        groups[label].append(i)
-    return groups
-
-
 @numba.njit(cache=True)
-def _labels(p, radius2, reachable):
-    """Group number of each robot, groups numbered in the order of their lowest index."""
+def cluster_labels(p, radius2, reachable):
+    """The cluster number of each robot (positions p (N, 2), m): robots at most
+    sqrt(``radius2``) apart, transitively, share one; robots not ``reachable`` (N bools;
+    e.g. cut off from messages) are clusters of their own. Clusters are numbered in the
+    order of their lowest index."""
     n = len(p)
     label = np.full(n, -1, dtype=np.int64)
     stack = np.empty(n, dtype=np.int64)
@@ -90,22 +78,22 @@ def form_clusters(positions, radius: float, priorities, distances_to_goal, activ
     """Clusters (lone robots included, as 1-tuples) in order of their lowest index, each
     ordered leader first (see the module docstring); ``stalled`` active robots (a leader
     that could not move) rank after the other active ones; robots not ``reachable`` (see
-    ``connected_groups``) are clusters of their own."""
+    ``cluster_labels``) are clusters of their own."""
     priorities = np.ascontiguousarray(priorities, dtype=float)
     n = len(priorities)
     keys = np.ascontiguousarray(rule(priorities, np.asarray(distances_to_goal, dtype=float)),
                                 dtype=float)
     p = np.ascontiguousarray(positions, dtype=float).reshape(-1, 2)
-    labels = _labels(p, float(radius) ** 2, np.ones(n, dtype=bool) if reachable is None
-                     else np.ascontiguousarray(reachable, dtype=bool))
-    order = _cluster_order(labels, np.ascontiguousarray(active, dtype=bool),
-                           np.zeros(n, dtype=bool) if stalled is None
-                           else np.ascontiguousarray(stalled, dtype=bool), keys, priorities)
+    labels = cluster_labels(p, float(radius) ** 2, np.ones(n, dtype=bool) if reachable is None
+                            else np.ascontiguousarray(reachable, dtype=bool))
+    order = cluster_order(labels, np.ascontiguousarray(active, dtype=bool),
+                          np.zeros(n, dtype=bool) if stalled is None
+                          else np.ascontiguousarray(stalled, dtype=bool), keys, priorities)
     return clusters_of(order, labels)
 
 
 def clusters_of(order, labels) -> tuple[tuple[int, ...], ...]:
-    """The clusters of robots ``order`` (N,) (sorted by cluster, as ``_cluster_order``
+    """The clusters of robots ``order`` (N,) (sorted by cluster, as ``cluster_order``
     sorts them) with cluster ``labels`` (N,) per robot."""
     clusters, members, label = [], order.tolist(), labels[order].tolist()
     first = 0
@@ -117,10 +105,10 @@ def clusters_of(order, labels) -> tuple[tuple[int, ...], ...]:
 
 
 @numba.njit(cache=True)
-def _cluster_order(labels, active, stalled, keys, priorities):
-    """Robot indices sorted by cluster label, then leader first: active before inactive,
-    not stalled before stalled, then by key, priority and index (insertion sort: clusters
-    are small)."""
+def cluster_order(labels, active, stalled, keys, priorities):
+    """Robot indices sorted by cluster ``labels``, then leader first: ``active`` before
+    inactive, not ``stalled`` before stalled, then by leader rule ``keys``, ``priorities``
+    and index (insertion sort: clusters are small)."""
     order = np.arange(len(labels))
     for k in range(1, len(order)):
         i, j = order[k], k - 1
@@ -147,23 +135,15 @@ def _ranks_before(i, j, labels, active, stalled, keys, priorities):
     return i < j
 
 
-def leader_stall_times(stall_times, speeds, clusters, active, dt: float, stall_time: float,
-                       stall_speed: float) -> np.ndarray:
-    """Per robot, how long (s) it has stood (|speed| < ``stall_speed``, m/s) as the active
-    leader of a cluster, after one more tick of ``dt`` s. A robot that moves, is inactive or
-    alone starts from 0; a demoted leader keeps its time, so others lead first; when every
-    active member of a cluster has stalled (>= ``stall_time``), all start again. A cluster
-    whose leader is blocked (e.g. by a follower that must move first) thus passes the lead on
-    instead of waiting forever."""
-    members = np.array([i for cluster in clusters for i in cluster], dtype=np.int64)
-    starts = np.cumsum([0] + [len(cluster) for cluster in clusters], dtype=np.int64)
-    return stall_times_of(stall_times, speeds, members, starts, active, dt, stall_time,
-                          stall_speed)
-
-
 def stall_times_of(stall_times, speeds, members, starts, active, dt: float,
                    stall_time: float, stall_speed: float) -> np.ndarray:
-    """``leader_stall_times`` of the clusters ``members[starts[c]:starts[c + 1]]``."""
+    """Per robot, how long (s) it has stood (|``speeds``| < ``stall_speed``, m/s) as the
+    active leader of one of the clusters ``members[starts[c]:starts[c + 1]]`` (leader first),
+    after one more tick of ``dt`` s. A robot that moves, is inactive or alone starts from 0;
+    a demoted leader keeps its time, so others lead first; when every active member of a
+    cluster has stalled (>= ``stall_time``), all start again. A cluster whose leader is
+    blocked (e.g. by a follower that must move first) thus passes the lead on instead of
+    waiting forever."""
     new = np.empty(len(speeds))
     _stall_times(np.ascontiguousarray(stall_times, dtype=float),
                  np.ascontiguousarray(speeds, dtype=float), members, starts,

@@ -4,8 +4,9 @@ As in the MRTA-Sim paper: the robot drives at the first path point at least ``lo
 (the local goal) with desired speed ``min(k_x dist, max_speed)``, acceleration
 ``k_v (v_des - v)`` and yaw rate ``k_theta * heading_error``; when the heading error exceeds
 the heading gate (``heading_gate`` alone, ``heading_gate_cluster`` in a cluster) it turns in
-place (``v_des = 0``). A robot with nothing to do, or a cluster member that is not the leader,
-gets the slow-down nominal ``a = clip(-k_slow v, -slow_accel, slow_accel)``, ``omega = 0``.
+place (``v_des = 0``). A robot with nothing to do, or a cluster follower
+(``mrta_drake.control.followers``), gets the slow-down nominal
+``a = clip(-k_slow v, -slow_accel, slow_accel)``, ``omega = 0``.
 With dense (grid-planner) paths the local goal is about ``lookahead`` ahead, so robots cruise at
 ``k_x lookahead`` = 0.75 m/s; ``max_speed`` caps the speed on sparse paths.
 
@@ -36,7 +37,10 @@ from functools import cached_property
 import numba
 import numpy as np
 
-from mrta_drake.payloads import PATH_OK, ROBOT_STOPPED_SPEED, RobotPath
+from mrta_drake.control.param_groups import require_non_negative, require_positive
+from mrta_drake.control.paths import has_path, projection
+from mrta_drake.errors import InputError
+from mrta_drake.payloads import ROBOT_STOPPED_SPEED, RobotPath
 
 
 @dataclass(frozen=True)
@@ -61,9 +65,19 @@ class NominalParams:
     pass_clearance: float = 0.6  # m, half width of the lane checked for bodies
     pass_range: float = 4.0  # m, how far ahead bodies are checked
 
+    def __post_init__(self):
+        require_positive(self, "k_x", "k_v", "k_theta", "lookahead", "heading_gate",
+                         "heading_gate_cluster", "max_speed", "max_accel", "max_yaw_rate",
+                         "slow_accel", "brake_accel")
+        require_non_negative(self, "k_slow", "goal_tolerance", "pass_offset",
+                             "pass_clearance", "pass_range")
+        if self.min_speed > 0:
+            raise InputError(None, "min_speed", f"must be <= 0, got {self.min_speed!r}")
+
     @cached_property
-    def _gains(self) -> np.ndarray:
-        """The fields as one array for the compiled functions below (indices ``_K_X``...)."""
+    def gains(self) -> np.ndarray:
+        """The fields as one array for compiled code (``nominal_inputs``,
+        ``slow_down_input``)."""
         return np.array([self.k_x, self.k_v, self.k_theta, self.lookahead, self.heading_gate,
                          self.heading_gate_cluster, self.max_speed, self.k_slow,
                          self.slow_accel, self.goal_tolerance, self.brake_accel,
@@ -95,67 +109,7 @@ def nominal_control(state, path: RobotPath | None, params: NominalParams, cluste
     bodies = _with_speeds(bodies)
     return np.array(_nominal(float(state[0]), float(state[1]), float(state[2]), float(state[3]),
                              path.points, path.stop_at_end, clustered, bodies, exclude,
-                             params._gains))
-
-
-@dataclass(frozen=True, eq=False)
-class PathArrays:
-    """N robots' paths for compiled code: the points of the ``ok`` ones (``has_path``)
-    concatenated in ``points`` (P, 2), robot i's at ``points[start[i]:start[i + 1]]`` (none
-    without an ok path); ``ok`` and ``stop_at_end`` (N,) bools."""
-
-    points: np.ndarray
-    start: np.ndarray
-    ok: np.ndarray
-    stop_at_end: np.ndarray
-
-    @staticmethod
-    def of(paths) -> "PathArrays":
-        """The arrays of ``paths`` (N ``RobotPath`` or None)."""
-        ok = [has_path(path) for path in paths]
-        start = np.zeros(len(ok) + 1, dtype=np.int64)
-        start[1:] = np.cumsum([len(path.points) if good else 0
-                               for path, good in zip(paths, ok, strict=True)])
-        points = np.concatenate([np.zeros((0, 2))] + [
-            path.points for path, good in zip(paths, ok, strict=True) if good])
-        stop_at_end = np.array([good and path.stop_at_end
-                                for path, good in zip(paths, ok, strict=True)], dtype=bool)
-        return PathArrays(np.ascontiguousarray(points, dtype=float), start,
-                          np.array(ok, dtype=bool), stop_at_end)
-
-    def progress(self, states, arrival_radius: float) -> tuple[np.ndarray, np.ndarray]:
-        """Per robot of ``states`` (N, 4): the straight-line distance (m) to its path end
-        (inf without an ``ok`` path), and whether it still has somewhere to go: an ``ok``
-        path, and unless the path lets it drive on, more than ``arrival_radius`` (m) from
-        its end."""
-        distances, active = np.empty(len(self.ok)), np.empty(len(self.ok), dtype=bool)
-        _progress(np.ascontiguousarray(states, dtype=float).reshape(-1, 4), self.points,
-                  self.start, self.ok, self.stop_at_end, float(arrival_radius), distances,
-                  active)
-        return distances, active
-
-
-@numba.njit(cache=True)
-def _progress(states, points, start, ok, stop_at_end, arrival_radius, distances, active):
-    for i in range(len(ok)):
-        if not ok[i]:
-            distances[i], active[i] = math.inf, False
-            continue
-        end = start[i + 1] - 1
-        distances[i] = math.hypot(states[i, 0] - points[end, 0], states[i, 1] - points[end, 1])
-        active[i] = not (stop_at_end[i] and distances[i] <= arrival_radius)
-
-
-def nominal_controls(states, paths: PathArrays, params: NominalParams, clustered,
-                     bodies) -> np.ndarray:
-    """``nominal_control`` (N, 2) of the robots ``states`` (N, 4) on their ``paths``,
-    ``clustered`` (N,) bools, with ``bodies`` (n, 3) or (n, 2) (as in ``nominal_control``)
-    whose first N are the robots (each robot leaves itself out), in one compiled call."""
-    states = np.ascontiguousarray(states, dtype=float).reshape(-1, 4)
-    u = np.empty((len(states), 2))
-    _nominals(states, paths.points, paths.start, paths.ok, paths.stop_at_end,
-              np.asarray(clustered, dtype=bool), _with_speeds(bodies), params._gains, u)
-    return u
+                             params.gains))
 
 
 def _with_speeds(bodies) -> np.ndarray:
@@ -168,22 +122,28 @@ def _with_speeds(bodies) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _nominals(states, points, start, ok, stop_at_end, clustered, bodies, gains, u):
+def nominal_inputs(states, paths, clustered, bodies, gains, u):
+    """``nominal_control`` of every robot ``states`` (N, 4) into ``u`` (N, 2), compiled:
+    ``paths`` a ``PathArrays``, ``clustered`` (N,) bools, ``bodies`` (n, 3) whose first N
+    are the robots (each robot leaves itself out), ``gains`` ``NominalParams.gains``."""
+    points, start, ok, stop_at_end = paths
     for i in range(len(states)):
         x, y, theta, v = states[i, 0], states[i, 1], states[i, 2], states[i, 3]
         if ok[i]:
             u[i] = _nominal(x, y, theta, v, points[start[i]:start[i + 1]], stop_at_end[i],
                             clustered[i], bodies, i, gains)
         else:
-            u[i] = _slow_down(v, gains[_K_SLOW], gains[_SLOW_ACCEL])
+            u[i] = slow_down_input(v, gains)
 
 
-def has_path(path: RobotPath | None) -> bool:
-    """Whether ``path`` is an ``ok`` path of at least one point (else: slow down)."""
-    return path is not None and path.status == PATH_OK and len(path.points) > 0
+@numba.njit(cache=True)
+def slow_down_input(speed, gains):
+    """The slow-down nominal (a, omega) at ``speed`` (m/s), compiled (``gains``:
+    ``NominalParams.gains``)."""
+    return _slow_down(speed, gains[_K_SLOW], gains[_SLOW_ACCEL])
 
 
-# Compiled: a controller runs these for every robot at every tick (gains: ``_gains``).
+# Indices into ``NominalParams.gains``.
 (_K_X, _K_V, _K_THETA, _LOOKAHEAD, _GATE, _GATE_CLUSTER, _MAX_SPEED, _K_SLOW, _SLOW_ACCEL,
  _GOAL_TOLERANCE, _BRAKE_ACCEL, _PASS_OFFSET, _PASS_CLEARANCE, _PASS_RANGE) = range(14)
 
@@ -224,7 +184,7 @@ def _local_goal(x, y, points, lookahead):
     k = len(points)
     if k == 1:
         return points[0, 0], points[0, 1], True, math.hypot(x - points[0, 0], y - points[0, 1])
-    nearest, t_nearest = _projection(x, y, points)
+    nearest, t_nearest = projection(x, y, points)
     remaining = 0.0
     for i in range(nearest, k - 1):
         length = math.sqrt(max((points[i + 1, 0] - points[i, 0]) ** 2
@@ -246,73 +206,6 @@ def _local_goal(x, y, points, lookahead):
             if root <= 1.0:
                 return points[i, 0] + root * dx, points[i, 1] + root * dy, False, remaining
     return points[k - 1, 0], points[k - 1, 1], True, remaining
-
-
-@numba.njit(cache=True)
-def _projection(x, y, points):
-    """The segment of the path ``points`` (k, 2), k >= 2, nearest (x, y) and the fraction
-    along it of the nearest point."""
-    nearest, best, t_nearest = 0, math.inf, 0.0
-    for i in range(len(points) - 1):
-        sx, sy = points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1]
-        length2 = max(sx * sx + sy * sy, 1e-12)
-        t = min(max(((x - points[i, 0]) * sx + (y - points[i, 1]) * sy) / length2, 0.0), 1.0)
-        d2 = (points[i, 0] + t * sx - x) ** 2 + (points[i, 1] + t * sy - y) ** 2
-        if d2 < best:
-            nearest, best, t_nearest = i, d2, t
-    return nearest, t_nearest
-
-
-@numba.njit(cache=True)
-def _path_ahead_near(x, y, points, qx, qy, horizon, clearance):
-    """Whether a robot at (x, y) following the path ``points`` (k, 2), k >= 1, comes within
-    ``clearance`` (m) of the point (qx, qy) in its next ``horizon`` m: on the way from
-    (x, y) to its projection onto the path, then along the path; and the unit direction it
-    then drives in (zero if it has no length)."""
-    if len(points) == 1:
-        return _near_segment(qx, qy, x, y, points[0, 0], points[0, 1], clearance)
-    nearest, t = _projection(x, y, points)
-    ax = points[nearest, 0] + t * (points[nearest + 1, 0] - points[nearest, 0])
-    ay = points[nearest, 1] + t * (points[nearest + 1, 1] - points[nearest, 1])
-    near, ux, uy = _near_segment(qx, qy, x, y, ax, ay, clearance)
-    left = horizon
-    for i in range(nearest + 1, len(points)):
-        if near or left <= 0.0:
-            break
-        bx, by = points[i, 0], points[i, 1]
-        length = math.hypot(bx - ax, by - ay)
-        if length > left:  # the horizon ends on this segment
-            s = left / length
-            bx, by = ax + s * (bx - ax), ay + s * (by - ay)
-        near, ux, uy = _near_segment(qx, qy, ax, ay, bx, by, clearance)
-        left -= length
-        ax, ay = bx, by
-    return near, ux, uy
-
-
-@numba.njit(cache=True)
-def _near_segment(qx, qy, ax, ay, bx, by, clearance):
-    """Whether (qx, qy) is within ``clearance`` (m) of the segment from (ax, ay) to
-    (bx, by), and the segment's unit direction (zero if it has no length)."""
-    sx, sy = bx - ax, by - ay
-    length = math.hypot(sx, sy)
-    t = min(max(((qx - ax) * sx + (qy - ay) * sy) / max(length * length, 1e-12), 0.0), 1.0)
-    near = math.hypot(ax + t * sx - qx, ay + t * sy - qy) < clearance
-    if length < 1e-9:
-        return near, 0.0, 0.0
-    return near, sx / length, sy / length
-
-
-@numba.njit(cache=True)
-def _travel_direction(x, y, points):
-    """The unit direction (zero if none) a robot at (x, y) drives in along the path
-    ``points`` (k, 2), k >= 1: that of the path where it projects onto it (towards the
-    point of a one-point path)."""
-    if len(points) == 1:
-        return _near_segment(x, y, x, y, points[0, 0], points[0, 1], 0.0)[1:]
-    i, _ = _projection(x, y, points)
-    return _near_segment(x, y, points[i, 0], points[i, 1], points[i + 1, 0], points[i + 1, 1],
-                         0.0)[1:]
 
 
 @numba.njit(cache=True)
@@ -355,7 +248,7 @@ def _track(x, y, theta, v, gx, gy, is_end, has_stop, remaining, heading_gate, ga
     dx, dy = gx - x, gy - y
     dist = math.hypot(dx, dy)
     if is_end and dist <= gains[_GOAL_TOLERANCE]:
-        return _slow_down(v, gains[_K_SLOW], gains[_SLOW_ACCEL])
+        return slow_down_input(v, gains)
     heading_error = wrap_angle(math.atan2(dy, dx) - theta)
     v_des, feedforward = min(gains[_K_X] * dist, gains[_MAX_SPEED]), 0.0
     if has_stop:

@@ -138,8 +138,20 @@ def resolve_block(scenario: Scenario, slot: str) -> tuple[BlockType, object]:
         raise InputError(scenario.source, f"blocks.{slot}.kind",
                          f"unknown kind {config.kind!r} (known: {', '.join(sorted(kinds))})")
     chosen = kinds[config.kind]()
-    params = load_typed(config.params, chosen.params, scenario.source, f"blocks.{slot}.params")
+    path = f"blocks.{slot}.params"
+    _refuse_moved_fields(config.params, chosen.params, scenario.source, path)
+    params = load_typed(config.params, chosen.params, scenario.source, path)
     return chosen, params
+
+
+def _refuse_moved_fields(raw: dict, params_class: type, file: str, path: str) -> None:
+    """An old field of a regrouped params class (listed in its ``moved_fields``: old name ->
+    new dotted place) is refused with its new place. A name that is now a group's may
+    still hold the group (a mapping)."""
+    moved = getattr(params_class, "moved_fields", {})
+    for key, value in (raw or {}).items():
+        if key in moved and not isinstance(value, dict):
+            raise InputError(file, f"{path}.{key}", f"moved to {path}.{moved[key]}")
 
 
 def check_blocks(scenario: Scenario) -> None:
@@ -278,19 +290,19 @@ def _priorities(ctx: BuildContext) -> list[int]:
 
 
 def _cluster_cbf_controller() -> BlockType:
-    from mrta_drake.control.cbf_qp import CbfParams
+    from mrta_drake.control.cbf_params import CbfParams
     from mrta_drake.control.cluster_cbf_controller import ClusterCbfController
 
     return BlockType(CbfParams, lambda ctx, params: ClusterCbfController(
-        ctx.robot_names, ctx.obstacles, params, _priorities(ctx), ctx.rates.controller))
+        ctx.robot_names, ctx.obstacles, params, _priorities(ctx),
+        rate_hz=ctx.rates.controller))
 
 
 def _go_to_goal_controller() -> BlockType:
-    from mrta_drake.control.cbf_qp import CbfParams
-    from mrta_drake.control.go_to_goal_controller import GoToGoalController
+    from mrta_drake.control.go_to_goal_controller import GoToGoalController, GoToGoalParams
 
-    return BlockType(CbfParams, lambda ctx, params: GoToGoalController(
-        ctx.robot_names, ctx.obstacles, params, ctx.rates.controller))
+    return BlockType(GoToGoalParams, lambda ctx, params: GoToGoalController(
+        ctx.robot_names, ctx.obstacles, params, rate_hz=ctx.rates.controller))
 
 
 register_block("robots", "kinematic", _kinematic_robots)

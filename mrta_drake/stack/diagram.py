@@ -103,7 +103,8 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
                         allocator.GetInputPort(f"progress_{name}"))
     if humans is not None:
         builder.Connect(state, humans.GetInputPort("robot_state"))
-        builder.Connect(humans.GetOutputPort("human_states"), controller.GetInputPort("humans"))
+        builder.Connect(humans.GetOutputPort("human_states"),
+                        controller.GetInputPort("human_states"))
     human_positions = humans.GetOutputPort("plant_positions") if humans is not None else None
     contacts = None
     if robots_type.physics is None:

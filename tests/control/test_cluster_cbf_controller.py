@@ -10,8 +10,10 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import ConstantValueSource, LogVectorOutput
 
-from mrta_drake.control.cluster_cbf_controller import CbfParams, ClusterCbfController
+from mrta_drake.control.cbf_params import CbfParams, CoordinationParams
+from mrta_drake.control.cluster_cbf_controller import ClusterCbfController
 from mrta_drake.control.go_to_goal_controller import GoToGoalController
+from mrta_drake.control.nominal import NominalParams, nominal_control
 from mrta_drake.payloads import PATH_OK, FleetPaths, HumanStates, RobotPath, frozen_array
 from mrta_drake.robots.unicycle_robots import UnicycleRobots
 from mrta_drake.world.obstacles import Box, Obstacles
@@ -27,7 +29,7 @@ class _Walker(LeafSystem):
     def __init__(self, start, velocity):
         super().__init__()
         self.start, self.velocity = np.asarray(start, float), np.asarray(velocity, float)
-        self.DeclareAbstractOutputPort("humans", lambda: Value[object](HumanStates()),
+        self.DeclareAbstractOutputPort("human_states", lambda: Value[object](HumanStates()),
                                        self._calc)
 
     def position(self, t):
@@ -47,7 +49,7 @@ def _run(starts, paths, obstacles, duration, params=None, walker=None, controlle
     robots = builder.AddSystem(UnicycleRobots(names, np.asarray(starts, dtype=float),
                                               rate_hz=20.0))
     if controller is None:
-        controller = ClusterCbfController(names, obstacles, params, priorities)
+        controller = ClusterCbfController(names, obstacles, params, priorities, rate_hz=20.0)
     builder.AddSystem(controller)
     fleet = FleetPaths(tuple(RobotPath(name, PATH_OK, frozen_array(points))
                              for name, points in zip(names, paths, strict=True)))
@@ -57,7 +59,7 @@ def _run(starts, paths, obstacles, duration, params=None, walker=None, controlle
     builder.Connect(controller.GetOutputPort("commands"), robots.GetInputPort("commands"))
     if walker is not None:
         builder.AddSystem(walker)
-        builder.Connect(walker.get_output_port(), controller.GetInputPort("humans"))
+        builder.Connect(walker.get_output_port(), controller.GetInputPort("human_states"))
     states = LogVectorOutput(robots.GetOutputPort("state"), builder, 0.05)
     commands = LogVectorOutput(controller.GetOutputPort("commands"), builder, 0.05)
     diagram = builder.Build()
@@ -91,6 +93,10 @@ def _min_wall_distance(states, obstacles):
     return obstacles.signed_distance(states[:, :, :2].reshape(-1, 2)).min()
 
 
+def _coordinated(mode: str, followers: str = "in_the_way") -> CbfParams:
+    return CbfParams(coordination=CoordinationParams(mode=mode, followers=followers))
+
+
 def _corridor(width=2.8, length=14.0):
     half, t = width / 2, 0.2
     return Obstacles((Box("north", (length / 2, half + t / 2), (length + 4, t)),
@@ -103,7 +109,7 @@ def test_head_on_swap_in_corridor(mode):
     starts = [[1.0, 0.0, 0.0], [13.0, 0.0, math.pi]]
     goals = [[13.0, 0.0], [1.0, 0.0]]
     states, telemetry = _run(starts, [[s[:2], g] for s, g in zip(starts, goals, strict=True)],
-                             obstacles, 34.0, CbfParams(coordination=mode))
+                             obstacles, 34.0, _coordinated(mode))
     assert max(_arrival_times(states, goals)) < 34.0
     assert _min_separation(states) >= 2 * RADIUS
     assert _min_wall_distance(states, obstacles) >= RADIUS
@@ -127,7 +133,7 @@ def test_four_robots_cross_an_intersection(mode, bound):
               [0.0, 6.0, -math.pi / 2]]
     goals = [[6.0, 0.0], [-6.0, 0.0], [0.0, 6.0], [0.0, -6.0]]
     states, telemetry = _run(starts, [[s[:2], g] for s, g in zip(starts, goals, strict=True)],
-                             obstacles, bound, CbfParams(coordination=mode))
+                             obstacles, bound, _coordinated(mode))
     assert max(_arrival_times(states, goals)) < bound
     assert _min_separation(states) >= 2 * RADIUS
     assert _min_wall_distance(states, obstacles) >= RADIUS
@@ -152,7 +158,7 @@ def test_robot_goes_in_through_a_doorway_while_another_comes_out(mode):
     paths = [[(-4.0, 0.0), (-1.0, 0.0), (1.0, 0.0), (3.5, 1.0)],
              [(3.0, 0.0), (1.0, 0.0), (-1.0, 0.0), (-4.0, -1.0)]]
     goals = [p[-1] for p in paths]
-    states, telemetry = _run(starts, paths, obstacles, 28.0, CbfParams(coordination=mode))
+    states, telemetry = _run(starts, paths, obstacles, 28.0, _coordinated(mode))
     assert max(_arrival_times(states, goals)) < 28.0
     assert _min_separation(states) >= 2 * RADIUS
     assert _min_wall_distance(states, obstacles) >= RADIUS
@@ -196,7 +202,7 @@ def test_human_walking_into_the_robot_makes_it_back_off():
 
 
 def test_solver_failure_brakes_every_robot_of_the_qp_and_is_counted():
-    controller = ClusterCbfController(["a", "b"])
+    controller = ClusterCbfController(["a", "b"], rate_hz=20.0)
     states = np.array([[0.0, 0.0, 0.0, 1.0], [1.0, 0.0, 0.0, 0.02]])
     paths = FleetPaths(tuple(RobotPath(n, PATH_OK, frozen_array([[0.0, 0.0], [9.0, 0.0]]))
                              for n in "ab"))
@@ -214,7 +220,7 @@ def test_fixed_step_commands_after_a_late_start():
     # The original derived dt from wall-clock gaps; here dt is 1 / rate whatever the time.
     names = ["a"]
     builder = DiagramBuilder()
-    controller = builder.AddSystem(ClusterCbfController(names))
+    controller = builder.AddSystem(ClusterCbfController(names, rate_hz=20.0))
     robots = builder.AddSystem(UnicycleRobots(names, np.array([[0.0, 0.0, 0.0]]), rate_hz=20.0))
     fleet = FleetPaths((RobotPath("a", PATH_OK, frozen_array([[0.0, 0.0], [9.0, 0.0]])),))
     source = builder.AddSystem(ConstantValueSource(Value[object](fleet)))
@@ -235,7 +241,7 @@ def test_go_to_goal_baseline_reaches_goals_but_collides_head_on():
     obstacles = _corridor()
     starts = [[1.0, 0.0, 0.0], [13.0, 0.0, math.pi]]
     goals = [[13.0, 0.0], [1.0, 0.0]]
-    baseline = GoToGoalController(["r0", "r1"], obstacles)
+    baseline = GoToGoalController(["r0", "r1"], obstacles, rate_hz=20.0)
     states, telemetry = _run(starts, [[s[:2], g] for s, g in zip(starts, goals, strict=True)],
                              obstacles, 20.0, controller=baseline)
     assert max(_arrival_times(states, goals)) < 20.0  # kinematic robots pass through
@@ -265,7 +271,7 @@ def test_the_telemetry_port_gives_the_tick_s_telemetry():
     """The telemetry is kept as numbers in the state; the port turns them back into the very
     telemetry the tick made, clusters (leader first) included."""
     n = 5
-    controller = ClusterCbfController([f"robot{i}" for i in range(n)])
+    controller = ClusterCbfController([f"robot{i}" for i in range(n)], rate_hz=20.0)
     simulator = Simulator(controller)
     context = simulator.get_mutable_context()
     starts = [[0.0, 0.0, 0.0, 0.0], [9.0, 0.0, 0.0, 0.0], [1.0, 0.0, math.pi, 0.0],
@@ -286,7 +292,8 @@ def _slowed(params, states, paths):
     names = [f"r{i}" for i in range(len(states))]
     fleet = FleetPaths(tuple(RobotPath(name, PATH_OK, frozen_array(points))
                              for name, points in zip(names, paths, strict=True)))
-    plan = ClusterCbfController(names, params=params).plan(np.asarray(states, float), fleet)
+    controller = ClusterCbfController(names, params=params, rate_hz=20.0)
+    plan = controller.plan(np.asarray(states, float), fleet)
     assert len(plan.clusters) == 1 and plan.clusters[0][0] == 0  # robot 0 leads
     return [bool(u[0] <= 0.0 and u[1] == 0.0) for u in plan.u_nominal]
 
@@ -311,9 +318,9 @@ def test_only_followers_in_the_way_of_a_robot_ranked_above_get_the_slow_down_nom
     head_on = [[0.0, 0.0, 0.0, 0.0], [2.5, 0.0, math.pi, 0.0]]
     assert _slowed(default, head_on, [lane, [(2.5, 0.0), (-6.0, 0.0)]]) == [False, True]
     # The paper's rule: every follower slows down.
-    assert _slowed(CbfParams(followers="all"), beside_it, beside) == [False, True]
+    assert _slowed(_coordinated("clusters", "all"), beside_it, beside) == [False, True]
     with pytest.raises(ValueError, match="followers"):
-        CbfParams(followers="none")
+        CoordinationParams(followers="none")
 
 
 def test_a_follower_out_of_the_leaders_way_drives_on():
@@ -324,7 +331,7 @@ def test_a_follower_out_of_the_leaders_way_drives_on():
     goals = [p[-1] for p in paths]
     times = {}
     for rule in ("in_the_way", "all"):
-        states, _ = _run(starts, paths, None, 20.0, CbfParams(followers=rule))
+        states, _ = _run(starts, paths, None, 20.0, _coordinated("clusters", rule))
         times[rule] = _arrival_times(states, goals)
     assert abs(times["in_the_way"][1] - times["in_the_way"][0]) < 0.5
     assert times["all"][1] - times["all"][0] > 3.0
@@ -334,8 +341,6 @@ def test_a_body_standing_right_of_the_lane_is_passed_on_its_left():
     # A robot standing 0.4 m right of the lane, 0.43 m from a wall (like one at a queue
     # slot by the corridor wall): passing it on the right would squeeze between it and the
     # wall, where there is no room.
-    from mrta_drake.control.nominal import NominalParams, nominal_control
-
     params = NominalParams()
     path = RobotPath("r", PATH_OK, frozen_array([(0.0, 0.0), (0.0, 8.0)]))  # north
     state = [0.0, 0.0, math.pi / 2, 0.75]

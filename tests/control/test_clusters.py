@@ -5,14 +5,15 @@ import itertools
 import numpy as np
 import pytest
 
-from mrta_drake.control.cluster_cbf_controller import CbfParams, ClusterCbfController
+from mrta_drake.control.cbf_params import CbfParams, CoordinationParams
+from mrta_drake.control.cluster_cbf_controller import ClusterCbfController
 from mrta_drake.control.clusters import (
     LEADER_RULES,
     by_distance_to_goal,
-    connected_groups,
+    cluster_labels,
     form_clusters,
-    leader_stall_times,
     register_leader_rule,
+    stall_times_of,
 )
 from mrta_drake.payloads import PATH_IDLE, PATH_OK, FleetPaths, RobotPath, frozen_array
 
@@ -26,10 +27,23 @@ def _clusters(positions, priorities=None, active=None, distances=None, rule=None
                          **({} if rule is None else {"rule": rule}))
 
 
+def _leader_stall_times(stall_times, speeds, clusters, active):
+    """``stall_times_of`` the ``clusters`` (tuples, leader first) after a 0.05 s tick, with
+    the default stall time (3 s) and speed (0.05 m/s)."""
+    members = np.array([i for cluster in clusters for i in cluster], dtype=np.int64)
+    starts = np.cumsum([0] + [len(cluster) for cluster in clusters], dtype=np.int64)
+    return stall_times_of(stall_times, speeds, members, starts, active, 0.05, 3.0, 0.05)
+
+
 def test_transitive_chain_is_one_cluster_and_a_gap_splits_it():
     chain = [[0.0, 0.0], [3.5, 0.0], [7.0, 0.0], [10.5, 0.0], [20.0, 0.0]]
     assert _clusters(chain) == ((0, 1, 2, 3), (4,))
-    assert connected_groups([[0.0, 0.0], [4.0, 0.0], [8.01, 0.0]], 4.0) == [[0, 1], [2]]
+    labels = cluster_labels(np.array([[0.0, 0.0], [4.0, 0.0], [8.01, 0.0]]), 16.0,
+                            np.ones(3, dtype=bool))
+    assert labels.tolist() == [0, 0, 1]
+    cut_off = cluster_labels(np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]), 16.0,
+                             np.array([True, False, True]))
+    assert cut_off.tolist() == [0, 1, 0]
 
 
 def test_clusters_are_ordered_by_lowest_index_and_led_by_priority():
@@ -74,15 +88,18 @@ def test_a_leader_standing_too_long_passes_the_lead_on_in_turn():
         clusters = _clusters(positions, active=active) if not stall.any() else form_clusters(
             positions, 4.0, np.arange(4), np.zeros(4), active, stalled=stall >= 3.0)
         leaders.append(clusters[0][0])
-        stall = leader_stall_times(stall, speeds, clusters, active, 0.05, 3.0, 0.05)
+        stall = _leader_stall_times(stall, speeds, clusters, active)
         assert stall[3] == 0.0  # alone: never stalled
     # Each leads for 3 s (60 ticks), then the next; after all three, the round starts again.
     runs = [(leader, len(list(run))) for leader, run in itertools.groupby(leaders)]
     assert [leader for leader, _ in runs] == [0, 1, 2, 0]
     assert all(60 <= length <= 61 for _, length in runs[:3])
-    moving = leader_stall_times(stall, np.array([0.5, 0, 0, 0]), ((0, 1, 2), (3,)), active,
-                                0.05, 3.0, 0.05)
+    moving = _leader_stall_times(stall, np.array([0.5, 0, 0, 0]), ((0, 1, 2), (3,)), active)
     assert moving[0] == 0.0
+
+
+def _led_by(rule: str) -> CbfParams:
+    return CbfParams(coordination=CoordinationParams(leader_rule=rule))
 
 
 def test_controller_reports_clusters_of_twelve_robots_with_its_leader_rule():
@@ -95,10 +112,10 @@ def test_controller_reports_clusters_of_twelve_robots_with_its_leader_rule():
     paths = FleetPaths(tuple(
         RobotPath(name, PATH_OK if i != 0 else PATH_IDLE, frozen_array([s[:2], g]))
         for i, (name, s, g) in enumerate(zip(names, states, goals, strict=True))))
-    by_priority = ClusterCbfController(names, priorities=np.arange(n)[::-1])
+    by_priority = ClusterCbfController(names, priorities=np.arange(n)[::-1], rate_hz=20.0)
     _, telemetry = by_priority.control(0.0, states, paths)
     assert telemetry.clusters == ((10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0), (11,))
-    by_goal = ClusterCbfController(names, params=CbfParams(leader_rule="distance_to_goal"))
+    by_goal = ClusterCbfController(names, params=_led_by("distance_to_goal"), rate_hz=20.0)
     _, telemetry = by_goal.control(0.0, states, paths)
     # Robot 0 is idle, the rest are 5 + i m from their goals: robot 1 leads.
     assert telemetry.clusters == ((1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 0), (11,))
@@ -114,7 +131,7 @@ def test_a_registered_leader_rule_is_chosen_by_name():
     states[:, 0] = [0.0, 1.0, 2.0]
     paths = FleetPaths(tuple(RobotPath(name, PATH_OK, frozen_array([s[:2], [s[0], 5.0]]))
                              for name, s in zip(names, states, strict=True)))
-    controller = ClusterCbfController(names, params=CbfParams(leader_rule="last_first"))
+    controller = ClusterCbfController(names, params=_led_by("last_first"), rate_hz=20.0)
     assert controller.control(0.0, states, paths)[1].clusters == ((2, 1, 0),)
     with pytest.raises(TypeError, match="must be a function"):
         register_leader_rule("broken", 3)

@@ -171,7 +171,7 @@ def test_a_column_standing_along_the_hospital_east_wall_gets_moving():
     targets = (north, north, ((6.0, -21.85), (5.85, -23.05)))
     builder = DiagramBuilder()
     robots = builder.AddSystem(UnicycleRobots(names, np.array(starts), rate_hz=20.0))
-    controller = builder.AddSystem(ClusterCbfController(names, obstacles))
+    controller = builder.AddSystem(ClusterCbfController(names, obstacles, rate_hz=20.0))
     service = builder.AddSystem(PlannerService.from_obstacles(
         obstacles, (2.0, 9.0, -26.0, -12.0), names, replan_rate_hz=2.0,
         target_check_rate_hz=10.0))

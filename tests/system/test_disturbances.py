@@ -15,8 +15,8 @@ from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
 from mrta_drake import load_scenario, simulate
 from mrta_drake.allocation import GreedyAllocator
 from mrta_drake.allocation.task_allocator import TaskAllocator
-from mrta_drake.control.cbf_qp import ROBOT
 from mrta_drake.control.cluster_cbf_controller import ClusterCbfController
+from mrta_drake.control.safety_rows import ROBOT
 from mrta_drake.navigation.costmap import MAX_NON_OBSTACLE, Costmap
 from mrta_drake.navigation.grid_planner import GridPlanner
 from mrta_drake.navigation.planner_service import PlannerService
@@ -397,7 +397,7 @@ def test_an_outage_freezes_the_states_robots_exchange():
 
 
 def test_during_an_outage_controllers_see_the_frozen_state():
-    controller = ClusterCbfController(["a", "b", "c"])
+    controller = ClusterCbfController(["a", "b", "c"], rate_hz=20.0)
     states = np.array([[0.0, 0.0, 0.0, 0.5], [1.5, 0.0, np.pi, 0.5], [10.0, 0.0, 0.0, 0.0]])
     paths = FleetPaths(tuple(RobotPath(name, PATH_OK, frozen_array([s[:2], s[:2] + [3.0, 0.0]]),
                                        True) for name, s in zip("abc", states, strict=True)))
@@ -413,12 +413,12 @@ def test_during_an_outage_controllers_see_the_frozen_state():
                                 (plan.problems[1], states[1], snapshot[0])):
         rows = problem.rows.kind == ROBOT
         assert rows.sum() == 1
-        expected = np.sum((own[:2] - other[:2]) ** 2) - controller.params.safety_distance_robot**2
+        expected = np.sum((own[:2] - other[:2]) ** 2) - controller.params.safety_distances.robot**2
         assert problem.rows.h[rows][0] == pytest.approx(expected)
 
 
 def test_broken_down_robots_are_in_no_qp_and_get_zero_commands():
-    controller = ClusterCbfController(["a", "b"])
+    controller = ClusterCbfController(["a", "b"], rate_hz=20.0)
     states = np.array([[0.0, 0.0, 0.0, 0.5], [1.5, 0.0, np.pi, 0.5]])
     paths = FleetPaths(tuple(RobotPath(name, PATH_OK, frozen_array([s[:2], s[:2] + [3.0, 0.0]]),
                                        True) for name, s in zip("ab", states, strict=True)))

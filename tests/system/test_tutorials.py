@@ -40,7 +40,7 @@ def test_01_hand_built_diagram_has_every_block_and_our_monitor(tmp_path, capsys)
         assert block in shown["systems"]
     assert shown["feeds"] == {"controller.robot_state": "robots.state",
                               "controller.paths": "planner.paths",
-                              "controller.humans": "humans.human_states"}
+                              "controller.human_states": "humans.human_states"}
     # Our monitor and the recorder watched the same robots: same top speeds, all moving.
     assert np.allclose(shown["top_speed"], shown["recorded_top_speed"], atol=0.01)
     assert (shown["top_speed"] > 0.5).all()

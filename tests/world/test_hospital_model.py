@@ -105,10 +105,10 @@ def test_robots_can_reach_the_points_they_stop_at(plan, navigation):
     # The controller keeps robot centres its wall safety distance from walls: a point nearer
     # a wall is out of reach (queue slots once were, by up to 0.18 m: a robot waiting at
     # one kept turning to the wall and pushing into its barrier).
-    from mrta_drake.control.cbf_qp import CbfParams
+    from mrta_drake.control.barriers import SafetyDistances
 
     locations, _ = navigation
-    reach = CbfParams().safety_distance_wall
+    reach = SafetyDistances().wall
     for loc in locations:
         points = np.array([loc.point, *loc.queue, *loc.entry, *loc.parking])
         clearance = plan.obstacles.signed_distance(points)

@@ -1,0 +1,235 @@
+"""The CBF QP and its solver: Clarabel or OSQP through Drake's ``MathematicalProgram``.
+
+For k robots solved jointly (u stacked ``[a_0, omega_0, a_1, ...]``, m/s^2 and rad/s)::
+
+    min  sum_i |u_i - u_nom_i|^2 + W sum_r s_r
+    s.t. G u + s >= b,  s >= 0,  lo <= u <= hi
+
+The slack ``s`` (one per safety row, linear exact penalty ``W``: zero whenever the hard rows are
+feasible) only relaxes safety rows; the input bounds are hard, so the QP is always feasible.
+
+Per call (``CbfQp.solve``): when the nominal clipped to the bounds meets every row it is the
+optimum and no solver runs; otherwise rows that the bounds alone already satisfy are dropped
+(they cannot change the optimum) and the rest are padded with trivial rows to a multiple of 4,
+so that one ``MathematicalProgram`` per (robots, padded rows) is built once and afterwards only
+its coefficients and bounds are updated.
+"""
+
+import time
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from pydrake.solvers import ClarabelSolver, MathematicalProgram, OsqpSolver, SolverOptions
+
+from mrta_drake.control.param_groups import require_choice, require_positive
+
+SOLVERS = ("clarabel", "osqp")
+_PAD = 4  # row counts are padded to a multiple of this so that few programs are built
+
+
+@dataclass(frozen=True)
+class QpParams:
+    """The QP ``solver`` (``clarabel`` or ``osqp``) and the ``slack_weight`` W, the linear
+    penalty per unit of slack (scaled rows, m/s^2)."""
+
+    solver: str = "clarabel"
+    slack_weight: float = 1e4
+
+    def __post_init__(self):
+        require_choice(self, "solver", SOLVERS)
+        require_positive(self, "slack_weight")
+
+
+@dataclass(frozen=True)
+class QpSolution:
+    """``u`` (k, 2) inputs ``[a, omega]``; ``slack`` (m,) per safety row (scaled units, m/s^2);
+    ``success`` False when the solver failed (``u`` is then meaningless); ``solve_time`` s of
+    wall-clock time (the solver runs on the calling thread); ``solved`` False when the
+    clipped nominal was already optimal (no solver call)."""
+
+    u: np.ndarray
+    slack: np.ndarray
+    success: bool
+    solve_time: float
+    solved: bool = True
+
+
+class _Program:
+    """One MathematicalProgram for k robots and m safety rows, built once; each solve only
+    updates coefficients and bounds."""
+
+    def __init__(self, k: int, m: int, slack_weight: float):
+        self.prog = MathematicalProgram()
+        self.u = self.prog.NewContinuousVariables(2 * k, "u")
+        self.s = self.prog.NewContinuousVariables(m, "s")
+        self.hessian = 2.0 * np.eye(2 * k)
+        self.linear = np.zeros(2 * k)
+        self.cost = self.prog.AddQuadraticCost(self.hessian, self.linear, self.u, is_convex=True)
+        self.box = self.prog.AddBoundingBoxConstraint(np.zeros(2 * k), np.zeros(2 * k), self.u)
+        self.A = np.hstack([np.zeros((m, 2 * k)), np.eye(m)])
+        self.lower = np.zeros(m)
+        self.upper = np.full(m, np.inf)
+        self.prog.AddLinearCost(np.full(m, slack_weight), 0.0, self.s)
+        self.prog.AddBoundingBoxConstraint(np.zeros(m), self.upper, self.s)
+        self.rows = self.prog.AddLinearConstraint(self.A, self.lower, self.upper,
+                                                  np.concatenate([self.u, self.s]))
+        # The decision variables are u, then s: a solution vector reads [u, s].
+        self.cost_evaluator, self.box_evaluator, self.rows_evaluator = (
+            binding.evaluator() for binding in (self.cost, self.box, self.rows))
+
+
+class CbfQp:
+    """Solves the CBF QP above with Clarabel or OSQP (through Drake), reusing one program per
+    problem size (k robots, m rows)."""
+
+    def __init__(self, solver: str = "clarabel", slack_weight: float = 1e4):
+        if solver not in SOLVERS:
+            raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}")
+        self.solver_name = solver
+        self.slack_weight = float(slack_weight)
+        self._solver = ClarabelSolver() if solver == "clarabel" else OsqpSolver()
+        self._options = SolverOptions()
+        if solver == "osqp":
+            # Drake's defaults (1e-5) leave visible slack on tight rows; polish snaps to the
+            # active set.
+            for name, value in (("eps_abs", 1e-7), ("eps_rel", 1e-7), ("polishing", 1),
+                                ("max_iter", 20000)):
+                self._options.SetOption(OsqpSolver.id(), name, value)
+        self._programs: dict[tuple[int, int], _Program] = {}
+
+    def solve(self, u_nominal, G, b, lower, upper) -> QpSolution:
+        """``u_nominal``, ``lower``, ``upper`` (k, 2); rows ``G`` (m, 2k) u >= ``b`` (m,)."""
+        u_nom = np.asarray(u_nominal, dtype=float).reshape(-1)
+        lo = np.asarray(lower, dtype=float).reshape(-1)
+        hi = np.asarray(upper, dtype=float).reshape(-1)
+        G = np.asarray(G, dtype=float)
+        b = np.asarray(b, dtype=float)
+        k, m = len(u_nom) // 2, len(b)
+        start = time.perf_counter()
+        clipped, finite, optimal, kept = _prepare(u_nom, G, b, lo, hi)
+        if not finite:
+            return QpSolution(np.zeros((k, 2)), np.zeros(m), False, time.perf_counter() - start)
+        if optimal:
+            return QpSolution(clipped.reshape(k, 2), np.zeros(m), True,
+                              time.perf_counter() - start, solved=False)
+        size = -(-len(kept) // _PAD) * _PAD
+        program = self._programs.get((k, size))
+        if program is None:
+            program = self._programs[(k, size)] = _Program(k, size, self.slack_weight)
+        _load_program(u_nom, G, b, kept, program.linear, program.A, program.lower)
+        program.cost_evaluator.UpdateCoefficients(program.hessian, program.linear, 0.0, True)
+        program.box_evaluator.set_bounds(lo, hi)
+        program.rows_evaluator.UpdateCoefficients(program.A, program.lower, program.upper)
+        result = self._solver.Solve(program.prog, None, self._options)
+        elapsed = time.perf_counter() - start
+        if not result.is_success():
+            return QpSolution(np.zeros((k, 2)), np.zeros(m), False, elapsed)
+        x = result.GetSolution()
+        u = np.minimum(np.maximum(x[: 2 * k], lo), hi)
+        slack = np.zeros(m)
+        slack[kept] = np.maximum(x[2 * k: 2 * k + len(kept)], 0.0)
+        return QpSolution(u.reshape(k, 2), slack, True, elapsed)
+
+
+@numba.njit(cache=True)
+def _prepare(u_nominal, G, b, lower, upper):
+    """The nominal clipped to the box [``lower``, ``upper``]; whether ``G``, ``b`` and
+    ``u_nominal`` are finite; whether the clipped nominal then meets every row (it minimizes
+    the cost over the box, so it is the QP's optimum and no solver call is needed); and the
+    rows that some u in the box breaks (the others cannot change the optimum)."""
+    clipped = np.minimum(np.maximum(u_nominal, lower), upper)
+    finite, optimal = check_nominal(G, b, u_nominal, clipped)
+    kept = np.empty(len(b), np.int64)
+    count = 0
+    if finite and not optimal:
+        least = np.empty(G.shape[1])  # each term's minimum over the box
+        for row in range(len(b)):
+            for c in range(G.shape[1]):
+                least[c] = G[row, c] * (lower[c] if G[row, c] > 0.0 else upper[c])
+            if _pairwise_sum(least) < b[row]:
+                kept[count] = row
+                count += 1
+    return clipped, finite, optimal, kept[:count]
+
+
+@numba.njit(cache=True)
+def _pairwise_sum(a):
+    """The sum of ``a`` exactly as numpy's ``sum`` adds it, so that decisions match numpy's
+    to the bit: blocks of at most 128 with eight accumulators; a longer range is split in
+    two (the first part a multiple of 8 long) and the parts' sums added."""
+    if len(a) <= 128:
+        return _block_sum(a, 0, len(a))
+    tasks = np.empty((128, 3), np.int64)  # start, length, halves already queued
+    sums = np.empty(128)
+    tasks[0, 0], tasks[0, 1], tasks[0, 2] = 0, len(a), 0
+    top, done = 1, 0
+    while top > 0:
+        top -= 1
+        start, n, queued = tasks[top, 0], tasks[top, 1], tasks[top, 2]
+        if n <= 128:
+            sums[done] = _block_sum(a, start, n)
+            done += 1
+        elif queued:
+            done -= 1
+            sums[done - 1] += sums[done]
+        else:
+            half = n // 2 - (n // 2) % 8
+            tasks[top, 2] = 1
+            tasks[top + 1, 0], tasks[top + 1, 1], tasks[top + 1, 2] = start + half, n - half, 0
+            tasks[top + 2, 0], tasks[top + 2, 1], tasks[top + 2, 2] = start, half, 0
+            top += 3
+    return sums[0]
+
+
+@numba.njit(cache=True)
+def _block_sum(a, start, n):
+    if n < 8:
+        total = -0.0
+        for i in range(start, start + n):
+            total += a[i]
+        return total
+    r0, r1, r2, r3 = a[start], a[start + 1], a[start + 2], a[start + 3]
+    r4, r5, r6, r7 = a[start + 4], a[start + 5], a[start + 6], a[start + 7]
+    i = 8
+    while i < n - n % 8:
+        j = start + i
+        r0, r1, r2, r3 = r0 + a[j], r1 + a[j + 1], r2 + a[j + 2], r3 + a[j + 3]
+        r4, r5, r6, r7 = r4 + a[j + 4], r5 + a[j + 5], r6 + a[j + 6], r7 + a[j + 7]
+        i += 8
+    total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        total += a[start + i]
+        i += 1
+    return total
+
+
+@numba.njit(cache=True)
+def _load_program(u_nominal, G, b, kept, linear, A, lower):
+    """A ``_Program``'s data for rows ``G`` u >= ``b`` of which those ``kept`` are the
+    first rows of ``A`` (the rest read 0 >= -1), and the linear cost of ``u_nominal``."""
+    columns = len(u_nominal)
+    for c in range(columns):
+        linear[c] = u_nominal[c] * -2.0
+    for row in range(len(lower)):
+        keep = row < len(kept)
+        for c in range(columns):
+            A[row, c] = G[kept[row], c] if keep else 0.0
+        lower[row] = b[kept[row]] if keep else -1.0
+
+
+@numba.njit(cache=True)
+def check_nominal(G, b, u_nominal, clipped) -> tuple[bool, bool]:
+    """Whether ``G``, ``b`` and ``u_nominal`` are all finite, and whether then ``clipped``
+    (the nominal clipped to the input bounds) meets every row ``G u >= b``: it is then the
+    QP's optimum, compiled."""
+    if not (np.all(np.isfinite(G)) and np.all(np.isfinite(b))
+            and np.all(np.isfinite(u_nominal))):
+        return False, False
+    for row in range(len(b)):
+        value = 0.0
+        for column in range(len(clipped)):
+            value += G[row, column] * clipped[column]
+        if not value >= b[row]:
+            return True, False
+    return True, True

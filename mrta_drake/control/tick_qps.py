@@ -1,0 +1,148 @@
+"""The QPs of one tick, made in one compiled call: every group's safety rows, the steering of
+its blocked robots, and whether its clipped nominal already meets its rows (then no solver
+runs), so that only the QPs that need a solver reach Python objects and the solver."""
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from mrta_drake.control.cbf_params import CbfParams
+from mrta_drake.control.qp_solver import check_nominal
+from mrta_drake.control.safety_rows import SafetyRows, count_rows, empty_rows, fill_rows
+from mrta_drake.control.steering import steer
+
+
+@dataclass(frozen=True)
+class QpProblem:
+    """One QP of a tick: the robots whose inputs it decides (``members``), their nominal
+    inputs and hard bounds (k, 2) ``[a, omega]``, and the safety rows."""
+
+    members: tuple[int, ...]
+    u_nominal: np.ndarray
+    rows: SafetyRows
+    lower: np.ndarray
+    upper: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class TickQps:
+    """The QPs of one tick (``qp_problems``), kept as the compiled kernel made them: group g's
+    robots ``groups[g]``, rows ``G[G_start[g]:G_start[g + 1]]`` (flattened) and ``b``, ...
+    ``[row_start[g]:row_start[g + 1]]``; whether it needs a solver; the steered nominal
+    inputs, bounds and ``settled`` inputs (N, 2) of ``qp_problems``."""
+
+    groups: tuple[tuple[int, ...], ...]
+    u_nominal: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    G: np.ndarray
+    G_start: np.ndarray
+    rows: tuple[np.ndarray, ...]  # b, kind, h, member, other, normal
+    row_start: np.ndarray
+    needs_solver: np.ndarray
+    settled: np.ndarray
+
+    def problem(self, g: int) -> QpProblem:
+        """Group g's QP."""
+        r0, r1 = self.row_start[g], self.row_start[g + 1]
+        u_nominal, G, b, lower, upper = self.arrays(g)
+        rows = SafetyRows(G, b, *(a[r0:r1] for a in self.rows[1:]))
+        return QpProblem(self.groups[g], u_nominal, rows, lower, upper)
+
+    def arrays(self, g: int) -> tuple[np.ndarray, ...]:
+        """Group g's QP as ``CbfQp.solve`` takes it: nominal inputs, ``G``, ``b``, bounds."""
+        group, r0, r1 = self.groups[g], self.row_start[g], self.row_start[g + 1]
+        index = list(group)
+        return (self.u_nominal[index], self.G[self.G_start[g]:self.G_start[g + 1]].reshape(
+            r1 - r0, 2 * len(group)), self.rows[0][r0:r1], self.lower[index], self.upper[index])
+
+    @property
+    def problems(self) -> tuple[QpProblem, ...]:
+        """Every group's QP."""
+        return tuple(self.problem(g) for g in range(len(self.groups)))
+
+    def to_solve(self) -> tuple[int, ...]:
+        """The groups whose QPs need a solver."""
+        return tuple(np.flatnonzero(self.needs_solver).tolist())
+
+
+_NO_MOVERS = np.zeros((0, 4))
+
+
+def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocities, movers,
+                u_nominal, lower, upper, params: CbfParams, members=None,
+                group_start=None) -> TickQps:
+    """The QPs of one tick for robots ``states`` (N, 4) solved in ``groups`` (tuples of robot
+    indices), with their wall ``hits`` and ``hit_mask`` (as from ``WallRays``), the humans,
+    ``movers`` (one (q, 4) array per group as in ``safety_rows``; None: none) and hard
+    bounds ``lower``, ``upper`` (N, 2). Each group's rows are ``safety_rows``; its robots'
+    ``u_nominal`` (a float array (N, 2)) are steered in place (``steer_blocked``). A group
+    needs a solver when its clipped nominal breaks a row (or its rows are not finite: the
+    solve then fails); for the robots of the others the clipped nominal is the optimum
+    (``CbfQp.solve`` would return it): ``settled`` holds it, and zero for robots in no
+    group. ``members`` and ``group_start``: the groups as arrays (group g is
+    ``members[group_start[g]:group_start[g + 1]]``), if the caller has them."""
+    groups = tuple(tuple(group) for group in groups)
+    if members is None:
+        members = np.array([i for group in groups for i in group], dtype=np.int64)
+        group_start = np.cumsum([0] + [len(group) for group in groups], dtype=np.int64)
+    if movers is None:
+        movers, mover_start = _NO_MOVERS, np.zeros(len(groups) + 1, dtype=np.int64)
+    else:
+        mover_start = np.array([0] + [len(m) for m in movers], dtype=np.int64).cumsum()
+        movers = np.concatenate([np.zeros((0, 4)), *movers]).reshape(-1, 4)
+    n = len(states)
+    lower, upper = (np.ascontiguousarray(a, dtype=float) for a in (lower, upper))
+    settled = np.zeros((n, 2))
+    G, G_start, *rows, row_start, needs_solver = _group_rows(
+        *(np.ascontiguousarray(a, dtype=float).reshape(shape) for a, shape in (
+            (states, (n, 4)), (hits, (n, -1, 2)), (human_positions, (-1, 2)),
+            (human_velocities, (-1, 2)))),
+        np.ascontiguousarray(hit_mask, dtype=bool).reshape(n, -1), members, group_start,
+        movers, mover_start, params.row_params, params.coordination.stall_speed,
+        params.nominal.k_theta, u_nominal, lower, upper, settled)
+    return TickQps(groups, u_nominal, lower, upper, G, G_start, tuple(rows), row_start,
+                   needs_solver, settled)
+
+
+@numba.njit(cache=True)
+def _group_rows(states, hits, humans, human_velocities, mask, members, group_start, movers,
+                mover_start, params, stall_speed, k_theta, u_nominal, lower, upper, settled):
+    """``qp_problems`` for the groups ``members[group_start[g]:group_start[g + 1]]`` with
+    movers ``movers[mover_start[g]:mover_start[g + 1]]``: every group's rows (G of group g
+    flattened at ``G[G_start[g]:G_start[g + 1]]``, the other arrays at
+    ``row_start[g]:row_start[g + 1]``), steering ``u_nominal`` in place, and whether each
+    group needs its QP solved; ``settled`` gets the others' clipped nominal inputs."""
+    groups = len(group_start) - 1
+    radius2 = params[9] * params[9]
+    row_start = np.zeros(groups + 1, dtype=np.int64)
+    G_start = np.zeros(groups + 1, dtype=np.int64)
+    for g in range(groups):
+        index = members[group_start[g]:group_start[g + 1]]
+        m = count_rows(states[index], mask[index], len(humans),
+                       movers[mover_start[g]:mover_start[g + 1]], radius2)
+        row_start[g + 1] = row_start[g] + m
+        G_start[g + 1] = G_start[g] + m * 2 * len(index)
+    G = np.zeros(G_start[groups])
+    b, kind, h, member, other, normal = empty_rows(row_start[groups], 0)[1:]
+    needs_qp = np.zeros(groups, dtype=np.bool_)
+    for g in range(groups):
+        index = members[group_start[g]:group_start[g + 1]]
+        k, r0, r1 = len(index), row_start[g], row_start[g + 1]
+        G_g = G[G_start[g]:G_start[g + 1]].reshape((r1 - r0, 2 * k))
+        group_states = states[index]
+        fill_rows(group_states, hits[index], mask[index], humans, human_velocities,
+                  movers[mover_start[g]:mover_start[g + 1]], params, G_g, b[r0:r1],
+                  kind[r0:r1], h[r0:r1], member[r0:r1], other[r0:r1], normal[r0:r1])
+        u = u_nominal[index]
+        steer(u, group_states, G_g, b[r0:r1], member[r0:r1], other[r0:r1], normal[r0:r1],
+              stall_speed, k_theta)
+        u_nominal[index] = u
+        flat = u.ravel()
+        clipped = np.minimum(np.maximum(flat, lower[index].ravel()), upper[index].ravel())
+        finite, optimal = check_nominal(G_g, b[r0:r1], flat, clipped)
+        needs_qp[g] = not (finite and optimal)
+        if not needs_qp[g]:
+            settled[index] = clipped.reshape((k, 2))
+    return G, G_start, b, kind, h, member, other, normal, row_start, needs_qp
