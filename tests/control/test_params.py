@@ -89,18 +89,18 @@ def test_a_field_go_to_goal_never_used_is_unknown():
 
 
 @pytest.mark.parametrize("group,value,message", [
-    ("coordination.mode", "magic", "mode: must be one of clusters, decentralized, centralized"),
-    ("coordination.followers", "none", "followers: must be one of all, in_the_way"),
-    ("coordination.stall_time", 0.0, "stall_time: must be > 0, got 0.0"),
-    ("qp.solver", "gurobi", "solver: must be one of clarabel, osqp, got 'gurobi'"),
-    ("nominal.max_accel", -1.0, "max_accel: must be > 0, got -1.0"),
-    ("nominal.min_speed", 0.2, "min_speed: must be <= 0, got 0.2"),
-    ("barrier_rates.alpha1_wall", 0.0, "alpha1_wall: must be > 0, got 0.0"),
-    ("safety_distances.robot", -0.1, "robot: must be >= 0, got -0.1"),
-    ("sensing.ray_range", 0.0, "ray_range: must be > 0, got 0.0"),
+    ("coordination.mode", "magic", "must be one of clusters, decentralized, centralized"),
+    ("coordination.followers", "none", "must be one of all, in_the_way"),
+    ("coordination.stall_time", 0.0, "must be > 0, got 0.0"),
+    ("qp.solver", "gurobi", "must be one of clarabel, osqp, got 'gurobi'"),
+    ("nominal.max_accel", -1.0, "must be > 0, got -1.0"),
+    ("nominal.min_speed", 0.2, "must be <= 0, got 0.2"),
+    ("barrier_rates.alpha1_wall", 0.0, "must be > 0, got 0.0"),
+    ("safety_distances.robot", -0.1, "must be >= 0, got -0.1"),
+    ("sensing.ray_range", 0.0, "must be > 0, got 0.0"),
 ])
 def test_a_bad_value_in_a_group_gives_one_line(group, value, message):
     with pytest.raises(InputError) as error:
         _controller_params("cluster_cbf", **{group: value})
-    assert str(error.value).startswith(f"{SCENARIO}: {PARAMS}: {message}")
+    assert str(error.value).startswith(f"{SCENARIO}: {PARAMS}.{group}: {message}")
     assert "\n" not in str(error.value)
