@@ -346,7 +346,7 @@ class _Parser:
                       f"{_short(raw)}")
         xy = (self.number(raw[0], f"{where}[0]"), self.number(raw[1], f"{where}[1]"))
         name = "" if raw[3] is None else self.text(raw[3], f"{where}[3]")
-        params = self.params(raw[4], f"{where}[4]") if len(raw) == 5 else MappingProxyType({})
+        params = self.params(raw[4], where) if len(raw) == 5 else MappingProxyType({})
         return Vertex(xy, name, params)
 
     def edge(self, raw, where, count, vertices) -> tuple[Edge, str]:
@@ -363,7 +363,7 @@ class _Parser:
             ends.append(index)
         if ends[0] == ends[1]:
             self.fail(where, f"joins vertex {ends[0]} to itself")
-        params = self.params(raw[2], f"{where}[2]") if len(raw) == 3 else MappingProxyType({})
+        params = self.params(raw[2], where) if len(raw) == 3 else MappingProxyType({})
         return Edge(ends[0], ends[1], params), where
 
     def lane(self, edge: Edge, where) -> Lane:
@@ -526,7 +526,7 @@ def _moved(level: Level, transform) -> Level:
 
 
 def _rounded(point) -> list[float]:
-    return [round(point[0], 3), round(point[1], 3)]
+    return [round(point[0], 3) + 0.0, round(point[1], 3) + 0.0]  # + 0.0: no -0.0
 
 
 def _short(value) -> str:
