@@ -244,9 +244,11 @@ def _travel_times(args) -> int:
 
 def _import(args) -> int:
     from mrta_drake.tools.building_import import ImportOptions, import_building
+    from mrta_drake.world.rmf_scenario import building_at
 
     options = ImportOptions(robots=args.robots, people=args.people, seed=args.seed,
                             level=args.level, graph=args.graph)
+    building_at(args.building)  # a broken building is refused before anything is written
     _check_writable("--out", args.out, folder=True)
     report = import_building(args.building, args.out, options)
     print("\n".join(report.lines))

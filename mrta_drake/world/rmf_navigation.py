@@ -8,15 +8,15 @@ locations with their queues, entries and parking spots.
   lanes.
 - **Task locations**: the vertices with ``pickup_dispenser`` or ``dropoff_ingestor``, then
   the other named vertices (in the demos most destinations are named holding points or
-  parking spots), except chargers, pass-through points and lift cabins; only those in the largest set that can all reach each other along
-  the one-way lanes are kept (``BuildingNavigation.notes`` names the others). Ids follow
-  that order from 0.
+  parking spots), except chargers, pass-through points and lift cabins; only those in the
+  largest set that can all reach each other along the one-way lanes are kept
+  (``BuildingNavigation.notes`` names the others). Ids follow that order from 0.
 - **Queues**: back from the point along the lane that approaches it: the head slot
   ``head_gap`` m from the point (or on the first unnamed holding point within the queue's
-  length), then ``queue_slots`` slots ``slot_spacing`` m apart, continuing along the lanes feeding it;
-  a slot nearer a wall than ``slot_clearance`` moves on back. The node beyond the tail is
-  the approach node, the point's own node the exit node, the nodes between the head slot
-  and the point the entry.
+  length), then ``queue_slots`` slots ``slot_spacing`` m apart, continuing along the lanes
+  feeding it; a slot nearer a wall than ``slot_clearance`` moves on back. The node beyond
+  the tail is the approach node, the point's own node the exit node, the nodes between
+  the head slot and the point the entry.
 - **Parking**: up to ``parking_spots`` spots ``parking_distance`` m from the point, clear of
   walls by ``slot_clearance``, at least ``parking_lane_gap`` m from every lane and in line
   of sight of the point.
@@ -282,28 +282,33 @@ def _queue(graph: nx.DiGraph, node: str, holding: set[str], floor_plan: FloorPla
 
 def _approach_path(graph: nx.DiGraph, node: str) -> list[str]:
     """Nodes from ``node`` back against the lanes that reach it: each step to the
-    predecessor whose lane is most in line with the last, longest lane first, never
-    revisiting; at least 8 m long when the lanes allow."""
+    predecessor whose lane is most in line with the last (the longest lane first), never
+    revisiting, and not into a dead end while another way is left; at least 8 m long when
+    the lanes allow."""
     path = [node]
     while True:
-        here = graph.nodes[path[-1]]["pos"]
         options = [p for p in graph.predecessors(path[-1]) if p not in path]
         if not options:
             return path
-        if len(path) == 1:
-            best = max(options, key=lambda p: graph.edges[p, path[-1]]["length"])
-        else:
-            heading = here - graph.nodes[path[-2]]["pos"]
-            heading = heading / max(np.linalg.norm(heading), 1e-9)
-
-            def straightness(p):
-                step = graph.nodes[p]["pos"] - here
-                return float(step @ heading) / max(float(np.linalg.norm(step)), 1e-9)
-            best = max(options, key=straightness)
-        path.append(best)
+        path.append(max(options, key=lambda p: _back_step_rank(graph, path, p)))
         lengths = [graph.edges[b, a]["length"] for a, b in zip(path, path[1:], strict=False)]
         if sum(lengths) >= 8.0:
             return path
+
+
+def _back_step_rank(graph: nx.DiGraph, path: list[str], option: str):
+    """How well stepping back from ``path[-1]`` to ``option`` continues ``path`` (larger is
+    better): from the location, the longest lane; after that, not a dead end, then the
+    cosine of the turn."""
+    here = graph.nodes[path[-1]]["pos"]
+    if len(path) == 1:
+        return graph.edges[option, path[-1]]["length"]
+    heading = here - graph.nodes[path[-2]]["pos"]
+    step = graph.nodes[option]["pos"] - here
+    through = any(q != path[-1] for q in graph.predecessors(option))
+    cosine = float(step @ heading) / max(float(np.linalg.norm(step) * np.linalg.norm(heading)),
+                                         1e-9)
+    return through, cosine
 
 
 def _at(positions, along, distance) -> np.ndarray:
