@@ -4,8 +4,10 @@ locations with their queues, entries and parking spots.
 - **Centre lines**: the lanes of one navigation graph (``graph_idx``) of the level, lanes
   into a lift cabin left out (running across levels comes later); vertices at one position
   are one node. A named vertex keeps its name as node name, the others are ``v<index>``.
-- **One-way lanes**: ``one_way_lanes`` (the switchable lane step) turns them into directed
-  lanes.
+- **One-way lanes**: ``one_way_lanes``, the shared lane step
+  (``navigation.lane_derivation``): right-hand lanes offset from the centre lines where the
+  free width allows, single-file segments elsewhere and around task locations that are not
+  dead ends (their lanes then meet on the vertex, the location's point).
 - **Task locations**: the vertices with ``pickup_dispenser`` or ``dropoff_ingestor``, then
   the other named vertices (in the demos most destinations are named holding points or
   parking spots), except chargers, pass-through points and lift cabins; only those in the
@@ -16,7 +18,8 @@ locations with their queues, entries and parking spots.
   length), then ``queue_slots`` slots ``slot_spacing`` m apart, continuing along the lanes
   feeding it; a slot nearer a wall than ``slot_clearance`` moves on back. The node beyond
   the tail is the approach node, the point's own node the exit node, the nodes between
-  the head slot and the point the entry.
+  the head slot and the point the entry. On offset lanes the queue lies along the lane
+  arriving, robots leave by the other.
 - **Parking**: up to ``parking_spots`` spots ``parking_distance`` m from the point, clear of
   walls by ``slot_clearance``, at least ``parking_lane_gap`` m from every lane and in line
   of sight of the point.
@@ -25,12 +28,21 @@ Metres, world frame (x east, y north).
 """
 
 import math
+from collections import Counter
 from dataclasses import dataclass, field
 
 import networkx as nx
 import numpy as np
 
 from mrta_drake.errors import InputError
+from mrta_drake.navigation.lane_derivation import (
+    CentrelineEdge,
+    CentrelineGraph,
+    LaneParams,
+    Lanes,
+    SingleFileSegment,
+    derive_lanes,
+)
 from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig
 from mrta_drake.world.floor_plan import FloorPlan
 from mrta_drake.world.rmf_building import Building, Level, Vertex
@@ -80,11 +92,13 @@ class CentreLines:
 @dataclass(frozen=True)
 class BuildingNavigation:
     """What robots of one graph drive on at one level: ``roadways``, ``locations`` (ids
-    0..n-1), the ``centre_lines`` they came from, and ``notes`` on what was left out."""
+    0..n-1), the ``centre_lines`` they came from, the ``single_file`` segments (for one
+    robot at a time), and ``notes`` on what was left out."""
 
     roadways: RoadwaysConfig
     locations: list[LocationConfig]
     centre_lines: CentreLines
+    single_file: tuple[SingleFileSegment, ...] = ()
     notes: list[str] = field(default_factory=list)
 
     def as_yaml(self) -> dict:
@@ -161,15 +175,17 @@ def _node_name(vertex: Vertex, index: int, taken) -> str:
     return name
 
 
-def one_way_lanes(lines: CentreLines, floor_plan: FloorPlan) -> RoadwaysConfig:
-    """The lane step: directed lanes from the centre lines. A two-way centre line becomes
-    a lane each way on the centre line itself; a one-way one, a lane from its start."""
-    edges = []
-    for a, b, two_way in lines.edges:
-        edges.append([a, b])
-        if two_way:
-            edges.append([b, a])
-    return RoadwaysConfig(nodes={k: list(v) for k, v in lines.nodes.items()}, edges=edges)
+def one_way_lanes(lines: CentreLines, floor_plan: FloorPlan, shared: set[str]) -> Lanes:
+    """The lane step (``navigation.lane_derivation``): right-hand one-way lanes along the
+    centre lines where the free width of ``floor_plan`` allows, else single-file segments;
+    the edges at the vertices ``shared`` (task locations that are not dead ends) stay single
+    file, so that their lanes meet on the vertex itself."""
+    graph = CentrelineGraph(
+        nodes=lines.nodes,
+        edges=tuple(CentrelineEdge(a, b, one_way=not two_way,
+                                   single_file=a in shared or b in shared)
+                    for a, b, two_way in lines.edges))
+    return derive_lanes(graph, floor_plan.obstacles.signed_distance, LaneParams())
 
 
 def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
@@ -179,14 +195,21 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
     the level's world (``rmf_world.level_world``)."""
     level = building.level(level_name)
     lines = centre_lines(building, level, params.graph)
-    roadways = one_way_lanes(lines, floor_plan)
+    candidates = _task_vertices(level, lines)
+    degree = Counter(v for a, b, _ in lines.edges for v in (a, b))
+    lanes = one_way_lanes(lines, floor_plan, {lines.vertex_node[i] for i in candidates
+                                              if degree[lines.vertex_node[i]] > 1})
+    roadways = lanes.roadways
     graph = nx.DiGraph()
     for name, xy in roadways.nodes.items():
         graph.add_node(name, pos=np.asarray(xy, dtype=float))
     for a, b in roadways.edges:
         graph.add_edge(a, b, length=math.dist(roadways.nodes[a], roadways.nodes[b]))
-    candidates = _task_vertices(level, lines)
-    notes = []
+    notes = [f"{len(lanes.single_file)} single-file segment(s), where two lanes do not fit "
+             "or a task location is not a dead end (robots are not yet queued for them)"]
+    if lanes.tight:
+        notes.append(f"{len(lanes.tight)} lane(s) nearer walls than "
+                     f"{LaneParams().clearance:g} m")
     kept = _mutually_reachable([lines.vertex_node[i] for i in candidates], graph)
     for i in candidates:
         if lines.vertex_node[i] not in kept:
@@ -198,10 +221,12 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
                          f"graph {params.graph} has {len(candidates)} task location(s) "
                          "that can reach each other: need at least 2 named vertices on its "
                          "lanes")
-    holding = {lines.vertex_node[i] for i, v in enumerate(level.vertices)
-               if v.flag("is_holding_point") and not v.name and i in lines.vertex_node}
-    lanes = np.array([[roadways.nodes[a], roadways.nodes[b]] for a, b in roadways.edges],
-                     dtype=float)
+    held = {lines.vertex_node[i] for i, v in enumerate(level.vertices)
+            if v.flag("is_holding_point") and not v.name and i in lines.vertex_node}
+    holding = {node for (v, w), ends in lanes.ends.items() for vertex, node in zip(
+        (v, w), ends, strict=True) if vertex in held}  # the lane ends beside each
+    segments = np.array([[roadways.nodes[a], roadways.nodes[b]] for a, b in roadways.edges],
+                        dtype=float)
     locations = []
     for location_id, i in enumerate(candidates):
         node = lines.vertex_node[i]
@@ -210,8 +235,8 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
         locations.append(LocationConfig(
             id=location_id, name=node, point=_listed(point), queue=queue, entry=entry,
             exit_node=node, approach_node=approach,
-            parking=_parking(point, lanes, floor_plan, params)))
-    return BuildingNavigation(roadways, locations, lines, notes)
+            parking=_parking(point, segments, floor_plan, params)))
+    return BuildingNavigation(roadways, locations, lines, lanes.single_file, notes)
 
 
 def _task_vertices(level: Level, lines: CentreLines) -> list[int]:

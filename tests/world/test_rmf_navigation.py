@@ -68,15 +68,24 @@ def test_queue_slots_and_parking_spots_are_clear_of_walls(name, level):
 
 def test_queue_lies_back_along_the_approach_with_its_head_on_a_holding_point():
     _, _, navigation = derived("one_level", "L1")
-    pantry = navigation.locations[0]
+    nodes = navigation.roadways.nodes
+    segments = [(np.array(nodes[a]), np.array(nodes[b])) for a, b in navigation.roadways.edges]
+
+    def off_lanes(point):
+        point = np.asarray(point)
+        return min(np.linalg.norm(point - (a + np.clip(np.dot(point - a, b - a) / np.dot(
+            b - a, b - a), 0.0, 1.0) * (b - a))) for a, b in segments)
+
+    pantry, lab = navigation.locations[:2]
     # The lane to the pantry runs north along x = 4 through an unnamed holding point at
-    # y = -4.8, 2.8 m from the point: the head slot, then 1 m apart back down the lane and
-    # on east along the corridor (west is the charger's dead end).
-    assert pantry.queue == [[4.0, -4.8], [4.0, -5.8], [4.8, -6.0]]
-    assert pantry.entry == [] and pantry.approach_node == "v16"
-    lab = navigation.locations[1]
+    # y = -4.8, 2.8 m from the point: the head slot; the others follow back along the lanes.
+    assert pantry.queue[0] == [4.0, -4.8] and pantry.entry == []
+    # The lab has none: its head slot is 1.3 m back down its lane, then 1 m apart.
     assert lab.queue == [[12.0, -3.3], [12.0, -4.3], [12.0, -5.3]]
-    assert lab.approach_node == "v18"  # the corridor node the lab's lane leaves from
+    for location in navigation.locations:
+        assert all(off_lanes(slot) < 2e-3 for slot in location.queue), location.name  # mm
+        gaps = np.linalg.norm(np.diff(np.array(location.queue), axis=0), axis=1)
+        assert (gaps <= PARAMS.slot_spacing + 1e-9).all() and (gaps > 0.5).all()
 
 
 def test_parking_spots_stay_off_the_lanes():
