@@ -85,7 +85,7 @@ def test_queue_lies_back_along_the_approach_with_its_head_on_a_holding_point():
     for location in navigation.locations:
         assert all(off_lanes(slot) < 2e-3 for slot in location.queue), location.name  # mm
         gaps = np.linalg.norm(np.diff(np.array(location.queue), axis=0), axis=1)
-        assert (gaps <= PARAMS.slot_spacing + 1e-9).all() and (gaps > 0.5).all()
+        assert (gaps <= PARAMS.slot_spacing + 2e-3).all() and (gaps > 0.5).all()
 
 
 def test_parking_spots_stay_off_the_lanes():
