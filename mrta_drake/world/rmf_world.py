@@ -49,12 +49,19 @@ class BuildingWorldParams:
     bounds_margin: float = 1.0
 
     def __post_init__(self):
-        for name in ("wall_thickness", "wall_height", "model_radius", "model_height"):
-            if not getattr(self, name) > 0:
-                raise InputError(None, name, f"must be > 0 m, got {getattr(self, name)}")
-        for name in ("lane_clearance", "bounds_margin"):
-            if not getattr(self, name) >= 0:
-                raise InputError(None, name, f"must be >= 0 m, got {getattr(self, name)}")
+        check_lengths(self, positive=("wall_thickness", "wall_height", "model_radius",
+                                      "model_height"),
+                      non_negative=("lane_clearance", "bounds_margin"))
+
+
+def check_lengths(params, positive=(), non_negative=()) -> None:
+    """InputError naming the first field of ``params`` among ``positive`` that is not > 0 m,
+    or among ``non_negative`` that is < 0 m."""
+    for names, bad, bound in ((positive, lambda v: not v > 0, "> 0"),
+                              (non_negative, lambda v: not v >= 0, ">= 0")):
+        for name in names:
+            if bad(getattr(params, name)):
+                raise InputError(None, name, f"must be {bound} m, got {getattr(params, name)}")
 
 
 @dataclass(frozen=True, eq=False)
