@@ -204,8 +204,11 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
         graph.add_node(name, pos=np.asarray(xy, dtype=float))
     for a, b in roadways.edges:
         graph.add_edge(a, b, length=math.dist(roadways.nodes[a], roadways.nodes[b]))
-    notes = [f"{len(lanes.single_file)} single-file segment(s), where two lanes do not fit "
-             "or a task location is not a dead end (robots are not yet queued for them)"]
+    notes = []
+    if lanes.single_file:
+        notes.append(f"{len(lanes.single_file)} single-file segment(s), where two lanes do not "
+                     "fit or a task location is not a dead end (robots are not yet queued "
+                     "for them)")
     if lanes.tight:
         notes.append(f"{len(lanes.tight)} lane(s) nearer walls than "
                      f"{LaneParams().clearance:g} m")
