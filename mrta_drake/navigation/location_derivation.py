@@ -93,7 +93,7 @@ class LocationParams:
     ``queue_slots`` 3, ``slot_spacing`` 1.0: as the hospital's hand-made queues and the
     original stack. ``head_gap`` 1.0: the head slot one spacing before the room, so the
     robot leaving it passes the queue. ``wall_safety`` 0.6: the controller's wall safety
-    distance (``CbfParams.safety_distance_wall``): a robot cannot stop nearer a wall.
+    distance (``CbfParams.safety_distances.wall``): a robot cannot stop nearer a wall.
     ``queue_shift`` 0.45: at most one lane offset off the lane. ``snap`` 0.3: accesses
     closer than this to a vertex join it rather than make a new one. ``on_line`` 0.1: a
     point this close to a centre-line is on it. ``access_stub`` 1.0: the single-file end of
