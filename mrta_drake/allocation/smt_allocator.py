@@ -32,7 +32,7 @@ TIGHTEN_STEP = 0.1  # of the range left between the best value and the lower bou
 CORE_SHARE = 0.25  # of the budget (and time limit), at most, spent making a conflict minimal
 # z3 resource units (``rlimit``) for one allocate call: about 10 s of solving on the reference
 # machine (2 shared cores; benchmarks/allocation_budget.py, docs/allocation.md).
-DEFAULT_BUDGET = 20_000_000
+DEFAULT_BUDGET = 47_000_000
 MAX_BUDGET = 2**32 - 1  # z3 takes a check's resource limit as an unsigned 32-bit integer
 
 
@@ -75,7 +75,7 @@ class SmtAllocatorParams:
             raise InputError(None, "budget", f"must be a whole number of z3 resource units "
                              f"from 1 to {MAX_BUDGET}, got {self.budget!r}")
         if self.time_limit is not None and not self.time_limit > 0:
-            raise InputError(None, "time_limit", f"must be > 0 s or None, got "
+            raise InputError(None, "time_limit", f"must be > 0 s, or null for none, got "
                              f"{self.time_limit}")
         if not self.objective_gap > 0:
             raise InputError(None, "objective_gap", f"must be > 0 s, got {self.objective_gap}")
@@ -356,22 +356,29 @@ class _Solve:
     def __init__(self, problem: AllocationProblem, params: SmtAllocatorParams):
         self.problem = problem
         self.params = params
-        self.context = z3.Context()
         self.limit = _Limit(params.budget, _stop_time(params.time_limit))
+        self._solver = None
         self._encoding = None
         self._bounds = 0
 
     @property
-    def encoding(self) -> _Encoding:
-        if self._encoding is None:
-            solver = z3.SimpleSolver(ctx=self.context)
-            solver.set("random_seed", self.params.random_seed)
-            self._encoding = _Encoding(self.problem, solver, self._check_limit)
-        return self._encoding
+    def solver(self) -> z3.Solver:
+        """The allocation's solver, in a new z3 context (made on first use: a greedy answer
+        may need none)."""
+        if self._solver is None:
+            self._solver = z3.SimpleSolver(ctx=z3.Context())
+            self._solver.set("random_seed", self.params.random_seed)
+        return self._solver
 
     @property
-    def solver(self) -> z3.Solver:
-        return self.encoding.solver
+    def context(self) -> z3.Context:
+        return self.solver.ctx
+
+    @property
+    def encoding(self) -> _Encoding:
+        if self._encoding is None:
+            self._encoding = _Encoding(self.problem, self.solver, self._check_limit)
+        return self._encoding
 
     def run(self) -> Allocation:
         """The allocation, with the z3 work spent on it (resource units)."""
@@ -386,9 +393,9 @@ class _Solve:
 
     def _spent(self) -> int:
         """z3 resource units counted so far in this allocation's context."""
-        if self._encoding is None:
+        if self._solver is None:
             return 0
-        return int(self._encoding.solver.statistics().get_key_value("rlimit count"))
+        return int(self._solver.statistics().get_key_value("rlimit count"))
 
     def _out_of(self, limit: _Limit) -> str | None:
         """``"time limit"`` or ``"budget"`` when that part of ``limit`` has run out, else
