@@ -303,18 +303,21 @@ def main():
               f"{result['max_seconds']:6.2f} s per batch, late {result['late_tasks']}, {counts}",
               flush=True)
 
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps({
-        "quick": args.quick,
+    write_results(RESULTS, args.quick, time_limit=TIME_LIMIT, single_batch=rows,
+                  single_batch_summary=summary, objective_makespan=makespan,
+                  tight_single_batch=tight, streams=streams)
+
+
+def write_results(path: pathlib.Path, quick: bool, **fields):
+    """Write ``fields`` as JSON to ``path``, after whether the run was ``quick`` and the
+    machine."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({
+        "quick": quick,
         "machine": {"python": platform.python_version(), "cpus": __import__("os").cpu_count()},
-        "time_limit": TIME_LIMIT,
-        "single_batch": rows,
-        "single_batch_summary": summary,
-        "objective_makespan": makespan,
-        "tight_single_batch": tight,
-        "streams": streams,
+        **fields,
     }, indent=1))
-    print(f"wrote {RESULTS}")
+    print(f"wrote {path}")
 
 
 if __name__ == "__main__":

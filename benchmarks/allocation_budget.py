@@ -1,42 +1,43 @@
 """Calibration of the SMT allocator's budget: z3 resource units per second of solving.
 
 The allocator's limit is a budget of z3 resource units (``rlimit``), so that answers do not
-depend on the host. This script measures how many units z3 spends per second on instances
-hard enough to use up a 10 s limit (the wall-clock default the budget replaced), so that the
-default budget takes about that long here:
+depend on the host. This script measures how fast z3 spends them on instances hard enough
+to use up a 10 s limit (the wall-clock default the budget replaced), so that the default
+budget takes about that long here:
 
-1. each instance runs with a wall-clock ``time_limit`` of ``REFERENCE_SECONDS`` and no budget
-   to speak of (``MAX_BUDGET``): the rate is the units it spent over the CPU seconds it took
-   (the machine is shared: CPU time is what an unloaded machine would take in wall time);
-2. the suggested budget is the median rate (over the instances that ran at least a tenth of
-   that in CPU time) times ``REFERENCE_SECONDS``, to two significant digits;
-3. each instance runs again with the budget in the code (``DEFAULT_BUDGET``) and no time
-   limit: how long it takes (CPU and wall seconds), and whether the budget ran out.
+1. each instance is allocated ``--repeats`` times with a budget of ``CALIBRATION_UNITS`` and
+   no time limit: every repeat must give the same allocation and spend the same units; the
+   rate is those units over the least CPU time of the repeats (the machine is shared: CPU
+   time, and its least over repeats, is what an unloaded machine takes);
+2. the suggested budget is the median rate (over the instances that spent at least a tenth
+   of ``CALIBRATION_UNITS``) times ``REFERENCE_SECONDS``, to two significant digits;
+3. each instance is allocated once more with the budget in the code (``DEFAULT_BUDGET``):
+   how long it takes (CPU and wall seconds), and whether the budget ran out.
 
 Instances (``benchmarks/allocation.py``'s generator: 65 random points on the hospital's floor,
 capacity 2): the hard regime (deadlines at most 250 s) with and without the greedy start, and
 the makespan objective with deadlines up to 1000 s.
 
-    python benchmarks/allocation_budget.py            # 9 instances, ~3 min
-    python benchmarks/allocation_budget.py --quick    # 2 instances, 2 s reference
+    python benchmarks/allocation_budget.py            # 9 instances, ~4 CPU minutes
+    python benchmarks/allocation_budget.py --quick    # 2 instances, a few seconds
 
 Prints the table and writes benchmarks/results/allocation_budget.json. Seconds vary from run
 to run (wall clock more, on a shared machine); the units do not.
 """
 
 import argparse
-import json
+import dataclasses
 import pathlib
-import platform
 import statistics
 import time
 
-from allocation import LATEST_DEADLINE, single_batch
+from allocation import LATEST_DEADLINE, single_batch, write_results
 
 from mrta_drake.allocation import SmtAllocator, SmtAllocatorParams, verify_allocation
-from mrta_drake.allocation.smt_allocator import DEFAULT_BUDGET, MAX_BUDGET
+from mrta_drake.allocation.smt_allocator import DEFAULT_BUDGET
 
 REFERENCE_SECONDS = 10.0  # the wall-clock limit the default budget stands for
+CALIBRATION_UNITS = 20_000_000  # z3 resource units per calibration run (a few CPU seconds)
 TIGHT_DEADLINE = 250.0  # s: the hard regime of benchmarks/allocation.py
 RESULTS = pathlib.Path(__file__).parent / "results" / "allocation_budget.json"
 
@@ -60,63 +61,67 @@ def instances(quick: bool) -> list[dict]:
     return found[:2] if quick else found
 
 
-def run(problem, **params) -> dict:
-    """One allocation: its CPU and wall-clock seconds, z3 units, status, late tasks and
-    note."""
+def run(problem, **params) -> tuple[dict, dict]:
+    """One allocation: its CPU and wall-clock seconds, z3 units, status, late tasks and note;
+    and the allocation less its wall-clock field."""
     cpu, wall = time.process_time(), time.perf_counter()
     allocation = SmtAllocator(SmtAllocatorParams(**params)).allocate(problem)
     cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
     if verify_allocation(problem, allocation):
         raise AssertionError("invalid allocation")
+    answer = {k: v for k, v in dataclasses.asdict(allocation).items() if k != "solve_time"}
     return {"cpu_seconds": round(cpu, 3), "wall_seconds": round(wall, 3),
             "work": allocation.work, "status": allocation.status,
-            "late": len(allocation.late_tasks), "note": allocation.note}
+            "late": len(allocation.late_tasks), "note": allocation.note}, answer
+
+
+def calibrate(instance: dict, repeats: int, units: int) -> dict:
+    """The instance's rate: units spent over the least CPU time of ``repeats`` runs, which
+    must all give the same allocation."""
+    results, answers = zip(*(run(instance["problem"], budget=units, **instance["params"])
+                             for _ in range(repeats)), strict=True)
+    if any(answer != answers[0] for answer in answers):
+        raise AssertionError(f"{instance['name']}: repeats gave different allocations")
+    best = min(results, key=lambda result: result["cpu_seconds"])
+    return best | {"cpu_seconds_all": [result["cpu_seconds"] for result in results],
+                   "units_per_second": round(best["work"] / best["cpu_seconds"])}
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="2 instances, 2 s reference")
+    parser.add_argument("--quick", action="store_true", help="2 instances, a smaller budget")
+    parser.add_argument("--repeats", type=int, default=3, help="runs per instance in step 1")
     args = parser.parse_args()
-    reference = 2.0 if args.quick else REFERENCE_SECONDS
+    units = CALIBRATION_UNITS // 10 if args.quick else CALIBRATION_UNITS
     rows = []
-    print(f"1. time limit {reference:g} s, budget {MAX_BUDGET}: z3 units per second")
+    print(f"1. budget {units} units, best of {args.repeats}: z3 units per CPU second")
     for instance in instances(args.quick):
-        timed = run(instance["problem"], time_limit=reference, budget=MAX_BUDGET,
-                    **instance["params"])
-        timed["units_per_second"] = round(timed["work"] / timed["cpu_seconds"])
-        rows.append({"instance": instance, "timed": timed})
-        print(f"  {instance['name']:26s} {_seconds(timed)} {timed['work']:11d} units "
-              f"{timed['units_per_second']:9d} /s CPU  {timed['note']}", flush=True)
-    rates = [row["timed"]["units_per_second"] for row in rows
-             if row["timed"]["cpu_seconds"] >= reference / 10]
+        calibration = calibrate(instance, args.repeats, units)
+        rows.append({"instance": instance, "calibration": calibration})
+        print(f"  {instance['name']:26s} {calibration['work']:10d} units in "
+              f"{calibration['cpu_seconds']:6.2f} s CPU (of {calibration['cpu_seconds_all']}) "
+              f"{calibration['units_per_second']:9d} /s", flush=True)
+    rates = [row["calibration"]["units_per_second"] for row in rows
+             if row["calibration"]["work"] >= units / 10]
     rate = statistics.median(rates)
-    suggested = int(float(f"{rate * reference:.2g}"))
+    suggested = int(float(f"{rate * REFERENCE_SECONDS:.2g}"))
     print(f"median {rate:.0f} units per CPU second over {len(rates)} instances: budget for "
-          f"{reference:g} s = {suggested} (DEFAULT_BUDGET in the code: {DEFAULT_BUDGET})")
-    print(f"2. budget {DEFAULT_BUDGET}, no time limit")
+          f"{REFERENCE_SECONDS:g} s = {suggested} (DEFAULT_BUDGET in the code: "
+          f"{DEFAULT_BUDGET})")
+    print(f"2. budget {DEFAULT_BUDGET}")
     for row in rows:
         instance = row["instance"]
-        budgeted = run(instance["problem"], budget=DEFAULT_BUDGET, **instance["params"])
-        row["budgeted"] = budgeted
-        print(f"  {instance['name']:26s} {_seconds(budgeted)} {budgeted['work']:11d} "
-              f"units  {budgeted['status']:10s} late {budgeted['late']:2d}  {budgeted['note']}",
-              flush=True)
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps({
-        "quick": args.quick,
-        "machine": {"python": platform.python_version(), "cpus": __import__("os").cpu_count()},
-        "reference_seconds": reference,
-        "median_units_per_second": rate,
-        "suggested_budget": suggested,
-        "default_budget": DEFAULT_BUDGET,
-        "rows": [{"instance": row["instance"]["name"], "params": row["instance"]["params"],
-                  "timed": row["timed"], "budgeted": row["budgeted"]} for row in rows],
-    }, indent=1))
-    print(f"wrote {RESULTS}")
-
-
-def _seconds(result: dict) -> str:
-    return f"{result['cpu_seconds']:6.2f} s CPU {result['wall_seconds']:6.2f} s wall"
+        row["default"], _ = run(instance["problem"], **instance["params"])
+        result = row["default"]
+        print(f"  {instance['name']:26s} {result['cpu_seconds']:6.2f} s CPU "
+              f"{result['wall_seconds']:6.2f} s wall {result['work']:10d} units  "
+              f"{result['status']:10s} late {result['late']:2d}  {result['note']}", flush=True)
+    write_results(RESULTS, args.quick, reference_seconds=REFERENCE_SECONDS,
+                  calibration_units=units, median_units_per_second=rate,
+                  suggested_budget=suggested, default_budget=DEFAULT_BUDGET,
+                  rows=[{"instance": row["instance"]["name"], "params": row["instance"]["params"],
+                         "calibration": row["calibration"], "default": row["default"]}
+                        for row in rows])
 
 
 if __name__ == "__main__":

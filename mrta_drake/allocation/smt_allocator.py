@@ -32,7 +32,7 @@ TIGHTEN_STEP = 0.1  # of the range left between the best value and the lower bou
 CORE_SHARE = 0.25  # of the budget (and time limit), at most, spent making a conflict minimal
 # z3 resource units (``rlimit``) for one allocate call: about 10 s of solving on the reference
 # machine (2 shared cores; benchmarks/allocation_budget.py, docs/allocation.md).
-DEFAULT_BUDGET = 47_000_000
+DEFAULT_BUDGET = 60_000_000
 MAX_BUDGET = 2**32 - 1  # z3 takes a check's resource limit as an unsigned 32-bit integer
 
 
@@ -118,7 +118,8 @@ class _Encoding:
     when they do).
 
     Every term lives in ``solver``'s context. ``check_limit`` is called now and then while
-    the constraints are added; it raises ``_OutOfBudget`` to stop.
+    the constraints are added; it raises ``_OutOfBudget`` to stop. It is not kept, so the
+    encoding holds no reference back to its caller and is freed with it.
     """
 
     def __init__(self, problem: AllocationProblem, solver: z3.Solver,
@@ -126,7 +127,6 @@ class _Encoding:
         self.problem = problem
         self.solver = solver
         self.ctx = ctx = solver.ctx
-        self._check_limit = check_limit
         robots, travel, service = problem.robots, problem.travel, problem.service_time
         self.carrier = {task.id: problem.carrier(task.id) for task in problem.tasks}
         self.actions = []
@@ -152,12 +152,12 @@ class _Encoding:
         self.first = {}
         for k, (a, b) in enumerate(itertools.combinations(self.actions, 2)):
             if k % 1024 == 0:
-                self._check_limit()
+                check_limit()
             if a.task != b.task and self._same_robot(a.task, b.task) is not False:
                 self.first[a, b] = z3.Bool(f"first_{a.key}_{b.key}", self.ctx)
                 self._add_order(a, b, travel, service)
-        self._add_capacity()
-        self._add_releases(travel, service)
+        self._add_capacity(check_limit)
+        self._add_releases(travel, service, check_limit)
         self._break_symmetries()
 
     def location(self, action: Action) -> int:
@@ -229,13 +229,13 @@ class _Encoding:
             leg = float(travel[self.location(x), self.location(y)] + service)
             self.solver.add(z3.Or(*guard, z3.Not(x_first), self.time[y] >= self.time[x] + leg))
 
-    def _add_capacity(self):
+    def _add_capacity(self, check_limit: Callable[[], None]):
         """At each pickup the items on board (itself included) fit the robot."""
         problem, solver = self.problem, self.solver
         for pickup in self.actions:
             if pickup.kind != PICKUP:
                 continue
-            self._check_limit()
+            check_limit()
             on_board = []
             for other in problem.tasks:
                 if other.id == pickup.task or not self._shares(pickup.task, other.id):
@@ -260,7 +260,7 @@ class _Encoding:
     def _shares(self, i: int, j: int) -> bool:
         return self._same_robot(i, j) is not False
 
-    def _add_releases(self, travel, service):
+    def _add_releases(self, travel, service, check_limit: Callable[[], None]):
         """A pickup released after some robot is ready may wait for its release at the
         previous location: bound its time by the leg from its immediate predecessor."""
         problem, solver = self.problem, self.solver
@@ -269,7 +269,7 @@ class _Encoding:
             pickup = Action(task.id, PICKUP)
             if pickup not in self.time or task.release <= soonest:
                 continue
-            self._check_limit()
+            check_limit()
             others = [a for a in self.actions if a.task != task.id and self._shares(
                 a.task, task.id)]
             for r in self.robots_of[task.id]:
