@@ -32,7 +32,7 @@ TIGHTEN_STEP = 0.1  # of the range left between the best value and the lower bou
 CORE_SHARE = 0.25  # of the budget (and time limit), at most, spent making a conflict minimal
 # z3 resource units (``rlimit``) for one allocate call: about 10 s of solving on the reference
 # machine (2 shared cores; benchmarks/allocation_budget.py, docs/allocation.md).
-DEFAULT_BUDGET = 60_000_000
+DEFAULT_BUDGET = 48_000_000
 MAX_BUDGET = 2**32 - 1  # z3 takes a check's resource limit as an unsigned 32-bit integer
 
 
