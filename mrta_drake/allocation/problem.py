@@ -219,7 +219,9 @@ class Allocation:
     ``late_tasks`` are the tasks whose drop-off misses its deadline in these routes;
     ``conflict`` is a set of tasks that cannot all be on time together (an unsat core), when
     the allocator proved one. ``optimal`` says the objective was proven optimal (within the
-    allocator's gap). ``solve_time`` is wall-clock seconds.
+    allocator's gap). ``solve_time`` is wall-clock seconds; ``work`` the solver's work in its
+    own units (z3 resource units for the ``SmtAllocator``, 0 without a solver), the same on
+    every host.
     """
 
     routes: tuple[tuple[Action, ...], ...]
@@ -230,6 +232,7 @@ class Allocation:
     optimal: bool = False
     solve_time: float = 0.0
     note: str = ""
+    work: int = 0
 
     @classmethod
     def of(cls, problem: AllocationProblem, routes, status: str | None = None, **fields):
@@ -326,6 +329,7 @@ def solve_appending(
         optimal=rest.optimal,
         solve_time=rest.solve_time,
         note=rest.note,
+        work=rest.work,
     )
 
 

@@ -9,6 +9,7 @@ gives the formulas.
 
 import itertools
 import time as wallclock
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import z3
@@ -28,7 +29,11 @@ from mrta_drake.payloads import DROPOFF, PICKUP
 
 OBJECTIVES = ("none", "makespan", "lateness")
 TIGHTEN_STEP = 0.1  # of the range left between the best value and the lower bound
-CORE_TIME_SHARE = 0.25  # of the time limit, at most, spent making a conflict minimal
+CORE_SHARE = 0.25  # of the budget (and time limit), at most, spent making a conflict minimal
+# z3 resource units (``rlimit``) for one allocate call: about 10 s of solving on the reference
+# machine (2 shared cores; benchmarks/allocation_budget.py, docs/allocation.md).
+DEFAULT_BUDGET = 48_000_000
+MAX_BUDGET = 2**32 - 1  # z3 takes a check's resource limit as an unsigned 32-bit integer
 
 
 @dataclass(frozen=True)
@@ -42,15 +47,20 @@ class SmtAllocatorParams:
     instead serves the most tasks on time and then the least total tardiness (the late
     tasks as early as possible), whatever the objective.
 
-    ``time_limit`` (s, wall clock) bounds one ``allocate`` call; when it runs out the best
-    allocation found so far is returned (at worst the greedy one). ``greedy_start`` runs the
-    greedy allocator first and starts from its answer: when that has every task on time it
-    already proves feasibility. ``append_only`` keeps each robot's previous plan and places
-    new tasks after it. ``random_seed`` is z3's.
+    ``budget`` bounds the solver work of one ``allocate`` call in z3 resource units
+    (``rlimit``, a count of z3's steps, the same on every host), so that answers depend only
+    on the problem; the default is about 10 s of solving on the reference machine. When it
+    runs out the best allocation found so far is returned (at worst the greedy one) with a
+    note saying so. ``time_limit`` (s, wall clock; None: none) adds a wall-clock bound;
+    answers it cuts short depend on the host's speed and load, so runs are not reproducible.
+    ``greedy_start`` runs the greedy allocator first and starts from its answer: when that
+    has every task on time it already proves feasibility. ``append_only`` keeps each robot's
+    previous plan and places new tasks after it. ``random_seed`` is z3's.
     """
 
     objective: str = "none"
-    time_limit: float = 10.0
+    budget: int = DEFAULT_BUDGET
+    time_limit: float | None = None
     objective_gap: float = 1.0
     greedy_start: bool = True
     append_only: bool = False
@@ -60,8 +70,13 @@ class SmtAllocatorParams:
         if self.objective not in OBJECTIVES:
             raise InputError(None, "objective", f"unknown objective {self.objective!r} "
                              f"(one of {', '.join(OBJECTIVES)})")
-        if not self.time_limit > 0:
-            raise InputError(None, "time_limit", f"must be > 0 s, got {self.time_limit}")
+        if isinstance(self.budget, bool) or not isinstance(self.budget, int) or not (
+                0 < self.budget <= MAX_BUDGET):
+            raise InputError(None, "budget", f"must be a whole number of z3 resource units "
+                             f"from 1 to {MAX_BUDGET}, got {self.budget!r}")
+        if self.time_limit is not None and not self.time_limit > 0:
+            raise InputError(None, "time_limit", f"must be > 0 s, or null for none, got "
+                             f"{self.time_limit}")
         if not self.objective_gap > 0:
             raise InputError(None, "objective_gap", f"must be > 0 s, got {self.objective_gap}")
 
@@ -81,8 +96,17 @@ class SmtAllocator:
         return _replace(allocation, solve_time=wallclock.perf_counter() - start)
 
 
-class _OutOfTime(Exception):
-    """The time limit ran out while the encoding was being built."""
+@dataclass(frozen=True)
+class _Limit:
+    """Where solving stops: once the allocation's z3 context has counted ``units`` resource
+    units, or (opted in) at ``stop_time`` (s, ``time.perf_counter``)."""
+
+    units: int
+    stop_time: float | None = None
+
+
+class _OutOfBudget(Exception):
+    """The budget or the time limit ran out while the encoding was being built."""
 
 
 class _Encoding:
@@ -92,12 +116,17 @@ class _Encoding:
     literal, asserted by assumption) and the completion times ``time[action]``. Per pair of
     actions of different tasks that may share a robot: ``first[a, b]`` (``a`` before ``b``
     when they do).
+
+    Every term lives in ``solver``'s context. ``check_limit`` is called now and then while
+    the constraints are added; it raises ``_OutOfBudget`` to stop. It is not kept, so the
+    encoding holds no reference back to its caller and is freed with it.
     """
 
-    def __init__(self, problem: AllocationProblem, solver: z3.Solver, stop_time: float):
+    def __init__(self, problem: AllocationProblem, solver: z3.Solver,
+                 check_limit: Callable[[], None]):
         self.problem = problem
         self.solver = solver
-        self.stop_time = stop_time
+        self.ctx = ctx = solver.ctx
         robots, travel, service = problem.robots, problem.travel, problem.service_time
         self.carrier = {task.id: problem.carrier(task.id) for task in problem.tasks}
         self.actions = []
@@ -105,15 +134,15 @@ class _Encoding:
             if self.carrier[task.id] is None:
                 self.actions.append(Action(task.id, PICKUP))
             self.actions.append(Action(task.id, DROPOFF))
-        self.time = {action: z3.Real(f"t_{action.key}") for action in self.actions}
-        self.on_time = {task.id: z3.Bool(f"on_time_{task.id}") for task in problem.tasks}
+        self.time = {action: z3.Real(f"t_{action.key}", ctx) for action in self.actions}
+        self.on_time = {task.id: z3.Bool(f"on_time_{task.id}", ctx) for task in problem.tasks}
         self.robots_of = {
             task.id: range(len(robots)) if self.carrier[task.id] is None
             else (self.carrier[task.id],)
             for task in problem.tasks
         }
         self.assigned = {
-            (task.id, r): z3.Bool(f"robot_{task.id}_{r}")
+            (task.id, r): z3.Bool(f"robot_{task.id}_{r}", ctx)
             for task in problem.tasks
             for r in self.robots_of[task.id]
         }
@@ -123,20 +152,16 @@ class _Encoding:
         self.first = {}
         for k, (a, b) in enumerate(itertools.combinations(self.actions, 2)):
             if k % 1024 == 0:
-                self._check_time()
+                check_limit()
             if a.task != b.task and self._same_robot(a.task, b.task) is not False:
-                self.first[a, b] = z3.Bool(f"first_{a.key}_{b.key}")
+                self.first[a, b] = z3.Bool(f"first_{a.key}_{b.key}", self.ctx)
                 self._add_order(a, b, travel, service)
-        self._add_capacity()
-        self._add_releases(travel, service)
+        self._add_capacity(check_limit)
+        self._add_releases(travel, service, check_limit)
         self._break_symmetries()
 
     def location(self, action: Action) -> int:
         return self.problem.location(action)
-
-    def _check_time(self):
-        if wallclock.perf_counter() > self.stop_time:
-            raise _OutOfTime
 
     def _add_tasks(self, travel, service):
         problem, solver = self.problem, self.solver
@@ -180,7 +205,7 @@ class _Encoding:
         elif carrier_j is not None:
             same = self.assigned[i, carrier_j]
         else:
-            same = z3.Bool(f"same_{key[0]}_{key[1]}")
+            same = z3.Bool(f"same_{key[0]}_{key[1]}", self.ctx)
             for r in range(len(self.problem.robots)):
                 on_i, on_j = self.assigned[i, r], self.assigned[j, r]
                 self.solver.add(z3.Or(z3.Not(on_i), z3.Not(on_j), same))
@@ -191,7 +216,7 @@ class _Encoding:
     def before(self, a: Action, b: Action):
         """The literal for ``a`` before ``b`` on their (shared) robot."""
         if a.task == b.task:
-            return z3.BoolVal(a.kind == PICKUP)
+            return z3.BoolVal(a.kind == PICKUP, self.ctx)
         if (a, b) in self.first:
             return self.first[a, b]
         return z3.Not(self.first[b, a])
@@ -204,19 +229,19 @@ class _Encoding:
             leg = float(travel[self.location(x), self.location(y)] + service)
             self.solver.add(z3.Or(*guard, z3.Not(x_first), self.time[y] >= self.time[x] + leg))
 
-    def _add_capacity(self):
+    def _add_capacity(self, check_limit: Callable[[], None]):
         """At each pickup the items on board (itself included) fit the robot."""
         problem, solver = self.problem, self.solver
         for pickup in self.actions:
             if pickup.kind != PICKUP:
                 continue
-            self._check_time()
+            check_limit()
             on_board = []
             for other in problem.tasks:
                 if other.id == pickup.task or not self._shares(pickup.task, other.id):
                     continue
                 drop = Action(other.id, DROPOFF)
-                aboard = z3.Bool(f"aboard_{other.id}_at_{pickup.key}")
+                aboard = z3.Bool(f"aboard_{other.id}_at_{pickup.key}", self.ctx)
                 condition = [self._same_robot(pickup.task, other.id), self.before(pickup, drop)]
                 if self.carrier[other.id] is None:
                     condition.append(self.before(Action(other.id, PICKUP), pickup))
@@ -235,7 +260,7 @@ class _Encoding:
     def _shares(self, i: int, j: int) -> bool:
         return self._same_robot(i, j) is not False
 
-    def _add_releases(self, travel, service):
+    def _add_releases(self, travel, service, check_limit: Callable[[], None]):
         """A pickup released after some robot is ready may wait for its release at the
         previous location: bound its time by the leg from its immediate predecessor."""
         problem, solver = self.problem, self.solver
@@ -244,7 +269,7 @@ class _Encoding:
             pickup = Action(task.id, PICKUP)
             if pickup not in self.time or task.release <= soonest:
                 continue
-            self._check_time()
+            check_limit()
             others = [a for a in self.actions if a.task != task.id and self._shares(
                 a.task, task.id)]
             for r in self.robots_of[task.id]:
@@ -268,7 +293,7 @@ class _Encoding:
 
     def _on_robot(self, action: Action, r: int):
         if self.carrier[action.task] is not None:
-            return z3.BoolVal(self.carrier[action.task] == r)
+            return z3.BoolVal(self.carrier[action.task] == r, self.ctx)
         return self.assigned[action.task, r]
 
     def _break_symmetries(self):
@@ -285,7 +310,7 @@ class _Encoding:
             for r, s in zip(members, members[1:], strict=False):
                 for k, task in enumerate(open_tasks):
                     earlier = [self.assigned[t, r] for t in open_tasks[:k]]
-                    solver.add(z3.Implies(self.assigned[task, s], z3.Or(*earlier)))
+                    solver.add(z3.Implies(self.assigned[task, s], z3.Or(*earlier, self.ctx)))
         twins = {}
         for task in problem.tasks:
             if self.carrier[task.id] is None:
@@ -324,74 +349,108 @@ class _Encoding:
 
 
 class _Solve:
-    """One allocation: feasibility, then the objective or the fallback, within the time
-    limit."""
+    """One allocation, in a z3 context of its own (so the answer depends only on the problem
+    and the parameters): feasibility, then the objective or the fallback, within the budget
+    (and the time limit, when one is set)."""
 
     def __init__(self, problem: AllocationProblem, params: SmtAllocatorParams):
         self.problem = problem
         self.params = params
-        self.stop_time = wallclock.perf_counter() + params.time_limit
+        self.limit = _Limit(params.budget, _stop_time(params.time_limit))
+        self._solver = None
         self._encoding = None
         self._bounds = 0
 
     @property
-    def encoding(self) -> _Encoding:
-        if self._encoding is None:
-            solver = z3.SimpleSolver()
-            solver.set("random_seed", self.params.random_seed)
-            self._encoding = _Encoding(self.problem, solver, self.stop_time)
-        return self._encoding
+    def solver(self) -> z3.Solver:
+        """The allocation's solver, in a new z3 context (made on first use: a greedy answer
+        may need none)."""
+        if self._solver is None:
+            self._solver = z3.SimpleSolver(ctx=z3.Context())
+            self._solver.set("random_seed", self.params.random_seed)
+        return self._solver
 
     @property
-    def solver(self) -> z3.Solver:
-        return self.encoding.solver
+    def context(self) -> z3.Context:
+        return self.solver.ctx
+
+    @property
+    def encoding(self) -> _Encoding:
+        if self._encoding is None:
+            self._encoding = _Encoding(self.problem, self.solver, self._check_limit)
+        return self._encoding
 
     def run(self) -> Allocation:
+        """The allocation, with the z3 work spent on it (resource units)."""
         if not self.problem.tasks:
             return Allocation.of(self.problem, [() for _ in self.problem.robots], optimal=True)
         greedy = GreedyAllocator().allocate(self.problem) if self.params.greedy_start else None
         try:
-            return self._solve(greedy)
-        except _OutOfTime:
-            return self._time_out(greedy, "time limit while building the encoding")
+            allocation = self._solve(greedy)
+        except _OutOfBudget:
+            allocation = self._cut_short(greedy, "while building the encoding")
+        return _replace(allocation, work=self._spent())
 
-    def _time_out(self, greedy: Allocation | None, note: str) -> Allocation:
+    def _spent(self) -> int:
+        """z3 resource units counted so far in this allocation's context."""
+        if self._solver is None:
+            return 0
+        return int(self._solver.statistics().get_key_value("rlimit count"))
+
+    def _out_of(self, limit: _Limit) -> str | None:
+        """``"time limit"`` or ``"budget"`` when that part of ``limit`` has run out, else
+        None."""
+        if limit.stop_time is not None and wallclock.perf_counter() >= limit.stop_time:
+            return "time limit"
+        if self._spent() >= limit.units:
+            return "budget"
+        return None
+
+    def _check_limit(self):
+        if self._out_of(self.limit) is not None:
+            raise _OutOfBudget
+
+    def _ran_out(self, when: str) -> str:
+        """The note for an answer cut short ``when``: which limit ran out."""
+        return f"{self._out_of(self.limit) or 'budget'} ran out {when}"
+
+    def _cut_short(self, greedy: Allocation | None, when: str) -> Allocation:
         greedy = greedy or GreedyAllocator().allocate(self.problem)
         status = FEASIBLE if not greedy.late_tasks else UNKNOWN
-        return _replace(greedy, status=status, optimal=False, note=note)
+        return _replace(greedy, status=status, optimal=False, note=self._ran_out(when))
 
     def _solve(self, greedy: Allocation | None) -> Allocation:
         if greedy is not None and not greedy.late_tasks:
             best, optimal = self._optimize_objective(greedy)
-            return _replace(best, status=FEASIBLE, optimal=optimal)
+            return _replace(best, status=FEASIBLE, optimal=optimal,
+                            note="" if optimal else self._ran_out("before the optimum"))
         if greedy is not None:
             self.encoding.hint(greedy)
         result = self._check(list(self.encoding.on_time.values()))
         if result == z3.sat:
             best, optimal = self._optimize_objective(self._allocation())
-            return _replace(best, status=FEASIBLE, optimal=optimal)
+            return _replace(best, status=FEASIBLE, optimal=optimal,
+                            note="" if optimal else self._ran_out("before the optimum"))
         if result == z3.unknown:
-            return self._time_out(greedy, "time limit before the solver answered")
+            return self._cut_short(greedy, "before the solver answered")
         greedy = greedy or GreedyAllocator().allocate(self.problem)
         conflict = self._minimal_conflict()
         best, most, assumptions = self._most_on_time(greedy)
         best, least = self._least_tardiness(best, assumptions)
-        note = "" if most and least else "time limit before the fallback was proven best"
+        note = "" if most and least else self._ran_out("before the fallback was proven best")
         return _replace(best, status=INFEASIBLE, conflict=conflict, optimal=most and least,
                         note=note)
 
     def _minimal_conflict(self) -> tuple[int, ...]:
         """The tasks of the last unsat core, made minimal by deletion while a quarter of the
-        time limit lasts (then possibly not minimal)."""
+        budget (and of the time limit) lasts (then possibly not minimal)."""
         task_of = {literal.get_id(): task for task, literal in self.encoding.on_time.items()}
         core = [literal for literal in self.solver.unsat_core()]
-        stop_time = min(
-            self.stop_time, wallclock.perf_counter() + CORE_TIME_SHARE * self.params.time_limit
-        )
+        limit = self._share(CORE_SHARE)
         k = 0
         while k < len(core):
             trial = core[:k] + core[k + 1 :]
-            result = self._check(trial, stop_time)
+            result = self._check(trial, limit)
             if result == z3.unsat:
                 smaller = {literal.get_id() for literal in self.solver.unsat_core()}
                 core = [literal for literal in trial if literal.get_id() in smaller]
@@ -401,11 +460,28 @@ class _Solve:
                 break
         return tuple(sorted(task_of[literal.get_id()] for literal in core))
 
-    def _check(self, assumptions, stop_time: float | None = None) -> z3.CheckSatResult:
-        remaining = (stop_time or self.stop_time) - wallclock.perf_counter()
-        if remaining <= 0:
+    def _share(self, fraction: float) -> _Limit:
+        """The limit ``fraction`` of the budget (and of the time limit) from now on, within
+        the allocation's."""
+        units = min(self.limit.units, self._spent() + int(fraction * self.params.budget))
+        if self.limit.stop_time is None:
+            return _Limit(units)
+        seconds = fraction * self.params.time_limit
+        return _Limit(units, min(self.limit.stop_time, wallclock.perf_counter() + seconds))
+
+    def _check(self, assumptions, limit: _Limit | None = None) -> z3.CheckSatResult:
+        """``solver.check`` with what is left of ``limit`` (default: the allocation's);
+        ``unknown`` when nothing is."""
+        limit = limit or self.limit
+        units = limit.units - self._spent()
+        if units <= 0:
             return z3.unknown
-        self.solver.set("timeout", max(1, int(remaining * 1000)))
+        self.solver.set("rlimit", units)
+        if limit.stop_time is not None:
+            seconds = limit.stop_time - wallclock.perf_counter()
+            if seconds <= 0:
+                return z3.unknown
+            self.solver.set("timeout", max(1, int(seconds * 1000)))
         return self.solver.check(*assumptions)
 
     def _allocation(self) -> Allocation:
@@ -413,7 +489,7 @@ class _Solve:
 
     def _bound_literal(self, constraint) -> z3.BoolRef:
         self._bounds += 1
-        literal = z3.Bool(f"bound_{self._bounds}")
+        literal = z3.Bool(f"bound_{self._bounds}", self.context)
         self.solver.add(z3.Implies(literal, constraint))
         return literal
 
@@ -448,7 +524,7 @@ class _Solve:
         on_time = list(encoding.on_time.values())
         times = [encoding.time[action] for action in encoding.actions]
         if objective == "makespan":
-            makespan = z3.Real("makespan")
+            makespan = z3.Real("makespan", self.context)
             for time in times:
                 self.solver.add(makespan >= time)
             lower = max(encoding.earliest.values())
@@ -489,7 +565,7 @@ class _Solve:
         encoding, tardiness, lower = self.encoding, [], 0.0
         for task in self.problem.tasks:
             drop = Action(task.id, DROPOFF)
-            late_by = z3.Real(f"late_{task.id}")
+            late_by = z3.Real(f"late_{task.id}", self.context)
             self.solver.add(late_by >= 0, late_by >= encoding.time[drop] - task.deadline)
             tardiness.append(late_by)
             lower += max(0.0, encoding.earliest[drop] - task.deadline)
@@ -497,6 +573,11 @@ class _Solve:
 
     def _tardiness_of(self, allocation: Allocation) -> float:
         return allocation.total_tardiness(self.problem)
+
+
+def _stop_time(seconds: float | None) -> float | None:
+    """The ``time.perf_counter`` reading ``seconds`` from now (None: no time limit)."""
+    return None if seconds is None else wallclock.perf_counter() + seconds
 
 
 def _total_drop_time(allocation: Allocation) -> float:
