@@ -1,8 +1,8 @@
 """The fingerprint of a run: sha256 over the recorded times, robot states, people's positions
 and events (less the wall-clock ``solve_time``) of SCENARIO run for DURATION s.
 
-Run as a script, in a fresh process, so that nothing earlier in the process (z3's global
-state) can change the answer: ``python run_fingerprint.py SCENARIO DURATION``."""
+Run as a script, in a fresh process, as a user's ``mrta-sim run`` is:
+``python run_fingerprint.py SCENARIO DURATION``."""
 
 import hashlib
 import json
