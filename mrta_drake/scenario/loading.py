@@ -70,6 +70,10 @@ def load_scenario(path: str, *, check_world: bool = True,
     raw = _with_overrides(raw, overrides or {}, path)
     scenario = load_typed(raw, Scenario, path)
     scenario = _resolve_files(scenario, base, path)
+    if scenario.world.kind == "rmf_building":
+        from mrta_drake.world.rmf_scenario import with_building_navigation
+
+        scenario = with_building_navigation(scenario)
     check_scenario(scenario, robots_file or path)
     if scenario.tasks.generate is not None:
         scenario = add_generated_tasks(scenario)
@@ -108,7 +112,8 @@ def _resolve_files(scenario: Scenario, base: str, path: str) -> Scenario:
     """Make file references absolute and fold a task file's batches into the stream."""
     world = scenario.world
     if not world.floor_plan:
-        raise InputError(path, "world.floor_plan", "is required (a floor-plan or ROS map YAML)")
+        raise InputError(path, "world.floor_plan", "is required (a floor-plan, ROS map or "
+                         "Open-RMF building file)")
     floor_plan = _resolve(base, world.floor_plan)
     if not os.path.isfile(floor_plan):
         raise InputError(path, "world.floor_plan", f"file not found: {world.floor_plan!r}")
@@ -243,9 +248,9 @@ def check_scenario(scenario: Scenario, file: str) -> None:
             raise InputError(path, f"rates.{rate.name}", f"must be > 0 Hz, got {value}")
     if not scenario.duration > 0:
         raise InputError(path, "duration", f"must be > 0 s, got {scenario.duration}")
-    if scenario.world.kind not in ("floor_plan", "ros_map"):
-        raise InputError(path, "world.kind",
-                         f"must be floor_plan or ros_map, got {scenario.world.kind!r}")
+    if scenario.world.kind not in ("floor_plan", "ros_map", "rmf_building"):
+        raise InputError(path, "world.kind", f"must be floor_plan, ros_map or rmf_building, "
+                         f"got {scenario.world.kind!r}")
     check_disturbances(scenario.disturbances, [r.name for r in scenario.robots], path)
 
 

@@ -10,13 +10,18 @@ from dataclasses import dataclass, field
 
 @dataclass(frozen=True)
 class WorldConfig:
-    """The building. ``floor_plan`` is a floor-plan YAML (see ``floor_plan.py``) or a ROS
-    ``map_server`` YAML (``kind: ros_map``); paths are relative to the scenario file.
+    """The building. ``floor_plan`` is a floor-plan YAML (see ``floor_plan.py``), a ROS
+    ``map_server`` YAML (``kind: ros_map``) or an Open-RMF ``.building.yaml``
+    (``kind: rmf_building``: its ``level``, needed when it has several, and navigation
+    ``graph``; locations and roadways left out are derived from it, see
+    ``world/rmf_scenario.py``); paths are relative to the scenario file.
     ``scenic``: a Scenic 3 program placing objects (beds, carts...) for the scenario's seed,
     with ``scenic_params`` overriding its ``param`` values (see ``scenic_objects.py``)."""
 
     floor_plan: str = ""
-    kind: str = "floor_plan"  # floor_plan | ros_map
+    kind: str = "floor_plan"  # floor_plan | ros_map | rmf_building
+    level: str = ""
+    graph: int = 0
     scenic: str = ""
     scenic_params: dict = field(default_factory=dict)
 

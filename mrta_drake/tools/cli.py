@@ -78,6 +78,20 @@ def _parser() -> argparse.ArgumentParser:
     travel.add_argument("--out", metavar="FILE", help="matrix file, .yaml or .csv (default: "
                         "travel_times/<scenario name>.yaml)")
     travel.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    building = commands.add_parser("import", help="make a runnable scenario folder from an "
+                                   "Open-RMF .building.yaml")
+    building.add_argument("building", help="Open-RMF .building.yaml file")
+    building.add_argument("--out", metavar="DIR", required=True, help="folder to write "
+                          "scenario.yaml and navigation.yaml to")
+    building.add_argument("--robots", type=int, default=3, help="robots (default 3)")
+    building.add_argument("--people", type=int, default=0, help="people (default 0)")
+    building.add_argument("--seed", type=int, default=0, help="seed of people and tasks "
+                          "(default 0)")
+    building.add_argument("--level", default="", help="the level to import (default: the "
+                          "only one; with several, one folder per level)")
+    building.add_argument("--graph", type=int, default=0, help="navigation graph "
+                          "(graph_idx) robots drive on (default 0)")
     return parser
 
 
@@ -228,6 +242,19 @@ def _travel_times(args) -> int:
     return 0
 
 
+def _import(args) -> int:
+    from mrta_drake.tools.building_import import ImportOptions, import_building
+    from mrta_drake.world.rmf_scenario import building_at
+
+    options = ImportOptions(robots=args.robots, people=args.people, seed=args.seed,
+                            level=args.level, graph=args.graph)
+    building_at(args.building)  # a broken building is refused before anything is written
+    _check_writable("--out", args.out, folder=True)
+    report = import_building(args.building, args.out, options)
+    print("\n".join(report.lines))
+    return 0
+
+
 def _check_writable(flag: str, path: str | None, folder: bool = False) -> None:
     """Make the folder ``path`` (``folder``) or the one ``path`` goes in, before a long run
     rather than after it; InputError naming ``flag`` when that is not possible."""
@@ -245,7 +272,8 @@ def _check_writable(flag: str, path: str | None, folder: bool = False) -> None:
 
 
 _COMMANDS = {"run": _run, "validate": _validate, "diagram": _diagram, "report": _report,
-             "compare": _compare, "sweep": _sweep, "travel-times": _travel_times}
+             "compare": _compare, "sweep": _sweep, "travel-times": _travel_times,
+             "import": _import}
 
 
 if __name__ == "__main__":

@@ -87,10 +87,15 @@ class World:
 
 
 def load_floor_plan_of(scenario: Scenario, *, objects: bool = True) -> FloorPlan:
-    """The scenario's floor plan, from our format or a ROS map; with ``objects``, its
-    obstacles include those its Scenic program (``world.scenic``) places for its seed."""
+    """The scenario's floor plan, from our format, a ROS map or an Open-RMF building; with
+    ``objects``, its obstacles include those its Scenic program (``world.scenic``) places
+    for its seed."""
     if scenario.world.kind == "ros_map":
         floor_plan = load_ros_map(scenario.world.floor_plan)
+    elif scenario.world.kind == "rmf_building":
+        from mrta_drake.world.rmf_scenario import building_floor_plan
+
+        floor_plan = building_floor_plan(scenario)
     else:
         floor_plan = load_floor_plan(scenario.world.floor_plan)
     if objects and scenario.world.scenic:

@@ -1,0 +1,272 @@
+"""``mrta-sim import``: an Open-RMF building made into a runnable, editable scenario folder.
+
+``import_building`` writes, for one level (``--level``, or the only one):
+
+- ``DIR/<name>.building.yaml``: a copy of the building, so the folder stands alone;
+- ``DIR/navigation.yaml``: the derived locations and one-way roadways, in the format of
+  ``models/hospital/navigation.yaml``, to edit by hand;
+- ``DIR/scenario.yaml``: the world (``kind: rmf_building``), ``robots`` robots on the
+  level's chargers, then parking spots, spawn points, task locations and other lane nodes
+  (each clear of walls and of the others), ``people`` people walking the level's human
+  lanes (else visitors between random lane nodes), and a seeded generated task stream
+  between the task locations. Where lanes pass nearer walls than the controller's
+  default wall safety distance (0.6 m), as through the demos' 0.9 m doors, the scenario sets
+  the controller's ``safety_distance_wall`` to the lanes' least clearance less 6 cm (at
+  least the robot radius plus 5 cm), else robots stop short of those doors.
+
+A building with several levels and no ``level`` gets one such folder per level,
+``DIR/<level>/``, each runnable on its own (running across levels through lifts is a
+later step); a level whose lanes give no runnable navigation is skipped with a note.
+"""
+
+import math
+import os
+import shutil
+from dataclasses import dataclass, field
+
+import numpy as np
+import yaml
+
+from mrta_drake.errors import InputError
+from mrta_drake.world.floor_plan import FloorPlan
+from mrta_drake.world.rmf_building import Building, Level
+from mrta_drake.world.rmf_navigation import BuildingNavigation
+from mrta_drake.world.rmf_scenario import (
+    building_at,
+    chosen_level,
+    imported_navigation,
+    imported_world,
+)
+
+ROBOT_RADIUS = 0.22  # m, the scenario default (RobotConfig.radius)
+START_GAP = 0.3  # m kept free between two robots' bodies at the start
+PEOPLE_GAP = 1.0  # m between a person's first point and any robot start
+WALL_SAFETY = 0.6  # m, the controller's default safety distance to walls (CbfParams)
+WALL_SAFETY_MARGIN = 0.06  # m kept between that distance and the lanes' clearance
+START_ORDER = ("is_charger", "is_parking_spot", "spawn_robot_name")
+
+
+@dataclass(frozen=True)
+class ImportOptions:
+    """What to put in the scenario: ``robots`` and ``people`` counts, the ``seed`` (people
+    and tasks), ``level`` (empty: the only one, or every level of a building with several),
+    navigation ``graph``, ``duration`` (s), and task batches per s per robot
+    (``tasks_per_robot``; a batch holds 1 or 2 tasks)."""
+
+    robots: int = 3
+    people: int = 0
+    seed: int = 0
+    level: str = ""
+    graph: int = 0
+    duration: float = 600.0
+    tasks_per_robot: float = 0.01
+
+    def __post_init__(self):
+        if self.robots < 1:
+            raise InputError(None, "--robots", f"must be >= 1, got {self.robots}")
+        if self.people < 0:
+            raise InputError(None, "--people", f"must be >= 0, got {self.people}")
+        if self.graph < 0:
+            raise InputError(None, "--graph", f"must be >= 0, got {self.graph}")
+        if not self.duration > 0:
+            raise InputError(None, "--duration", f"must be > 0 s, got {self.duration}")
+        if not self.tasks_per_robot > 0:
+            raise InputError(None, "tasks_per_robot", f"must be > 0, got "
+                             f"{self.tasks_per_robot}")
+
+
+@dataclass
+class ImportReport:
+    """What ``import_building`` wrote: ``scenarios`` (paths), and ``lines`` to print."""
+
+    scenarios: list[str] = field(default_factory=list)
+    lines: list[str] = field(default_factory=list)
+
+
+def import_building(path: str, out_dir: str, options: ImportOptions = ImportOptions()
+                    ) -> ImportReport:
+    """Write the scenario folder(s) of the building in ``path`` under ``out_dir``."""
+    building = building_at(path)
+    report = ImportReport()
+    lifts = f", {len(building.lifts)} lifts" if building.lifts else ""
+    report.lines.append(f"{building.source}: {len(building.levels)} level(s) "
+                        f"({', '.join(building.levels)}){lifts}, "
+                        f"{building.coordinate_system.kind}")
+    if options.level or len(building.levels) == 1:
+        level = chosen_level(building, options.level)
+        _write_level(building, level, out_dir, options, report)
+        return report
+    report.lines.append("running several levels through lifts is not yet supported: one "
+                        "single-level scenario per level")
+    for level in building.levels:
+        try:
+            _write_level(building, level, os.path.join(out_dir, level), options, report)
+        except InputError as error:
+            report.lines.append(f"{level}: skipped: {error}")
+    if not report.scenarios:
+        raise InputError(building.source, "levels", "no level gives a runnable scenario")
+    return report
+
+
+def _write_level(building: Building, level_name: str, out_dir: str, options: ImportOptions,
+                 report: ImportReport) -> None:
+    world = imported_world(building.source, level_name, options.graph)
+    navigation = imported_navigation(building.source, level_name, options.graph)
+    level = building.levels[level_name]
+    rng = np.random.default_rng(options.seed)
+    starts = robot_starts(level, navigation, world.floor_plan, options.robots)
+    humans = _humans(level, navigation, starts, options.people, rng)
+    os.makedirs(out_dir, exist_ok=True)
+    copy = os.path.join(out_dir, os.path.basename(building.source))
+    if os.path.abspath(copy) != os.path.abspath(building.source):
+        shutil.copyfile(building.source, copy)
+    _write_navigation(os.path.join(out_dir, "navigation.yaml"), building, level_name,
+                      options.graph, navigation)
+    scenario = os.path.join(out_dir, "scenario.yaml")
+    _write_scenario(scenario, os.path.basename(building.source), level_name, options, starts,
+                    humans, wall_safety(navigation, world.floor_plan))
+    report.scenarios.append(scenario)
+    roadways = navigation.roadways
+    report.lines.append(
+        f"{level_name}: graph {options.graph}: {len(navigation.locations)} task locations, "
+        f"{len(roadways.nodes)} roadway nodes, {len(roadways.edges)} one-way lanes, "
+        f"{len(world.floor_plan.obstacles)} obstacles; wrote {scenario}")
+    report.lines += [f"{level_name}: {note}" for note in navigation.notes]
+    if world.left_out:
+        report.lines.append(f"{level_name}: {len(world.left_out)} model(s) left out, too near "
+                            f"a lane: {'; '.join(world.left_out)}")
+
+
+def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: FloorPlan,
+                 count: int) -> list[list[float]]:
+    """``count`` start poses [x, y, theta] on the level's lane nodes (see the module
+    docstring), each facing along its first lane."""
+    lines = navigation.centre_lines
+    ranked = []
+    for rank, flag in enumerate(START_ORDER):
+        ranked += [(rank, lines.vertex_node[i]) for i, v in enumerate(level.vertices)
+                   if i in lines.vertex_node and (v.flag(flag) or (
+                       flag == "spawn_robot_name" and v.params.get(flag)))]
+    ranked += [(len(START_ORDER), loc.name) for loc in navigation.locations]
+    ranked += [(len(START_ORDER) + 1, node) for node in lines.nodes]
+    chosen: list[list[float]] = []
+    seen = set()
+    for _, node in ranked:
+        if node in seen:
+            continue
+        seen.add(node)
+        xy = np.asarray(lines.nodes[node], dtype=float)
+        if floor_plan.obstacles.signed_distance([xy])[0] < ROBOT_RADIUS + 0.05:
+            continue
+        if any(math.dist(xy, c[:2]) < 2 * ROBOT_RADIUS + START_GAP for c in chosen):
+            continue
+        chosen.append([round(float(xy[0]), 3), round(float(xy[1]), 3),
+                       round(_heading(lines, node), 4)])
+        if len(chosen) == count:
+            return chosen
+    raise InputError(None, "--robots", f"{count} robots do not fit: the level's lane nodes "
+                     f"give {len(chosen)} free start spots")
+
+
+def wall_safety(navigation: BuildingNavigation, floor_plan: FloorPlan) -> float:
+    """The controller's wall safety distance (m) that lets robots drive every lane (see
+    the module docstring)."""
+    nodes = navigation.roadways.nodes
+    samples = [np.asarray(nodes[a]) + t * (np.asarray(nodes[b]) - np.asarray(nodes[a]))
+               for a, b in navigation.roadways.edges for t in np.linspace(0.0, 1.0, 21)]
+    least = float(floor_plan.obstacles.signed_distance(np.array(samples)).min())
+    return round(min(WALL_SAFETY, max(ROBOT_RADIUS + 0.05, least - WALL_SAFETY_MARGIN)), 3)
+
+
+def _heading(lines, node: str) -> float:
+    """Direction (rad) from ``node`` to its first neighbour along the centre lines."""
+    for a, b, _ in lines.edges:
+        if node in (a, b):
+            other = b if a == node else a
+            dx = lines.nodes[other][0] - lines.nodes[node][0]
+            dy = lines.nodes[other][1] - lines.nodes[node][1]
+            return math.atan2(dy, dx)
+    return 0.0
+
+
+def _humans(level: Level, navigation: BuildingNavigation, starts, count: int,
+            rng: np.random.Generator) -> dict:
+    """The ``humans:`` section: walkers looping along human lanes, else visitors."""
+    if count == 0:
+        return {}
+    if level.human_lanes:
+        walkers = []
+        for k in range(count):
+            loop = _walk(level, rng, starts)
+            if loop is None:
+                break
+            walkers.append({"name": f"person{k + 1}", "waypoints": loop})
+        if len(walkers) == count:
+            return {"walkers": walkers}
+    nodes = [xy for xy in navigation.centre_lines.nodes.values()
+             if all(math.dist(xy, s[:2]) >= PEOPLE_GAP for s in starts)]
+    if len(nodes) < 2:
+        raise InputError(None, "--people", "the level has too few free lane nodes for people "
+                         "to walk between")
+    picked = rng.choice(len(nodes), size=min(len(nodes), 8), replace=False)
+    return {"groups": [{"kind": "visitors", "count": count,
+                        "points": [list(nodes[int(k)]) for k in picked]}]}
+
+
+def _walk(level: Level, rng: np.random.Generator, starts, steps: int = 4):
+    """Waypoints of a random walk of ``steps`` human lanes, starting away from the
+    robots; None when the human lanes offer none."""
+    neighbours: dict[int, list[int]] = {}
+    for lane in level.human_lanes:
+        neighbours.setdefault(lane.start, []).append(lane.end)
+        neighbours.setdefault(lane.end, []).append(lane.start)
+    free = [v for v in sorted(neighbours)
+            if all(math.dist(level.point(v), s[:2]) >= PEOPLE_GAP for s in starts)]
+    if not free:
+        return None
+    path = [free[int(rng.integers(len(free)))]]
+    for _ in range(steps):
+        options = [n for n in neighbours[path[-1]] if len(path) < 2 or n != path[-2]]
+        path.append(int(rng.choice(options or neighbours[path[-1]])))
+    points = [[round(c, 3) for c in level.point(v)] for v in path]
+    return [p for k, p in enumerate(points) if k == 0 or p != points[k - 1]]
+
+
+def _write_navigation(path: str, building: Building, level: str, graph: int,
+                      navigation: BuildingNavigation) -> None:
+    header = (
+        f"# Navigation of level {level}, graph {graph}, of {os.path.basename(building.source)}"
+        f",\n# derived by `mrta-sim import` (see docs/worlds.md, \"Open-RMF buildings\").\n"
+        "# Fields follow LocationConfig and RoadwaysConfig (mrta_drake/scenario/schema.py); "
+        "world frame:\n# x east, y north, metres. Edit freely: the scenario reads this file "
+        "as it is.\n")
+    _write_yaml(path, header, navigation.as_yaml())
+
+
+def _write_scenario(path: str, building_file: str, level: str, options: ImportOptions,
+                    starts, humans: dict, safety: float) -> None:
+    content = {
+        "world": {"kind": "rmf_building", "floor_plan": building_file, "level": level,
+                  "graph": options.graph},
+        "locations": "navigation.yaml",
+        "roadways": "navigation.yaml",
+        "robots": [{"name": f"robot{k + 1}", "start": start} for k, start in enumerate(starts)],
+        "tasks": {"generate": {"rate": round(options.tasks_per_robot * len(starts), 6),
+                               "batch_size": [1, 2], "slack": [2.0, 4.0]}},
+        "seed": options.seed,
+        "duration": float(options.duration),
+    }
+    if humans:
+        content["humans"] = humans
+    if safety < WALL_SAFETY:
+        content["blocks"] = {"controller": {"kind": "cluster_cbf",
+                                            "params": {"safety_distance_wall": safety}}}
+    header = (f"# {building_file}, level {level}: imported by `mrta-sim import` (seed "
+              f"{options.seed}).\n# Run: mrta-sim run {os.path.basename(path)}\n")
+    _write_yaml(path, header, content)
+
+
+def _write_yaml(path: str, header: str, content: dict) -> None:
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(header)
+        yaml.safe_dump(content, f, sort_keys=False, default_flow_style=None, width=100)

@@ -1,0 +1,376 @@
+"""Navigation of one level of an Open-RMF building: the roadway lane graph and the task
+locations with their queues, entries and parking spots.
+
+- **Centre lines**: the lanes of one navigation graph (``graph_idx``) of the level, lanes
+  into a lift cabin left out (running across levels comes later); vertices at one position
+  are one node. A named vertex keeps its name as node name, the others are ``v<index>``.
+- **One-way lanes**: ``one_way_lanes``, the shared lane step
+  (``navigation.lane_derivation``): right-hand lanes offset from the centre lines where the
+  free width allows, single-file segments elsewhere and around task locations that are not
+  dead ends (their lanes then meet on the vertex, the location's point).
+- **Task locations**: the vertices with ``pickup_dispenser`` or ``dropoff_ingestor``, then
+  the other named vertices (in the demos most destinations are named holding points or
+  parking spots), except chargers, pass-through points and lift cabins; only those in the
+  largest set that can all reach each other along the one-way lanes are kept
+  (``BuildingNavigation.notes`` names the others). Ids follow that order from 0.
+- **Queues**: back from the point along the lane that approaches it: the head slot
+  ``head_gap`` m from the point (or on the first unnamed holding point within the queue's
+  length), then ``queue_slots`` slots ``slot_spacing`` m apart, continuing along the lanes
+  feeding it; a slot nearer a wall than ``slot_clearance`` moves on back. The node beyond
+  the tail is the approach node, the point's own node the exit node, the nodes between
+  the head slot and the point the entry. On offset lanes the queue lies along the lane
+  arriving, robots leave by the other.
+- **Parking**: up to ``parking_spots`` spots ``parking_distance`` m from the point, clear of
+  walls by ``slot_clearance``, at least ``parking_lane_gap`` m from every lane and in line
+  of sight of the point.
+
+Metres, world frame (x east, y north).
+"""
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+
+import networkx as nx
+import numpy as np
+
+from mrta_drake.errors import InputError
+from mrta_drake.navigation.lane_derivation import (
+    CentrelineEdge,
+    CentrelineGraph,
+    LaneParams,
+    Lanes,
+    SingleFileSegment,
+    derive_lanes,
+)
+from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig
+from mrta_drake.world.floor_plan import FloorPlan
+from mrta_drake.world.rmf_building import Building, Level, Vertex
+from mrta_drake.world.rmf_world import check_lengths
+
+NOT_TASK_FLAGS = ("is_charger", "is_passthrough_point")
+
+
+@dataclass(frozen=True)
+class BuildingNavigationParams:
+    """How the navigation of a level is derived (see the module docstring). Defaults:
+    three 1 m slots as in the hospital's hand-made queues; the head slot 1.3 m from the
+    point, outside the waypoint generator's 1 m reach tolerance; slots and spots 0.45 m
+    clear of walls (a 0.22 m robot plus margin)."""
+
+    graph: int = 0
+    queue_slots: int = 3
+    slot_spacing: float = 1.0
+    head_gap: float = 1.3
+    slot_clearance: float = 0.45
+    parking_spots: int = 2
+    parking_distance: float = 1.4
+    parking_lane_gap: float = 0.7
+
+    def __post_init__(self):
+        if self.graph < 0:
+            raise InputError(None, "graph", f"must be >= 0, got {self.graph}")
+        if self.queue_slots < 1:
+            raise InputError(None, "queue_slots", f"must be >= 1, got {self.queue_slots}")
+        if self.parking_spots < 0:
+            raise InputError(None, "parking_spots", f"must be >= 0, got {self.parking_spots}")
+        check_lengths(self, positive=("slot_spacing", "head_gap", "slot_clearance",
+                                      "parking_distance", "parking_lane_gap"))
+
+
+@dataclass(frozen=True)
+class CentreLines:
+    """The undirected lane centre lines of one graph of a level: ``nodes`` name -> (x, y)
+    m, ``edges`` (a, b, two_way), ``vertex_node`` building vertex index -> node name."""
+
+    nodes: dict[str, tuple[float, float]]
+    edges: tuple[tuple[str, str, bool], ...]
+    vertex_node: dict[int, str]
+
+
+@dataclass(frozen=True)
+class BuildingNavigation:
+    """What robots of one graph drive on at one level: ``roadways``, ``locations`` (ids
+    0..n-1), the ``centre_lines`` they came from, the ``single_file`` segments (for one
+    robot at a time), and ``notes`` on what was left out."""
+
+    roadways: RoadwaysConfig
+    locations: list[LocationConfig]
+    centre_lines: CentreLines
+    single_file: tuple[SingleFileSegment, ...] = ()
+    notes: list[str] = field(default_factory=list)
+
+    def as_yaml(self) -> dict:
+        """The ``locations`` and ``roadways`` sections, as in ``models/hospital/
+        navigation.yaml``."""
+        return {
+            "locations": [
+                {"id": loc.id, "name": loc.name, "point": loc.point, "queue": loc.queue,
+                 "entry": loc.entry, "exit_node": loc.exit_node,
+                 "approach_node": loc.approach_node, "parking": loc.parking}
+                for loc in self.locations],
+            "roadways": {"nodes": dict(self.roadways.nodes),
+                         "edges": [list(e) for e in self.roadways.edges]},
+        }
+
+
+def centre_lines(building: Building, level: Level, graph: int) -> CentreLines:
+    """The lanes of ``graph`` on ``level`` as undirected centre lines (lanes ending in a
+    lift cabin left out)."""
+    cabins = [lift for lift in building.lifts_through(level.name)]
+    vertex_node: dict[int, str] = {}
+    at: dict[tuple[float, float], str] = {}
+    nodes: dict[str, tuple[float, float]] = {}
+    directed: dict[tuple[str, str], None] = {}  # ordered like the file
+    for lane in level.lanes:
+        if lane.graph != graph:
+            continue
+        ends = (lane.start, lane.end)
+        if any(_in_cabin(level.point(i), lift) for i in ends for lift in cabins):
+            continue
+        for i in ends:
+            if i in vertex_node:
+                continue
+            xy = _rounded(level.point(i))
+            if xy not in at:
+                at[xy] = _node_name(level.vertices[i], i, nodes)
+                nodes[at[xy]] = xy
+            vertex_node[i] = at[xy]
+        a, b = vertex_node[lane.start], vertex_node[lane.end]
+        if a != b:
+            directed[a, b] = None
+            if lane.bidirectional:
+                directed[b, a] = None
+    edges = []
+    for a, b in directed:
+        if (b, a) not in directed:
+            edges.append((a, b, False))
+        elif (b, a) not in [(x, y) for x, y, _ in edges]:
+            edges.append((a, b, True))
+    if not edges:
+        graphs = ", ".join(str(g) for g in level.graphs()) or "none"
+        raise InputError(building.source, f"levels.{level.name}.lanes",
+                         f"no lanes of graph {graph} (graphs on this level: {graphs})")
+    return CentreLines(nodes, tuple(edges), vertex_node)
+
+
+def _in_cabin(xy, lift) -> bool:
+    c, s = math.cos(lift.yaw), math.sin(lift.yaw)
+    dx, dy = xy[0] - lift.xy[0], xy[1] - lift.xy[1]
+    return (abs(c * dx + s * dy) <= 0.5 * lift.width + 0.05
+            and abs(-s * dx + c * dy) <= 0.5 * lift.depth + 0.05)
+
+
+def _rounded(xy) -> tuple[float, float]:
+    return (round(float(xy[0]), 3), round(float(xy[1]), 3))
+
+
+def _node_name(vertex: Vertex, index: int, taken) -> str:
+    if not vertex.name:
+        return f"v{index}"
+    name, k = vertex.name, 2
+    while name in taken:
+        name, k = f"{vertex.name}_{k}", k + 1
+    return name
+
+
+def one_way_lanes(lines: CentreLines, floor_plan: FloorPlan, shared: set[str]) -> Lanes:
+    """The lane step (``navigation.lane_derivation``): right-hand one-way lanes along the
+    centre lines where the free width of ``floor_plan`` allows, else single-file segments;
+    the edges at the vertices ``shared`` (task locations that are not dead ends) stay single
+    file, so that their lanes meet on the vertex itself."""
+    graph = CentrelineGraph(
+        nodes=lines.nodes,
+        edges=tuple(CentrelineEdge(a, b, one_way=not two_way,
+                                   single_file=a in shared or b in shared)
+                    for a, b, two_way in lines.edges))
+    return derive_lanes(graph, floor_plan.obstacles.signed_distance, LaneParams())
+
+
+def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
+                     params: BuildingNavigationParams = BuildingNavigationParams()
+                     ) -> BuildingNavigation:
+    """The navigation of graph ``params.graph`` on level ``level_name``; ``floor_plan`` is
+    the level's world (``rmf_world.level_world``)."""
+    level = building.level(level_name)
+    lines = centre_lines(building, level, params.graph)
+    candidates = _task_vertices(level, lines)
+    degree = Counter(v for a, b, _ in lines.edges for v in (a, b))
+    lanes = one_way_lanes(lines, floor_plan, {lines.vertex_node[i] for i in candidates
+                                              if degree[lines.vertex_node[i]] > 1})
+    roadways = lanes.roadways
+    graph = nx.DiGraph()
+    for name, xy in roadways.nodes.items():
+        graph.add_node(name, pos=np.asarray(xy, dtype=float))
+    for a, b in roadways.edges:
+        graph.add_edge(a, b, length=math.dist(roadways.nodes[a], roadways.nodes[b]))
+    notes = [f"{len(lanes.single_file)} single-file segment(s), where two lanes do not fit "
+             "or a task location is not a dead end (robots are not yet queued for them)"]
+    if lanes.tight:
+        notes.append(f"{len(lanes.tight)} lane(s) nearer walls than "
+                     f"{LaneParams().clearance:g} m")
+    kept = _mutually_reachable([lines.vertex_node[i] for i in candidates], graph)
+    for i in candidates:
+        if lines.vertex_node[i] not in kept:
+            notes.append(f"{level.vertices[i].name}: left out, not reachable both ways "
+                         "along the lanes from the other task locations")
+    candidates = [i for i in candidates if lines.vertex_node[i] in kept]
+    if len(candidates) < 2:
+        raise InputError(building.source, f"levels.{level.name}.vertices",
+                         f"graph {params.graph} has {len(candidates)} task location(s) "
+                         "that can reach each other: need at least 2 named vertices on its "
+                         "lanes")
+    held = {lines.vertex_node[i] for i, v in enumerate(level.vertices)
+            if v.flag("is_holding_point") and not v.name and i in lines.vertex_node}
+    holding = {node for (v, w), ends in lanes.ends.items() for vertex, node in zip(
+        (v, w), ends, strict=True) if vertex in held}  # the lane ends beside each
+    segments = np.array([[roadways.nodes[a], roadways.nodes[b]] for a, b in roadways.edges],
+                        dtype=float)
+    locations = []
+    for location_id, i in enumerate(candidates):
+        node = lines.vertex_node[i]
+        queue, entry, approach = _queue(graph, node, holding, floor_plan, params)
+        point = np.asarray(roadways.nodes[node], dtype=float)
+        locations.append(LocationConfig(
+            id=location_id, name=node, point=_listed(point), queue=queue, entry=entry,
+            exit_node=node, approach_node=approach,
+            parking=_parking(point, segments, floor_plan, params)))
+    return BuildingNavigation(roadways, locations, lines, lanes.single_file, notes)
+
+
+def _task_vertices(level: Level, lines: CentreLines) -> list[int]:
+    """Vertex indices of the task locations, dispensers and ingestors first, one per
+    node."""
+    chosen, nodes = [], set()
+    for workcells in (True, False):
+        for i, vertex in enumerate(level.vertices):
+            node = lines.vertex_node.get(i)
+            if node is None or node in nodes or not vertex.name:
+                continue
+            is_workcell = bool(vertex.params.get("pickup_dispenser")
+                               or vertex.params.get("dropoff_ingestor"))
+            if is_workcell != workcells or "lift_cabin" in vertex.params:
+                continue
+            if not is_workcell and any(vertex.flag(f) for f in NOT_TASK_FLAGS):
+                continue
+            chosen.append(i)
+            nodes.add(node)
+    return chosen
+
+
+def _mutually_reachable(nodes: list[str], graph: nx.DiGraph) -> set[str]:
+    """The largest subset of ``nodes`` lying in one strongly connected component."""
+    best: set[str] = set()
+    for component in nx.strongly_connected_components(graph):
+        inside = {n for n in nodes if n in component}
+        if len(inside) > len(best):
+            best = inside
+    return best
+
+
+def _queue(graph: nx.DiGraph, node: str, holding: set[str], floor_plan: FloorPlan,
+           params: BuildingNavigationParams):
+    """Queue slots (head first), entry points and approach node of the location at
+    ``node``: slots laid back along the lanes that lead to it."""
+    path = _approach_path(graph, node)
+    positions = [graph.nodes[n]["pos"] for n in path]
+    along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(positions, axis=0),
+                                                            axis=1))])
+    head = params.head_gap
+    span = head + (params.queue_slots - 1) * params.slot_spacing
+    for k, name in enumerate(path[1:], start=1):
+        if name in holding and along[k] <= span:
+            head = along[k]
+            break
+    wanted = [head + k * params.slot_spacing for k in range(params.queue_slots)]
+    slots, distances = [], []
+    for distance in wanted:
+        if distances and distance <= distances[-1]:
+            distance = distances[-1] + params.slot_spacing
+        while distance <= along[-1]:
+            xy = _at(positions, along, distance)
+            if floor_plan.obstacles.signed_distance([xy])[0] >= params.slot_clearance:
+                slots.append(xy)
+                distances.append(distance)
+                break
+            distance += 0.1
+    if not slots:  # the lanes end right here: one slot between the point and its neighbour
+        distances = [0.5 * along[-1]]
+        slots = [_at(positions, along, distances[0])]
+    beyond = int(np.searchsorted(along, distances[-1], side="right"))
+    approach = path[min(beyond, len(path) - 1)]
+    entry = [_listed(positions[k]) for k in range(1, len(path))
+             if along[k] < distances[0]][::-1]
+    return [_listed(s) for s in slots], entry, approach
+
+
+def _approach_path(graph: nx.DiGraph, node: str) -> list[str]:
+    """Nodes from ``node`` back against the lanes that reach it: each step to the
+    predecessor whose lane is most in line with the last (the longest lane first), never
+    revisiting, and not into a dead end while another way is left; at least 8 m long when
+    the lanes allow."""
+    path = [node]
+    while True:
+        options = [p for p in graph.predecessors(path[-1]) if p not in path]
+        if not options:
+            return path
+        path.append(max(options, key=lambda p: _back_step_rank(graph, path, p)))
+        lengths = [graph.edges[b, a]["length"] for a, b in zip(path, path[1:], strict=False)]
+        if sum(lengths) >= 8.0:
+            return path
+
+
+def _back_step_rank(graph: nx.DiGraph, path: list[str], option: str):
+    """How well stepping back from ``path[-1]`` to ``option`` continues ``path`` (larger is
+    better): from the location, the longest lane; after that, not a dead end, then the
+    cosine of the turn."""
+    here = graph.nodes[path[-1]]["pos"]
+    if len(path) == 1:
+        return graph.edges[option, path[-1]]["length"]
+    heading = here - graph.nodes[path[-2]]["pos"]
+    step = graph.nodes[option]["pos"] - here
+    through = any(q != path[-1] for q in graph.predecessors(option))
+    cosine = float(step @ heading) / max(float(np.linalg.norm(step) * np.linalg.norm(heading)),
+                                         1e-9)
+    return through, cosine
+
+
+def _at(positions, along, distance) -> np.ndarray:
+    """The point ``distance`` m along the polyline ``positions`` (cumulated ``along``)."""
+    k = min(int(np.searchsorted(along, distance, side="right")) - 1, len(positions) - 2)
+    span = along[k + 1] - along[k]
+    t = 0.0 if span <= 0 else (distance - along[k]) / span
+    return positions[k] + t * (positions[k + 1] - positions[k])
+
+
+def _parking(point: np.ndarray, lanes: np.ndarray, floor_plan: FloorPlan,
+             params: BuildingNavigationParams) -> list[list[float]]:
+    """Spots around ``point`` off the lanes and clear of walls (see the module
+    docstring), nearest the point's free side first."""
+    if params.parking_spots == 0:
+        return []
+    angles = np.arange(16) * (2 * math.pi / 16)
+    spots = point + params.parking_distance * np.column_stack([np.cos(angles),
+                                                               np.sin(angles)])
+    obstacles = floor_plan.obstacles
+    clear = obstacles.signed_distance(spots) >= params.slot_clearance
+    a, d = lanes[:, 0], lanes[:, 1] - lanes[:, 0]
+    rel = spots[:, None, :] - a[None]
+    t = np.clip((rel * d).sum(axis=2) / np.maximum((d * d).sum(axis=1), 1e-18), 0.0, 1.0)
+    off_lanes = np.linalg.norm(rel - t[..., None] * d, axis=2).min(axis=1)
+    chosen = []
+    for k in np.argsort(-off_lanes, kind="stable"):
+        if not clear[k] or off_lanes[k] < params.parking_lane_gap:
+            continue
+        line = point + np.linspace(0.0, 1.0, 12)[:, None] * (spots[k] - point)
+        if obstacles.signed_distance(line).min() < params.slot_clearance - 0.2:
+            continue
+        if all(np.linalg.norm(spots[k] - np.asarray(c)) >= 0.9 for c in chosen):
+            chosen.append(_listed(spots[k]))
+        if len(chosen) == params.parking_spots:
+            break
+    return chosen
+
+
+def _listed(xy) -> list[float]:
+    return [round(float(xy[0]), 3), round(float(xy[1]), 3)]

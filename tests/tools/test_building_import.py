@@ -1,0 +1,119 @@
+"""``mrta-sim import``: building files made into runnable scenario folders."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from mrta_drake.errors import InputError
+from mrta_drake.scenario.loading import load_scenario
+from mrta_drake.tools.building_import import ImportOptions, import_building
+from mrta_drake.tools.cli import main
+from mrta_drake.world.plant import load_floor_plan_of
+
+BUILDINGS = Path(__file__).parents[1] / "data" / "buildings"
+ONE_LEVEL = BUILDINGS / "one_level.building.yaml"
+TWO_LEVELS = BUILDINGS / "two_levels.building.yaml"
+
+
+def test_import_writes_a_scenario_that_loads(tmp_path):
+    report = import_building(str(ONE_LEVEL), str(tmp_path),
+                             ImportOptions(robots=3, people=2, seed=4))
+    assert report.scenarios == [str(tmp_path / "scenario.yaml")]
+    assert (tmp_path / "one_level.building.yaml").read_text() == ONE_LEVEL.read_text()
+    scenario = load_scenario(tmp_path / "scenario.yaml")
+    assert scenario.world.kind == "rmf_building" and scenario.world.level == "L1"
+    # The charger first, then the parking spot (the false flag is no parking spot).
+    starts = [robot.start[:2] for robot in scenario.robots]
+    assert starts[:2] == [[1.5, -6.0], [14.5, -6.0]]
+    assert len(starts) == 3
+    # People walk the human lane; tasks run between the four task locations.
+    for walker in scenario.humans.walkers:
+        assert all(point[1] == pytest.approx(-4.9) for point in walker.waypoints)
+    assert len(scenario.humans.walkers) == 2
+    tasks = [task for batch in scenario.tasks.stream for task in batch.tasks]
+    assert tasks and {t.pickup for t in tasks} | {t.dropoff for t in tasks} <= {0, 1, 2, 3}
+    # The pantry door (1.2 m) leaves lanes 0.6 m from its jambs: the controller is told.
+    assert scenario.blocks.controller.params == {"safety_distance_wall": 0.54}
+
+
+def test_navigation_file_is_the_derived_navigation(tmp_path):
+    import_building(str(ONE_LEVEL), str(tmp_path), ImportOptions(robots=2))
+    written = yaml.safe_load((tmp_path / "navigation.yaml").read_text())
+    scenario = load_scenario(tmp_path / "scenario.yaml")
+    assert [loc["name"] for loc in written["locations"]] == [
+        loc.name for loc in scenario.locations]
+    # Left out, the scenario derives the same navigation from the building itself.
+    content = yaml.safe_load((tmp_path / "scenario.yaml").read_text())
+    del content["locations"], content["roadways"]
+    (tmp_path / "derived.yaml").write_text(yaml.safe_dump(content))
+    derived = load_scenario(tmp_path / "derived.yaml")
+    assert derived.locations == scenario.locations
+    assert derived.roadways == scenario.roadways
+
+
+def test_people_without_human_lanes_are_visitors_between_lane_nodes(tmp_path):
+    import_building(str(BUILDINGS / "cartesian.building.yaml"), str(tmp_path),
+                    ImportOptions(robots=1, people=3))
+    scenario = load_scenario(tmp_path / "scenario.yaml")
+    (group,) = scenario.humans.groups
+    assert group.kind == "visitors" and group.count == 3
+    floor_plan = load_floor_plan_of(scenario)
+    assert floor_plan.obstacles.signed_distance(np.array(group.points)).min() > 0.5
+
+
+def test_several_levels_give_one_folder_each(tmp_path):
+    report = import_building(str(TWO_LEVELS), str(tmp_path), ImportOptions(robots=2))
+    assert report.scenarios == [str(tmp_path / "L1" / "scenario.yaml"),
+                                str(tmp_path / "L2" / "scenario.yaml")]
+    assert "running several levels through lifts is not yet supported" in report.lines[1]
+    scenario = load_scenario(tmp_path / "L2" / "scenario.yaml")
+    assert [loc.name for loc in scenario.locations] == ["l2_lab", "l2_office"]
+
+
+def test_one_chosen_level(tmp_path):
+    report = import_building(str(TWO_LEVELS), str(tmp_path),
+                             ImportOptions(robots=2, level="L2"))
+    assert report.scenarios == [str(tmp_path / "scenario.yaml")]
+
+
+def test_a_scenario_on_a_building_with_several_levels_must_choose_one(tmp_path):
+    (tmp_path / "scenario.yaml").write_text(yaml.safe_dump({
+        "world": {"kind": "rmf_building", "floor_plan": str(TWO_LEVELS)},
+        "robots": [{"name": "r", "start": [1.5, -2.0]}]}))
+    with pytest.raises(InputError) as info:
+        load_scenario(tmp_path / "scenario.yaml")
+    assert str(info.value) == (
+        f"{tmp_path / 'scenario.yaml'}: world.level: {TWO_LEVELS} has 2 levels (L1, L2): "
+        "running several levels is not yet supported, choose one")
+
+
+def test_too_many_robots_is_one_line():
+    with pytest.raises(InputError, match=r"--robots: 40 robots do not fit: the level's lane "
+                       r"nodes give \d+ free start spots"):
+        import_building(str(ONE_LEVEL), "unused", ImportOptions(robots=40))
+
+
+def test_cli_import(tmp_path, capsys):
+    assert main(["import", str(ONE_LEVEL), "--robots", "2", "--seed", "1", "--out",
+                 str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "L1: graph 0: 4 task locations" in out
+    assert "chair_on_lane" in out  # the model left out is named
+    assert main(["import", str(ONE_LEVEL), "--robots", "0", "--out", str(tmp_path)]) == 2
+    assert capsys.readouterr().err == "error: --robots: must be >= 1, got 0\n"
+    assert main(["import", str(TWO_LEVELS), "--level", "L5", "--out", str(tmp_path)]) == 2
+    assert "'L5' is not a level" in capsys.readouterr().err
+
+
+def test_cli_broken_building_has_no_traceback(tmp_path):
+    broken = Path(__file__).parents[1] / "data" / "broken_buildings" / "no_scale.building.yaml"
+    result = subprocess.run([sys.executable, "-m", "mrta_drake.tools.cli", "import",
+                             str(broken), "--out", str(tmp_path / "out")],
+                            capture_output=True, text=True)
+    assert result.returncode == 2
+    assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
+    assert "levels.L1.measurements: none on the reference level" in result.stderr

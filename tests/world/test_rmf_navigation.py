@@ -1,0 +1,134 @@
+"""Navigation derived from a building level: lanes, task locations, queues, parking."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mrta_drake.errors import InputError
+from mrta_drake.navigation.roadways import Roadways
+from mrta_drake.world.rmf_building import load_building
+from mrta_drake.world.rmf_navigation import (
+    BuildingNavigationParams,
+    centre_lines,
+    level_navigation,
+)
+from mrta_drake.world.rmf_world import level_world
+
+BUILDINGS = Path(__file__).parents[1] / "data" / "buildings"
+LEVELS = [("one_level", "L1"), ("two_levels", "L1"), ("two_levels", "L2"),
+          ("cartesian", "ground")]
+PARAMS = BuildingNavigationParams()
+
+
+def derived(name: str, level: str, params: BuildingNavigationParams = PARAMS):
+    building = load_building(BUILDINGS / f"{name}.building.yaml")
+    world = level_world(building, level, params.graph)
+    return building, world.floor_plan, level_navigation(building, level, world.floor_plan,
+                                                        params)
+
+
+def test_task_locations_are_workcells_then_named_vertices():
+    _, _, navigation = derived("one_level", "L1")
+    names = [location.name for location in navigation.locations]
+    # The dispenser and the ingestor first; the charger is where robots park, not a task.
+    assert names == ["pantry", "lab", "reception", "park_1"]
+    assert [location.id for location in navigation.locations] == [0, 1, 2, 3]
+    for location in navigation.locations:
+        assert location.exit_node == location.name
+        assert location.point == navigation.roadways.nodes[location.name]
+
+
+@pytest.mark.parametrize("name, level", LEVELS)
+def test_every_location_reaches_every_other_along_one_way_lanes(name, level):
+    _, _, navigation = derived(name, level)
+    roadways = Roadways(navigation.roadways, navigation.locations, name)
+    ids = roadways.location_ids
+    for a in ids:
+        for b in ids:
+            if a != b:
+                leg = roadways.leg(a, b)
+                assert leg is not None and np.allclose(leg[-1], roadways.place(b).tail)
+
+
+@pytest.mark.parametrize("name, level", LEVELS)
+def test_queue_slots_and_parking_spots_are_clear_of_walls(name, level):
+    _, floor_plan, navigation = derived(name, level)
+    obstacles = floor_plan.obstacles
+    for location in navigation.locations:
+        assert location.queue
+        clearance = obstacles.signed_distance(np.array(location.queue))
+        assert clearance.min() >= PARAMS.slot_clearance - 1e-9, location.name
+        for slot in location.queue:  # outside the waypoint generator's 1 m reach
+            assert np.linalg.norm(np.subtract(slot, location.point)) > 1.0
+        if location.parking:
+            assert obstacles.signed_distance(np.array(location.parking)).min() >= (
+                PARAMS.slot_clearance - 1e-9)
+
+
+def test_queue_lies_back_along_the_approach_with_its_head_on_a_holding_point():
+    _, _, navigation = derived("one_level", "L1")
+    nodes = navigation.roadways.nodes
+    segments = [(np.array(nodes[a]), np.array(nodes[b])) for a, b in navigation.roadways.edges]
+
+    def off_lanes(point):
+        point = np.asarray(point)
+        return min(np.linalg.norm(point - (a + np.clip(np.dot(point - a, b - a) / np.dot(
+            b - a, b - a), 0.0, 1.0) * (b - a))) for a, b in segments)
+
+    pantry, lab = navigation.locations[:2]
+    # The lane to the pantry runs north along x = 4 through an unnamed holding point at
+    # y = -4.8, 2.8 m from the point: the head slot; the others follow back along the lanes.
+    assert pantry.queue[0] == [4.0, -4.8] and pantry.entry == []
+    # The lab has none: its head slot is 1.3 m back down its lane, then 1 m apart.
+    assert lab.queue == [[12.0, -3.3], [12.0, -4.3], [12.0, -5.3]]
+    for location in navigation.locations:
+        assert all(off_lanes(slot) < 2e-3 for slot in location.queue), location.name  # mm
+        gaps = np.linalg.norm(np.diff(np.array(location.queue), axis=0), axis=1)
+        assert (gaps <= PARAMS.slot_spacing + 2e-3).all() and (gaps > 0.5).all()
+
+
+def test_parking_spots_stay_off_the_lanes():
+    _, _, navigation = derived("one_level", "L1")
+    nodes = navigation.roadways.nodes
+    lanes = [(np.array(nodes[a]), np.array(nodes[b])) for a, b in navigation.roadways.edges]
+    for location in navigation.locations:
+        for spot in location.parking:
+            gaps = []
+            for a, b in lanes:
+                t = np.clip(np.dot(spot - a, b - a) / np.dot(b - a, b - a), 0.0, 1.0)
+                gaps.append(np.linalg.norm(spot - (a + t * (b - a))))
+            assert min(gaps) >= PARAMS.parking_lane_gap - 1e-9
+
+
+def test_one_way_lanes_stay_one_way():
+    pytest.importorskip("pyproj")
+    building = load_building(BUILDINGS / "wgs84.building.yaml")
+    lines = centre_lines(building, building.level("L1"), 0)
+    edges = {(a, b): two_way for a, b, two_way in lines.edges}
+    assert edges == {("gate", "v1"): False, ("v1", "hall"): True, ("v1", "lab"): True,
+                     ("lab", "gate"): False}
+    _, _, navigation = derived("wgs84", "L1")
+    assert ["gate", "v1"] in navigation.roadways.edges
+    assert ["v1", "gate"] not in navigation.roadways.edges
+
+
+def test_lanes_into_a_lift_cabin_are_left_out():
+    building = load_building(BUILDINGS / "two_levels.building.yaml")
+    lines = centre_lines(building, building.level("L2"), 0)
+    assert (10.0, -2.0) not in lines.nodes.values()
+    assert (8.2, -2.0) in lines.nodes.values()
+
+
+def test_a_graph_without_lanes_is_refused_with_the_graphs_there_are():
+    building = load_building(BUILDINGS / "one_level.building.yaml")
+    with pytest.raises(InputError, match=r"levels\.L1\.lanes: no lanes of graph 3 \(graphs "
+                       r"on this level: 0\)"):
+        centre_lines(building, building.level("L1"), 3)
+
+
+def test_navigation_params_check_themselves():
+    with pytest.raises(InputError, match="queue_slots: must be >= 1, got 0"):
+        BuildingNavigationParams(queue_slots=0)
+    with pytest.raises(InputError, match="head_gap: must be > 0 m"):
+        BuildingNavigationParams(head_gap=-1.0)
