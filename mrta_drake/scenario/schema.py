@@ -65,11 +65,27 @@ class LocationConfig:
 
 
 @dataclass(frozen=True)
+class LiftEdgeConfig:
+    """A ride in ``lift`` from roadway node ``from_node`` (its cabin on level
+    ``from_level``) to ``to_node`` (its cabin on ``to_level``), costing ``length`` m: the
+    ride's time at the nominal speed ``tasks.estimate_speed``."""
+
+    lift: str = ""
+    from_node: str = ""
+    to_node: str = ""
+    from_level: str = ""
+    to_level: str = ""
+    length: float = 0.0
+
+
+@dataclass(frozen=True)
 class RoadwaysConfig:
-    """A directed lane graph: ``nodes`` name -> [x, y]; ``edges`` [from, to] one-way."""
+    """A directed lane graph: ``nodes`` name -> [x, y]; ``edges`` [from, to] one-way;
+    ``lift_edges``: rides between levels (a building with lifts)."""
 
     nodes: dict[str, list[float]] = field(default_factory=dict)
     edges: list[list[str]] = field(default_factory=list)
+    lift_edges: list[LiftEdgeConfig] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -230,6 +246,7 @@ class BlocksConfig:
     controller: BlockConfig = field(default_factory=lambda: BlockConfig("cluster_cbf"))
     robots: BlockConfig = field(default_factory=lambda: BlockConfig("kinematic"))
     humans: BlockConfig = field(default_factory=lambda: BlockConfig("social_force"))
+    lifts: BlockConfig = field(default_factory=lambda: BlockConfig("fifo"))
 
 
 @dataclass(frozen=True)
@@ -247,6 +264,7 @@ class RatesConfig:
     controller: float = 20.0
     robots: float = 20.0
     humans: float = 20.0
+    lifts: float = 10.0
     logging: float = 10.0
     meshcat: float = 20.0
 
