@@ -136,6 +136,10 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
         if humans.HasOutputPort("active"):
             builder.Connect(humans.GetOutputPort("active"), recorder.GetInputPort("human_active"))
 
+    if lifts is not None:
+        builder.Connect(lifts.GetOutputPort("lift_state"), recorder.GetInputPort("lift_state"))
+        builder.Connect(lifts.GetOutputPort("events"), recorder.GetInputPort("lift_events"))
+
     visualizer = None
     if meshcat is not None:
         _look_at_floor_plan(meshcat, floor_plan.bounds)
