@@ -12,9 +12,10 @@ from dataclasses import dataclass, field
 class WorldConfig:
     """The building. ``floor_plan`` is a floor-plan YAML (see ``floor_plan.py``), a ROS
     ``map_server`` YAML (``kind: ros_map``) or an Open-RMF ``.building.yaml``
-    (``kind: rmf_building``: its ``level``, needed when it has several, and navigation
-    ``graph``; locations and roadways left out are derived from it, see
-    ``world/rmf_scenario.py``); paths are relative to the scenario file.
+    (``kind: rmf_building``: its ``level``, or, left out with several levels, all of them
+    side by side joined by the lifts (docs/worlds.md); and navigation ``graph``; locations
+    and roadways left out are derived from it, see ``world/rmf_scenario.py``); paths are
+    relative to the scenario file.
     ``scenic``: a Scenic 3 program placing objects (beds, carts...) for the scenario's seed,
     with ``scenic_params`` overriding its ``param`` values (see ``scenic_objects.py``)."""
 

@@ -76,8 +76,9 @@ class RunRecorder(LeafSystem):
     ``events.jsonl`` as they happen, flushed, so a crash loses nothing.
 
     A robot's mode: ``IDLE`` without a current stop or an active target; ``QUEUE`` while it
-    waits in some room's queue, or for a lift or inside one (per ``lift_state``); ``SERVE`` while it holds its stop's room, drives to no waypoint
-    after the current one and is within ``serve_radius`` m of it; ``DRIVE`` otherwise.
+    waits in some room's queue, or for a lift or inside one (per ``lift_state``); ``SERVE``
+    while it holds its stop's room, drives to no waypoint after the current one and is
+    within ``serve_radius`` m of it; ``DRIVE`` otherwise.
 
     Inputs: ``robot_state`` (4N), ``telemetry``, ``paths``, ``queue_state``, ``plan``,
     ``progress_<robot>`` and ``target_<robot>`` per robot; optional (may stay unconnected):

@@ -19,12 +19,12 @@ from mrta_drake.scenario.schema import RoadwaysConfig, Scenario
 from mrta_drake.scenario.typed_yaml import load_typed
 from mrta_drake.world.floor_plan import FloorPlan
 from mrta_drake.world.rmf_building import Building, load_building
+from mrta_drake.world.rmf_levels import BuildingLevels, building_levels
 from mrta_drake.world.rmf_navigation import (
     BuildingNavigation,
     BuildingNavigationParams,
     level_navigation,
 )
-from mrta_drake.world.rmf_levels import BuildingLevels, building_levels
 from mrta_drake.world.rmf_world import LevelWorld, level_world
 
 
