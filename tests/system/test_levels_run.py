@@ -5,6 +5,7 @@ import dataclasses
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from mrta_drake import load_scenario, simulate
 from mrta_drake.scenario.schema import HumansConfig, TaskBatch, TaskConfig, TasksConfig
@@ -39,3 +40,14 @@ def test_tasks_across_floors_complete_through_the_lifts_and_rerun_identically():
     again = simulate(scenario, duration=240.0, plots=False)
     assert np.array_equal(first.robot_states, again.robot_states)
     assert _without_wall_clock(first.events) == _without_wall_clock(again.events)
+
+
+def test_physics_robots_refuse_a_building_run_across_levels_in_one_line():
+    from mrta_drake.errors import InputError
+    from mrta_drake.stack.blocks import replace_block
+    from mrta_drake.stack.diagram import build_diagram
+
+    scenario = replace_block(_scenario(), "robots", "physics")
+    with pytest.raises(InputError, match=r"blocks.robots.kind: 'physics' robots cannot ride "
+                                         r"lifts \(no relocations input\)"):
+        build_diagram(scenario)
