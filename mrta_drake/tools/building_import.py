@@ -255,7 +255,8 @@ def _write_scenario(path: str, building_file: str, level: str, options: ImportOp
     if safety < WALL_SAFETY:
         content["blocks"] = {"controller": {"kind": "cluster_cbf",
                                             "params": {"safety_distance_wall": safety}}}
-    header = (f"# {building_file}, level {level}: imported by `mrta-sim import` (seed "
+    where = f"level {level}" if level else "every level"
+    header = (f"# {building_file}, {where}: imported by `mrta-sim import` (seed "
               f"{options.seed}).\n# Run: mrta-sim run {os.path.basename(path)}\n")
     _write_yaml(path, header, content)
 
