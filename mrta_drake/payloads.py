@@ -129,6 +129,7 @@ class RobotMode(IntEnum):
     ENTER = 4  # holding the room, driving through the queue slots and entry to its point
     PARK = 5  # no stop to do: wait on a free parking spot of the last location
     WAIT = 6  # blockages leave no lane to the stop: stand still until they change
+    LIFT = 7  # at a lift on the way: queue for it, drive into the cabin, ride to the next level
 
 
 # --- Waypoints: waypoint generator -> planner, controller -----------------------------------
@@ -195,6 +196,55 @@ class QueueState:
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the room queues' state can share it
+
+
+# --- Lifts: waypoint generators <-> lift bank -> robots -------------------------------------
+
+
+@dataclass(frozen=True)
+class LiftRequest:
+    """One robot's standing request for a lift: to ride ``lift`` from level ``from_level``
+    to level ``to_level`` (all ``None``: no request). A robot that stops asking while
+    queued (not yet holding the cabin) leaves the queue; the holder keeps the cabin until
+    it has driven out of it."""
+
+    robot: str
+    lift: str | None = None
+    from_level: str | None = None
+    to_level: str | None = None
+
+
+@dataclass(frozen=True)
+class LiftStatus:
+    """One lift: the cabin's ``level``, the ``holder`` robot (or ``None``), the robots
+    ``waiting`` in request order, and the cabin's ``phase`` (``idle``, ``called``: coming
+    empty to the holder's level, ``open``: waiting for the holder to board, ``travel``,
+    ``out``: the holder driving out at the target level)."""
+
+    lift: str
+    level: str
+    holder: str | None = None
+    waiting: tuple[str, ...] = ()
+    phase: str = "idle"
+
+
+@dataclass(frozen=True)
+class LiftState:
+    """Every lift's ``LiftStatus``, in the building's order."""
+
+    lifts: tuple[LiftStatus, ...] = ()
+
+    def lift(self, name: str) -> LiftStatus | None:
+        return next((status for status in self.lifts if status.lift == name), None)
+
+
+@dataclass(frozen=True)
+class Relocations:
+    """Where to put robots, per robot in ``robot_names`` order: ``(sequence, (x, y, theta))``
+    or ``None``. A robots block applies a pose once, when its sequence number is new (world
+    frame, m, rad)."""
+
+    moves: tuple[tuple[int, tuple[float, float, float]] | None, ...] = ()
 
 
 # --- Paths: planner -> controller ------------------------------------------------------------

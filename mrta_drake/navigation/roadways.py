@@ -19,7 +19,7 @@ import numpy as np
 
 from mrta_drake.errors import InputError
 from mrta_drake.payloads import frozen_array
-from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig
+from mrta_drake.scenario.schema import LiftEdgeConfig, LocationConfig, RoadwaysConfig
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,6 +120,10 @@ class Roadways:
                 raise InputError(file, field, f"edge from node {edge[0]!r} to itself")
             start, end = (self.node_position(name) for name in edge)
             self.graph.add_edge(edge[0], edge[1], length=float(np.linalg.norm(end - start)))
+        self._lift_edges: dict[tuple[tuple[float, float], tuple[float, float]],
+                               LiftEdgeConfig] = {}
+        for k, hop in enumerate(config.lift_edges):
+            self._add_lift_edge(hop, f"roadways.lift_edges[{k}]")
 
         self._places: dict[int, Place] = {}
         for i, location in enumerate(locations):
@@ -129,6 +133,17 @@ class Roadways:
         self._legs: dict[tuple[int, int], np.ndarray | None] = {}
         self.closures: tuple[tuple[float, float, float, float], ...] = ()
         self._closed_views: dict[tuple, Roadways] = {}
+
+    def _add_lift_edge(self, hop: LiftEdgeConfig, field: str) -> None:
+        for name in (hop.from_node, hop.to_node):
+            if name not in self.graph:
+                raise InputError(self._file, field, f"unknown node {name!r}")
+        if not hop.length > 0:
+            raise InputError(self._file, f"{field}.length", f"must be > 0 m, got {hop.length}")
+        self.graph.add_edge(hop.from_node, hop.to_node, length=float(hop.length), lift=True)
+        ends = tuple(tuple(float(v) for v in self.node_position(n))
+                     for n in (hop.from_node, hop.to_node))
+        self._lift_edges[ends] = hop
 
     def _place(self, location: LocationConfig, field: str) -> Place:
         file = self._file
@@ -195,8 +210,8 @@ class Roadways:
             view = copy.copy(self)
             view.graph = self.graph.copy()
             view.graph.remove_edges_from([
-                (a, b) for a, b in self.graph.edges
-                if any(segment_crosses_box(self.node_position(a), self.node_position(b), box)
+                (a, b) for a, b, lift in self.graph.edges(data="lift") if not lift
+                and any(segment_crosses_box(self.node_position(a), self.node_position(b), box)
                        for box in key)])
             view.closures, view._legs, view._closed_views = key, {}, {}
             self._closed_views[key] = view
@@ -205,7 +220,27 @@ class Roadways:
     def crosses_closure(self, points) -> bool:
         """Whether the polyline ``points`` (k, 2) touches one of the ``closures``."""
         return any(segment_crosses_box(a, b, box) for box in self.closures
-                   for a, b in zip(points[:-1], points[1:], strict=True))
+                   for a, b in zip(points[:-1], points[1:], strict=True)
+                   if self.lift_edge(a, b) is None)
+
+    @property
+    def has_lifts(self) -> bool:
+        return bool(self._lift_edges)
+
+    def lift_edge(self, a, b) -> LiftEdgeConfig | None:
+        """The lift ride from the roadway node at point ``a`` to the one at ``b`` (two
+        consecutive points of a route), or None when they are not a ride's ends."""
+        if not self._lift_edges:
+            return None
+        return self._lift_edges.get(((float(a[0]), float(a[1])), (float(b[0]), float(b[1]))))
+
+    def route_length(self, points) -> float:
+        """Length (m) of the route ``points`` (k, 2), a lift ride counted as its edge's
+        ``length``."""
+        if not self._lift_edges:
+            return _polyline_length(points)
+        return sum(hop.length if (hop := self.lift_edge(a, b)) is not None
+                   else math.dist(a, b) for a, b in zip(points[:-1], points[1:], strict=True))
 
     # --- Legs --------------------------------------------------------------------------------
 
@@ -227,7 +262,7 @@ class Roadways:
         """Length of ``leg(from_location, to_location)``, m; 0 from a location to itself."""
         if from_location == to_location:
             return 0.0
-        return _polyline_length(self.leg(from_location, to_location))
+        return self.route_length(self.leg(from_location, to_location))
 
     def route_from_node(self, node: str, to_location: int) -> np.ndarray | None:
         """The polyline (k, 2) from roadway node ``node`` along the lanes to the tail slot of

@@ -16,6 +16,8 @@ from mrta_drake.payloads import (
     Detour,
     Disturbances,
     FleetPlan,
+    LiftRequest,
+    LiftState,
     QueueRequest,
     QueueState,
     RobotMode,
@@ -41,6 +43,9 @@ class WaypointParams:
     parking_clearance: float = 0.8  # a parking spot is taken with another robot this close
     door_clearance: float = 1.0  # a holder waits at its slot while another robot moves this
     # close to the room's entry path or point
+    lift_request_distance: float = 4.0  # ask for a lift this close to its cabin's point
+    lift_wait_distance: float = 3.0  # wait for it this far back along the route from the
+    # cabin's point, one more metre per robot ahead in its queue
 
 
 @dataclass(frozen=True)
@@ -50,7 +55,8 @@ class _Drive:
     ``release`` the room the robot asks to release; ``closed`` the blockages (names) in
     force at the last update; ``detours`` the route changes they forced; ``waiting``: to
     serve at a point whose room another robot still holds (e.g. parked in that room), so
-    standing still rather than driving onto the holder."""
+    standing still rather than driving onto the holder. ``lift_slot``: waiting for a lift,
+    the robot's place in its queue; -1 once it holds the cabin."""
 
     phase: RobotMode = RobotMode.IDLE
     stop: Stop | None = None
@@ -63,6 +69,7 @@ class _Drive:
     closed: tuple[str, ...] = ()
     detours: tuple[Detour, ...] = ()
     waiting: bool = False
+    lift_slot: int = -1
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the state can share it
@@ -76,6 +83,7 @@ class _Outputs:
     target: WaypointTarget
     queue_request: QueueRequest
     progress: RobotProgress
+    lift_request: LiftRequest
 
 
 class _Robots:
@@ -135,6 +143,19 @@ def _distance(a, b) -> float:
     return math.hypot(a[0] - b[0], a[1] - b[1])
 
 
+def _back_along(points, distance: float) -> tuple[float, float]:
+    """The point ``distance`` m back from the last of ``points`` along their polyline (the
+    first point if it is shorter)."""
+    for k in range(len(points) - 1, 0, -1):
+        a, b = points[k - 1], points[k]
+        step = _distance(a, b)
+        if step >= distance:
+            f = distance / step
+            return (b[0] + f * (a[0] - b[0]), b[1] + f * (a[1] - b[1]))
+        distance -= step
+    return points[0]
+
+
 class WaypointGenerator(LeafSystem):
     """Drives robot ``robot_names[index]`` through its plan's stops, one waypoint at a time.
 
@@ -145,20 +166,24 @@ class WaypointGenerator(LeafSystem):
         - plan
         - robot_state
         - queue_state
+        - lift_state (optional)
         - disturbances (optional)
         output_ports:
         - target
         - queue_request
         - progress
+        - lift_request
 
     Inputs:
       ``plan``: abstract ``FleetPlan``; this robot's ``RobotPlan`` is the one named after it.
       ``robot_state``: vector 4N, ``[x, y, theta, v]`` per robot in ``robot_names`` order,
       world frame, m, rad, m/s.
       ``queue_state``: abstract ``QueueState`` from ``RoomQueues``.
+      ``lift_state``: abstract ``LiftState`` from ``LiftBank`` (a building with lifts).
     Outputs (from the state; no direct feedthrough):
       ``target``: abstract ``WaypointTarget``, world frame, m.
       ``queue_request``: abstract ``QueueRequest``.
+      ``lift_request``: abstract ``LiftRequest``.
       ``progress``: abstract ``RobotProgress``; visit times are simulation times, s.
 
     ``rate_hz`` times a second an unrestricted update takes the current stop through these
@@ -171,6 +196,12 @@ class WaypointGenerator(LeafSystem):
       (sent back to it) drives straight to the point instead.
     - queue: request the room and wait at slot ``min(place, slots - 1)``, moving up as the
       queue advances; robots beyond the last slot all wait at the tail slot.
+    - lift: a route through a lift (``Roadways.lift_edge``: its cabin's node on this level,
+      then on the next) is cut there. Within ``lift_request_distance`` of the cabin's point
+      the robot requests the lift and waits ``lift_wait_distance`` back along its route
+      (one metre more per robot ahead of it in the lift's queue); holding the cabin it
+      drives to the cabin's point and stands until the lift bank relocates it to the
+      cabin on the next level, then drives on (taking the lanes from there again).
     - enter: once holding the room, drive through the remaining slots and the entry path;
       but while another robot moves within ``door_clearance`` of the entry path or the point
       (e.g. one that had parked in the room, leaving), wait at the slot: two robots in a
@@ -236,6 +267,7 @@ class WaypointGenerator(LeafSystem):
         self._queue_state = self.DeclareAbstractInputPort(
             "queue_state", Value[object](QueueState())
         )
+        self._lift_state = self.DeclareAbstractInputPort("lift_state", Value[object](LiftState()))
         self._disturbances = self.DeclareAbstractInputPort(
             "disturbances", Value[object](Disturbances())
         )
@@ -246,6 +278,7 @@ class WaypointGenerator(LeafSystem):
             ("target", WaypointTarget(robot), self._calc_target),
             ("queue_request", QueueRequest(robot), self._calc_queue_request),
             ("progress", RobotProgress(robot, last_location=start_location), self._calc_progress),
+            ("lift_request", LiftRequest(robot), self._calc_lift_request),
         ):
             self.DeclareAbstractOutputPort(
                 name,
@@ -269,6 +302,9 @@ class WaypointGenerator(LeafSystem):
     def _calc_progress(self, context, output):
         output.set_value(self._outputs(context).progress)
 
+    def _calc_lift_request(self, context, output):
+        output.set_value(self._outputs(context).lift_request)
+
     def _outputs(self, context) -> _Outputs:
         s = self._drive(context)
         outputs = self._last_outputs
@@ -277,8 +313,15 @@ class WaypointGenerator(LeafSystem):
                 s, self._target(s),
                 QueueRequest(self._robot, s.stop.location if s.phase in _ASKING_PHASES
                              else None, s.release),
-                RobotProgress(self._robot, s.visits, s.last_location, s.stop, s.detours))
+                RobotProgress(self._robot, s.visits, s.last_location, s.stop, s.detours),
+                self._lift_request(s))
         return outputs
+
+    def _lift_request(self, s: _Drive) -> LiftRequest:
+        if s.phase != RobotMode.LIFT:
+            return LiftRequest(self._robot)
+        ride = self._roadways.lift_edge(s.route[s.index], s.route[s.index + 1])
+        return LiftRequest(self._robot, ride.lift, ride.from_level, ride.to_level)
 
     def _target(self, s: _Drive) -> WaypointTarget:
         if s.phase == RobotMode.PARK:
@@ -286,6 +329,12 @@ class WaypointGenerator(LeafSystem):
             return WaypointTarget(self._robot, True, parking, None, True)
         if s.stop is None or s.phase == RobotMode.WAIT or s.waiting:
             return WaypointTarget(self._robot)
+        if s.phase == RobotMode.LIFT:
+            if s.lift_slot < 0:
+                return WaypointTarget(self._robot, True, s.route[s.index], None, True)
+            wait = _back_along(s.route[:s.index + 1],
+                               self._params.lift_wait_distance + s.lift_slot)
+            return WaypointTarget(self._robot, True, wait, None, True)
         place = self._roadways.place(s.stop.location)
         if s.phase in (RobotMode.DRIVE, RobotMode.ENTER):
             last = len(s.route) - 1
@@ -305,6 +354,8 @@ class WaypointGenerator(LeafSystem):
         t = context.get_time()
         robots = _Robots(self._robot_state, context, self._index)
         queues = self._queue_state.Eval(context)
+        lifts = (self._lift_state.Eval(context) if self._roadways.has_lifts
+                 and self._lift_state.HasValue(context) else LiftState())
         disturbances = (self._disturbances.Eval(context) if self._disturbances.HasValue(context)
                         else NO_DISTURBANCES)
         lanes, closed = self._roadways, ()
@@ -319,7 +370,7 @@ class WaypointGenerator(LeafSystem):
         else:
             stops = self._stops(context)
             s = self._follow_plan(s, _first_to_do(stops, s.visits), robots, lanes, t)
-            s = self._advance(s, robots, t, queues, stops, lanes)
+            s = self._advance(s, robots, t, queues, stops, lanes, lifts)
         s = _changed(s, release=self._release(s, robots, queues))
         if s is not old:  # ``state`` comes holding the current state
             state.get_mutable_abstract_state(self._state_index).set_value(s)
@@ -346,10 +397,13 @@ class WaypointGenerator(LeafSystem):
         xy = robots.xy
         if s.stop is None:
             return self._start(s, stop, xy, lanes, t)
-        if stop.location == s.stop.location:
-            return _changed(s, stop=stop)
+        if stop.location == s.stop.location or (s.phase == RobotMode.LIFT and s.lift_slot < 0):
+            return _changed(s, stop=stop)  # a rider takes the lanes again once out
         old = self._roadways.place(s.stop.location)
-        if s.phase == RobotMode.DRIVE:
+        if s.phase == RobotMode.LIFT:
+            def route(roadways):
+                return _points_or_none(roadways.route_from_point(xy, stop.location))
+        elif s.phase == RobotMode.DRIVE:
             def route(roadways):
                 return self._splice(s.route[s.index:], xy, old.exit_node, stop.location,
                                     roadways)
@@ -466,7 +520,7 @@ class WaypointGenerator(LeafSystem):
         return _points_or_none(lanes.route_from_point(xy, location))
 
     def _advance(self, s: _Drive, robots: _Robots, t: float, queues: QueueState,
-                 stops: tuple[Stop, ...], lanes: Roadways) -> _Drive:
+                 stops: tuple[Stop, ...], lanes: Roadways, lifts: LiftState) -> _Drive:
         if s.stop is None:
             return s
         xy = robots.xy
@@ -478,6 +532,10 @@ class WaypointGenerator(LeafSystem):
             s = replace(s, phase=RobotMode.ENTER, route=(_point(place.point),), index=0)
         if s.phase == RobotMode.DRIVE:
             s = _changed(s, index=self._reached(s, xy))
+            s = self._to_lift(s, xy)
+        if s.phase == RobotMode.LIFT:
+            s = self._ride(s, xy, lanes, lifts)
+        if s.phase == RobotMode.DRIVE:
             if (
                 s.index == len(s.route) - 1
                 and _distance(xy, s.route[-1]) <= params.request_distance
@@ -512,6 +570,35 @@ class WaypointGenerator(LeafSystem):
                 s = self._start(s, following, xy, lanes, t)
         return s
 
+    def _to_lift(self, s: _Drive, xy) -> _Drive:
+        """Into the lift phase within ``lift_request_distance`` of the cabin where the
+        route ahead next takes a lift."""
+        roadways = self._roadways
+        if not roadways.has_lifts:
+            return s
+        for j in range(s.index, len(s.route) - 1):
+            if roadways.lift_edge(s.route[j], s.route[j + 1]) is not None:
+                if j == s.index or _distance(xy, s.route[j]) <= \
+                        self._params.lift_request_distance:
+                    return replace(s, phase=RobotMode.LIFT, index=j)
+                break
+        return s
+
+    def _ride(self, s: _Drive, xy, lanes: Roadways, lifts: LiftState) -> _Drive:
+        """Wait for the lift, board it, and drive on once relocated to the next level."""
+        if _distance(xy, s.route[s.index + 1]) <= self._params.waypoint_tolerance:
+            ahead = s.route[s.index + 1:]
+            route = self._splice(ahead, xy, None, s.stop.location, lanes)
+            return replace(s, phase=RobotMode.DRIVE if route else RobotMode.WAIT,
+                           route=route or (), index=0, lift_slot=-1)
+        ride = self._roadways.lift_edge(s.route[s.index], s.route[s.index + 1])
+        status = lifts.lift(ride.lift)
+        if status is not None and status.holder == self._robot:
+            return _changed(s, lift_slot=-1)
+        slot = (status.waiting.index(self._robot) if status is not None
+                and self._robot in status.waiting else 0)
+        return _changed(s, lift_slot=slot)
+
     def _door_busy(self, place, states: np.ndarray) -> bool:
         """Whether another robot is moving (faster than ``ROBOT_STOPPED_SPEED``) within
         ``door_clearance`` of ``place``'s entry path or point."""
@@ -525,10 +612,11 @@ class WaypointGenerator(LeafSystem):
 
     def _reached(self, s: _Drive, xy) -> int:
         """The first route index not yet reached, at most the last."""
-        index = s.index
-        while index < len(s.route) - 1 and (
-            _distance(xy, s.route[index]) <= self._params.waypoint_tolerance
-        ):
+        index, route = s.index, s.route
+        while index < len(route) - 1 and (
+            _distance(xy, route[index]) <= self._params.waypoint_tolerance
+        ) and not (self._roadways.has_lifts
+                   and self._roadways.lift_edge(route[index], route[index + 1])):
             index += 1
         return index
 

@@ -1,7 +1,8 @@
 """Pictures of one run, as PNG files (matplotlib's Agg canvas; no pyplot, no display).
 
 - ``trajectories.png``: every robot's path over the floor plan's occupancy raster, with the
-  locations, the people's paths (faint) and where robots were deadlocked.
+  locations, the people's paths (faint) and where robots were deadlocked; a path breaks
+  where a lift ride moved its robot to another level.
 - ``gantt.png``: each robot's stops over time, coloured by task, with the task deadlines.
 - ``legs.png``: predicted against actual duration of every completed stop.
 - ``clearances.png``: the smallest robot-robot, robot-wall and robot-human clearance over
@@ -19,6 +20,7 @@ from matplotlib.figure import Figure
 
 from mrta_drake.payloads import DROPOFF, PICKUP
 from mrta_drake.results.clearances import clearances
+from mrta_drake.results.summary import RELOCATION_STEP
 
 RASTER_RESOLUTION = 0.1  # m per cell of the drawn floor plan
 
@@ -63,7 +65,9 @@ def plot_trajectories(path: str, grid, names, robot_xy, human_xy, locations: dic
     colours = _colours(len(names))
     for k, name in enumerate(names):
         xy = robot_xy[:, k]
-        axes.plot(xy[:, 0], xy[:, 1], color=colours[k], lw=1.4, label=name)
+        rides = np.flatnonzero(np.linalg.norm(np.diff(xy, axis=0), axis=1) > RELOCATION_STEP)
+        drawn = np.insert(np.asarray(xy, dtype=float), rides + 1, np.nan, axis=0)
+        axes.plot(drawn[:, 0], drawn[:, 1], color=colours[k], lw=1.4, label=name)
         if len(xy):
             axes.plot(*xy[0], "o", color=colours[k], ms=5)
             axes.plot(*xy[-1], "s", color=colours[k], ms=5, mec="black", mew=0.5)

@@ -36,6 +36,10 @@ clearances), times in s of simulation time unless named ``wall``/``cpu``. The ke
   fleet, None if it never did), ``tasks_reassigned`` and ``tasks_failed`` (items lost with
   it); an outage's ``robot`` and ``min_robot_clearance`` (to any other robot while cut off,
   m; None without samples).
+- ``lifts``: per lift (a building run across levels), ``rides`` (arrivals), and the
+  ``mean_wait`` and ``max_wait`` (s) from a robot's request to its boarding; empty without
+  lifts. A robot's ``distance`` leaves out the jump of a lift ride (a step longer than
+  ``RELOCATION_STEP``).
 """
 
 import dataclasses
@@ -58,6 +62,8 @@ from mrta_drake.results.human_metrics import human_metrics
 from mrta_drake.results.timing import leg_rows, task_rows, task_totals
 
 SLACK_TOLERANCE = 1e-6  # CBF slack above this counts as a relaxed constraint
+
+RELOCATION_STEP = 10.0  # m in one sample: further than any robot drives, so a lift ride
 
 
 def scenario_hash(scenario) -> str:
@@ -111,13 +117,32 @@ def summarize(stack, duration: float, wall_time: float, cpu_time: float) -> dict
         "controller_failures": int(sum(t.failures for t in telemetry)),
         "physics_contacts": stack.contacts.summary() if stack.contacts is not None else None,
         "disturbances": _disturbances(scenario.disturbances, names, times, xy, radii, events),
+        "lifts": _lifts([e for e in events if e["type"] == "lift"]),
     }
+
+
+def _lifts(events: list[dict]) -> dict:
+    """Rides and waits per lift from the recorder's ``lift`` events."""
+    lifts, asked = {}, {}
+    for event in events:
+        entry = lifts.setdefault(event["lift"], {"rides": 0, "waits": []})
+        if event["kind"] == "request":
+            asked[event["robot"]] = event["at"]
+        elif event["kind"] == "board" and event["robot"] in asked:
+            entry["waits"].append(event["at"] - asked.pop(event["robot"]))
+        elif event["kind"] == "arrive":
+            entry["rides"] += 1
+    return {name: {"rides": entry["rides"],
+                   "mean_wait": float(np.mean(entry["waits"])) if entry["waits"] else None,
+                   "max_wait": float(max(entry["waits"])) if entry["waits"] else None}
+            for name, entry in lifts.items()}
 
 
 def _robots(names, times, states, modes, events) -> dict:
     """Per-robot distance and time split; a sample's mode holds until the next sample."""
     weights = _weights(times)
     steps = np.linalg.norm(np.diff(states[..., :2], axis=0), axis=-1)
+    steps[steps > RELOCATION_STEP] = 0.0  # moved by a lift ride, not driven
     robots = {}
     for k, name in enumerate(names):
         mode = modes[:, k]

@@ -5,9 +5,15 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+from pydrake.common.value import Value
 from pydrake.systems.framework import BasicVector, LeafSystem
 
-from mrta_drake.payloads import PLANAR_POSITION_SIZE, ROBOT_COMMAND_SIZE, ROBOT_STATE_SIZE
+from mrta_drake.payloads import (
+    PLANAR_POSITION_SIZE,
+    ROBOT_COMMAND_SIZE,
+    ROBOT_STATE_SIZE,
+    Relocations,
+)
 
 
 @dataclass(frozen=True)
@@ -29,6 +35,7 @@ class UnicycleRobots(LeafSystem):
         name: UnicycleRobots
         input_ports:
         - commands (optional)
+        - relocations (optional)
         output_ports:
         - state
         - plant_positions
@@ -40,6 +47,9 @@ class UnicycleRobots(LeafSystem):
 
     Input ``commands`` (2N): [v, omega] per robot in ``robot_names`` order, m/s and rad/s;
     unconnected: all zero.
+    Input ``relocations``: abstract ``Relocations`` (a lift ride's end): a robot whose
+    sequence number is new is put on its pose, at rest, in an unrestricted update at the
+    same rate (before that instant's step); each pose is applied once.
     Output ``state`` (4N): [x, y, theta, v] per robot, world frame, m, rad, m/s.
     Output ``plant_positions`` (3N): [x, y, theta] per robot, the planar joints' positions.
     """
@@ -56,11 +66,15 @@ class UnicycleRobots(LeafSystem):
         initial[:, :3] = starts
         state = self.DeclareDiscreteState(initial.ravel())
         self.DeclareVectorInputPort("commands", ROBOT_COMMAND_SIZE * self._n)
+        self._relocations = self.DeclareAbstractInputPort("relocations",
+                                                          Value[object](Relocations()))
+        self._applied = self.DeclareAbstractState(Value[object]((0,) * self._n))
         self.DeclareStateOutputPort("state", state)
         self.DeclareVectorOutputPort(
             "plant_positions", PLANAR_POSITION_SIZE * self._n, self._calc_plant_positions,
             prerequisites_of_calc={self.xd_ticket()})
         self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._step)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(self._dt, 0.0, self._relocate)
 
     @property
     def num_robots(self) -> int:
@@ -78,6 +92,23 @@ class UnicycleRobots(LeafSystem):
         else:
             u = np.zeros((self._n, ROBOT_COMMAND_SIZE))
         discrete_state.set_value(unicycle_step(x, u, p, dt).ravel())
+
+    def _relocate(self, context, state) -> None:
+        if not self._relocations.HasValue(context):
+            return
+        moves = self._relocations.Eval(context).moves
+        applied = context.get_abstract_state(self._applied).get_value()
+        if not any(move is not None and move[0] > seen
+                   for move, seen in zip(moves, applied, strict=False)):
+            return
+        x = context.get_discrete_state_vector().value().reshape(self._n, ROBOT_STATE_SIZE).copy()
+        seen = list(applied)
+        for k, move in enumerate(moves):
+            if move is not None and move[0] > seen[k]:
+                x[k] = (*move[1], 0.0)
+                seen[k] = move[0]
+        state.get_mutable_discrete_state().get_mutable_vector(0).SetFromVector(x.ravel())
+        state.get_mutable_abstract_state(self._applied).set_value(tuple(seen))
 
     def _calc_plant_positions(self, context, output: BasicVector) -> None:
         x = context.get_discrete_state_vector().value().reshape(self._n, ROBOT_STATE_SIZE)

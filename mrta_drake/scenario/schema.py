@@ -12,9 +12,10 @@ from dataclasses import dataclass, field
 class WorldConfig:
     """The building. ``floor_plan`` is a floor-plan YAML (``FloorPlanFile``), a ROS
     ``map_server`` YAML (``kind: ros_map``) or an Open-RMF ``.building.yaml``
-    (``kind: rmf_building``: its ``level``, needed when it has several, and navigation
-    ``graph``; locations and roadways left out are derived from it, see
-    ``world/rmf_scenario.py``); paths are relative to the scenario file.
+    (``kind: rmf_building``: its ``level``, or, left out with several levels, all of them
+    side by side joined by the lifts (docs/worlds.md); and navigation ``graph``; locations
+    and roadways left out are derived from it, see ``world/rmf_scenario.py``); paths are
+    relative to the scenario file.
     ``scenic``: a Scenic 3 program placing objects (beds, carts...) for the scenario's seed,
     with ``scenic_params`` overriding its ``param`` values (see ``scenic_objects.py``)."""
 
@@ -65,11 +66,27 @@ class LocationConfig:
 
 
 @dataclass(frozen=True)
+class LiftEdgeConfig:
+    """A ride in ``lift`` from roadway node ``from_node`` (its cabin on level
+    ``from_level``) to ``to_node`` (its cabin on ``to_level``), costing ``length`` m: the
+    ride's time at the nominal speed ``tasks.estimate_speed``."""
+
+    lift: str = ""
+    from_node: str = ""
+    to_node: str = ""
+    from_level: str = ""
+    to_level: str = ""
+    length: float = 0.0
+
+
+@dataclass(frozen=True)
 class RoadwaysConfig:
-    """A directed lane graph: ``nodes`` name -> [x, y]; ``edges`` [from, to] one-way."""
+    """A directed lane graph: ``nodes`` name -> [x, y]; ``edges`` [from, to] one-way;
+    ``lift_edges``: rides between levels (a building with lifts)."""
 
     nodes: dict[str, list[float]] = field(default_factory=dict)
     edges: list[list[str]] = field(default_factory=list)
+    lift_edges: list[LiftEdgeConfig] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -230,6 +247,7 @@ class BlocksConfig:
     controller: BlockConfig = field(default_factory=lambda: BlockConfig("cluster_cbf"))
     robots: BlockConfig = field(default_factory=lambda: BlockConfig("kinematic"))
     humans: BlockConfig = field(default_factory=lambda: BlockConfig("social_force"))
+    lifts: BlockConfig = field(default_factory=lambda: BlockConfig("fifo"))
 
 
 @dataclass(frozen=True)
@@ -247,6 +265,7 @@ class RatesConfig:
     controller: float = 20.0
     robots: float = 20.0
     humans: float = 20.0
+    lifts: float = 10.0
     logging: float = 10.0
     meshcat: float = 20.0
 

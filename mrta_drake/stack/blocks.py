@@ -15,6 +15,9 @@ planner     robot_state, target_<robot>           paths (FleetPaths)
 controller  robot_state, paths, human_states      commands (2N), telemetry
 robots      commands (2N)                         state (4N), plant_positions (3N)
 humans      robot_state (4N)                      human_states (HumanStates), plant_positions
+lifts       request_<robot> (LiftRequest),        lift_state (LiftState), relocations,
+            robot_state (4N)                      events (only with lifts: a building run
+                                                  across levels)
 =========== ===================================== ============================================
 
 A robots block that steps the plant (``BlockType.physics``, e.g. kind ``physics``) also has
@@ -77,6 +80,14 @@ class BuildContext:
         return Roadways(self.scenario.roadways, self.scenario.locations, self.scenario.source)
 
     @cached_property
+    def lifts(self) -> tuple:
+        """The lifts (``LiftSpec``) robots ride: those of a building run across levels,
+        else none."""
+        from mrta_drake.world.rmf_scenario import building_lifts
+
+        return building_lifts(self.scenario)
+
+    @cached_property
     def travel_times(self) -> np.ndarray:
         """The allocator's (L, L) integer travel times (s): the scenario's file, else an
         estimate from roadway leg lengths at ``tasks.estimate_speed``."""
@@ -108,7 +119,7 @@ class BlockType:
 
 _REGISTRY: dict[str, dict[str, Callable[[], BlockType]]] = {
     "allocator": {}, "waypoints": {}, "queues": {}, "planner": {}, "controller": {},
-    "robots": {}, "humans": {},
+    "robots": {}, "humans": {}, "lifts": {},
 }
 
 
@@ -259,6 +270,13 @@ def _fifo_queues() -> BlockType:
     return BlockType(NoParams, make)
 
 
+def _fifo_lifts() -> BlockType:
+    from mrta_drake.navigation.lift_bank import LiftBank, LiftParams
+
+    return BlockType(LiftParams, lambda ctx, params: LiftBank(
+        ctx.robot_names, ctx.lifts, params, rate_hz=ctx.rates.lifts))
+
+
 def _grid_astar_planner() -> BlockType:
     from mrta_drake.navigation.planner_service import PlannerService, PlannerServiceParams
 
@@ -316,6 +334,7 @@ register_block("allocator", "smt", _smt_allocator)
 register_block("allocator", "greedy", _greedy_allocator)
 register_block("waypoints", "roadway", _roadway_waypoints)
 register_block("queues", "fifo", _fifo_queues)
+register_block("lifts", "fifo", _fifo_lifts)
 
 
 def replace_block(scenario: Scenario, slot: str, kind: str, **params) -> Scenario:

@@ -13,6 +13,7 @@ import numpy as np
 from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Role
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 
+from mrta_drake.errors import InputError
 from mrta_drake.robots.plant_stepping import add_plant_stepping
 from mrta_drake.scenario.disturbances import blockages, breakdowns, has_disturbances, outage_windows
 from mrta_drake.scenario.schema import Scenario
@@ -28,7 +29,8 @@ from mrta_drake.world.plant import Body, World, add_plant_posing, build_world
 class Stack:
     """Handles to the systems of one scenario's diagram (``diagram`` once built);
     ``contacts`` records the plant's contacts when a physics robots block steps it;
-    ``disturbances`` is the schedule of a scenario with a ``disturbances:`` section."""
+    ``disturbances`` is the schedule of a scenario with a ``disturbances:`` section;
+    ``lifts`` the lift bank of a building run across levels."""
 
     scenario: Scenario
     world: World
@@ -44,6 +46,7 @@ class Stack:
     diagram: Diagram | None = None
     contacts: ContactRecorder | None = None
     disturbances: DisturbanceSchedule | None = None
+    lifts: LeafSystem | None = None
     extras: dict = field(default_factory=dict)
 
 
@@ -101,6 +104,7 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
                         queues.GetInputPort(f"request_{name}"))
         builder.Connect(generator.GetOutputPort("progress"),
                         allocator.GetInputPort(f"progress_{name}"))
+    lifts = _add_lifts(builder, ctx, make, robots, generators) if ctx.lifts else None
     if humans is not None:
         builder.Connect(state, humans.GetInputPort("robot_state"))
         builder.Connect(humans.GetOutputPort("human_states"),
@@ -133,6 +137,10 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
         if humans.HasOutputPort("active"):
             builder.Connect(humans.GetOutputPort("active"), recorder.GetInputPort("human_active"))
 
+    if lifts is not None:
+        builder.Connect(lifts.GetOutputPort("lift_state"), recorder.GetInputPort("lift_state"))
+        builder.Connect(lifts.GetOutputPort("events"), recorder.GetInputPort("lift_events"))
+
     visualizer = None
     if meshcat is not None:
         _look_at_floor_plan(meshcat, floor_plan.bounds)
@@ -158,7 +166,26 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
                 builder.Connect(schedule.GetOutputPort("disturbances"),
                                 reader.GetInputPort("disturbances"))
     return Stack(scenario, world, robots, controller, planner, queues, allocator, generators,
-                 humans, recorder, visualizer, contacts=contacts, disturbances=schedule)
+                 humans, recorder, visualizer, contacts=contacts, disturbances=schedule,
+                 lifts=lifts)
+
+
+def _add_lifts(builder: DiagramBuilder, ctx: BuildContext, make, robots: LeafSystem,
+               generators: list[LeafSystem]) -> LeafSystem:
+    """The lift bank, between the waypoint generators and the robots block."""
+    if not robots.HasInputPort("relocations"):
+        raise InputError(ctx.scenario.source, "blocks.robots.kind",
+                         f"{ctx.scenario.blocks.robots.kind!r} robots cannot ride lifts "
+                         "(no relocations input): use kind kinematic for a building run "
+                         "across levels")
+    bank = builder.AddNamedSystem("lift_bank", make("lifts"))
+    builder.Connect(robots.GetOutputPort("state"), bank.GetInputPort("robot_state"))
+    builder.Connect(bank.GetOutputPort("relocations"), robots.GetInputPort("relocations"))
+    for name, generator in zip(ctx.robot_names, generators, strict=True):
+        builder.Connect(generator.GetOutputPort("lift_request"),
+                        bank.GetInputPort(f"request_{name}"))
+        builder.Connect(bank.GetOutputPort("lift_state"), generator.GetInputPort("lift_state"))
+    return bank
 
 
 def _look_at_floor_plan(meshcat: Meshcat, bounds) -> None:

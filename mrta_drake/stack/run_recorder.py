@@ -18,6 +18,7 @@ from mrta_drake.payloads import (
     FleetPaths,
     FleetPlan,
     HumanStates,
+    LiftState,
     QueueState,
     RobotMode,
     RobotProgress,
@@ -43,6 +44,8 @@ class RunRecorder(LeafSystem):
         - human_active (optional)
         - allocator_events (optional)
         - disturbances (optional)
+        - lift_state (optional)
+        - lift_events (optional)
 
     Keeps in memory, per sample: the time, the robot states (T, N, 4) [x, y, theta, v]
     (world frame, m, rad, m/s), the human positions (T, M, 2) (NaN while a human is not yet
@@ -66,18 +69,22 @@ class RunRecorder(LeafSystem):
       ``breakdown`` or ``outage`` (with ``robot``).
     - ``detour``: blockages (``blockages``, names) changed a robot's route at ``at`` (s);
       ``found`` False: no lane was left, it waits.
+    - ``lift``: an event of the lift bank's ``events`` output (``LiftEvent``: ``lift``,
+      ``robot``, ``kind``, ``level``, ``at`` s).
 
     With ``out_dir`` it appends every sample to ``timeline.csv`` and every event to
     ``events.jsonl`` as they happen, flushed, so a crash loses nothing.
 
     A robot's mode: ``IDLE`` without a current stop or an active target; ``QUEUE`` while it
-    waits in some room's queue; ``SERVE`` while it holds its stop's room, drives to no waypoint
-    after the current one and is within ``serve_radius`` m of it; ``DRIVE`` otherwise.
+    waits in some room's queue, or for a lift or inside one (per ``lift_state``); ``SERVE``
+    while it holds its stop's room, drives to no waypoint after the current one and is
+    within ``serve_radius`` m of it; ``DRIVE`` otherwise.
 
     Inputs: ``robot_state`` (4N), ``telemetry``, ``paths``, ``queue_state``, ``plan``,
     ``progress_<robot>`` and ``target_<robot>`` per robot; optional (may stay unconnected):
     ``human_states``, ``human_active`` (M, 1 = present), ``allocator_events`` (a sequence
-    of event objects; new ones are noted), ``disturbances``.
+    of event objects; new ones are noted), ``disturbances``, ``lift_state`` (``LiftState``)
+    and ``lift_events`` (a growing tuple of ``LiftEvent``).
     """
 
     def __init__(self, robot_names, humans=(), *, rate_hz: float, out_dir: str | None = None,
@@ -103,6 +110,9 @@ class RunRecorder(LeafSystem):
         self.DeclareVectorInputPort("human_active", len(self.human_names))
         self.DeclareAbstractInputPort("allocator_events", _value(()))
         self.DeclareAbstractInputPort("disturbances", _value(Disturbances()))
+        self.DeclareAbstractInputPort("lift_state", _value(LiftState()))
+        self.DeclareAbstractInputPort("lift_events", _value(()))
+        self._lift_events_seen = 0
         # Looked up once: by name, a lookup scans all (2N + 9) ports.
         self._ports = {port.get_name(): port for port in
                        (self.get_input_port(i) for i in range(self.num_input_ports()))}
@@ -183,10 +193,16 @@ class RunRecorder(LeafSystem):
         self._note_failures(context, t, telemetry)
         self._note_allocator_events(context, t)
         self._note_disturbances(context, t)
+        self._note_lift_events(context, t)
 
     def _modes(self, context, states: np.ndarray, queues: QueueState,
                progress: list[RobotProgress]) -> np.ndarray:
         waiting = {robot for queue in queues.rooms for robot in queue.waiting}
+        if self._ports["lift_state"].HasValue(context):
+            for lift in self._ports["lift_state"].Eval(context).lifts:
+                waiting.update(lift.waiting)
+                if lift.holder is not None and lift.phase != "out":
+                    waiting.add(lift.holder)
         holders = {queue.room: queue.holder for queue in queues.rooms}
         modes = np.full(self._n, RobotMode.IDLE, dtype=np.int8)
         for k, name in enumerate(self.robot_names):
@@ -276,6 +292,16 @@ class RunRecorder(LeafSystem):
         for event in new:
             self._event({"time": t, "type": "allocation", "event": _as_dict(event)})
         self._allocator_events = events
+
+    def _note_lift_events(self, context, t: float) -> None:
+        port = self._ports["lift_events"]
+        if not port.HasValue(context):
+            return
+        events = port.Eval(context)
+        for event in events[self._lift_events_seen:]:
+            self._event({"time": t, "type": "lift", "lift": event.lift, "robot": event.robot,
+                         "kind": event.kind, "level": event.level, "at": event.time})
+        self._lift_events_seen = len(events)
 
     def _note_disturbances(self, context, t: float) -> None:
         port = self._ports["disturbances"]

@@ -14,9 +14,8 @@
   the controller's ``safety_distances.wall`` to the lanes' least clearance less 6 cm (at
   least the robot radius plus 5 cm), else robots stop short of those doors.
 
-A building with several levels and no ``level`` gets one such folder per level,
-``DIR/<level>/``, each runnable on its own (running across levels through lifts is a
-later step); a level whose lanes give no runnable navigation is skipped with a note.
+A building with several levels and no ``level`` gets one folder running them all,
+joined by the lifts (``levels_import``).
 """
 
 import math
@@ -29,6 +28,7 @@ import yaml
 
 from mrta_drake.control.barriers import SafetyDistances
 from mrta_drake.errors import InputError
+from mrta_drake.scenario.schema import RoadwaysConfig
 from mrta_drake.world.floor_plan import FloorPlan
 from mrta_drake.world.rmf_building import Building, Level
 from mrta_drake.world.rmf_navigation import BuildingNavigation
@@ -97,15 +97,9 @@ def import_building(path: str, out_dir: str, options: ImportOptions = ImportOpti
         level = chosen_level(building, options.level)
         _write_level(building, level, out_dir, options, report)
         return report
-    report.lines.append("running several levels through lifts is not yet supported: one "
-                        "single-level scenario per level")
-    for level in building.levels:
-        try:
-            _write_level(building, level, os.path.join(out_dir, level), options, report)
-        except InputError as error:
-            report.lines.append(f"{level}: skipped: {error}")
-    if not report.scenarios:
-        raise InputError(building.source, "levels", "no level gives a runnable scenario")
+    from mrta_drake.tools.levels_import import write_all_levels
+
+    write_all_levels(building, out_dir, options, report)
     return report
 
 
@@ -125,7 +119,7 @@ def _write_level(building: Building, level_name: str, out_dir: str, options: Imp
                       options.graph, navigation)
     scenario = os.path.join(out_dir, "scenario.yaml")
     _write_scenario(scenario, os.path.basename(building.source), level_name, options, starts,
-                    humans, wall_safety(navigation, world.floor_plan))
+                    humans, wall_safety(navigation.roadways, world.floor_plan))
     report.scenarios.append(scenario)
     roadways = navigation.roadways
     report.lines.append(
@@ -169,12 +163,12 @@ def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: Floor
                      f"give {len(chosen)} free start spots")
 
 
-def wall_safety(navigation: BuildingNavigation, floor_plan: FloorPlan) -> float:
-    """The controller's wall safety distance (m) that lets robots drive every lane (see
-    the module docstring)."""
-    nodes = navigation.roadways.nodes
+def wall_safety(roadways: RoadwaysConfig, floor_plan: FloorPlan) -> float:
+    """The controller's wall safety distance (m) that lets robots drive every lane of
+    ``roadways`` (see the module docstring)."""
+    nodes = roadways.nodes
     samples = [np.asarray(nodes[a]) + t * (np.asarray(nodes[b]) - np.asarray(nodes[a]))
-               for a, b in navigation.roadways.edges for t in np.linspace(0.0, 1.0, 21)]
+               for a, b in roadways.edges for t in np.linspace(0.0, 1.0, 21)]
     least = float(floor_plan.obstacles.signed_distance(np.array(samples)).min())
     return round(min(WALL_SAFETY, max(ROBOT_RADIUS + 0.05, least - WALL_SAFETY_MARGIN)), 3)
 
@@ -262,7 +256,8 @@ def _write_scenario(path: str, building_file: str, level: str, options: ImportOp
     if safety < WALL_SAFETY:
         content["blocks"] = {"controller": {"kind": "cluster_cbf",
                                             "params": {"safety_distances": {"wall": safety}}}}
-    header = (f"# {building_file}, level {level}: imported by `mrta-sim import` (seed "
+    where = f"level {level}" if level else "every level"
+    header = (f"# {building_file}, {where}: imported by `mrta-sim import` (seed "
               f"{options.seed}).\n# Run: mrta-sim run {os.path.basename(path)}\n")
     _write_yaml(path, header, content)
 

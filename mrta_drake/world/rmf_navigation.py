@@ -66,6 +66,7 @@ class BuildingNavigationParams:
     parking_spots: int = 2
     parking_distance: float = 1.4
     parking_lane_gap: float = 0.7
+    through_lifts: bool = False  # keep the lanes into lift cabins (several levels)
 
     def __post_init__(self):
         if self.graph < 0:
@@ -114,10 +115,11 @@ class BuildingNavigation:
         }
 
 
-def centre_lines(building: Building, level: Level, graph: int) -> CentreLines:
+def centre_lines(building: Building, level: Level, graph: int,
+                 through_lifts: bool = False) -> CentreLines:
     """The lanes of ``graph`` on ``level`` as undirected centre lines (lanes ending in a
-    lift cabin left out)."""
-    cabins = [lift for lift in building.lifts_through(level.name)]
+    lift cabin left out unless ``through_lifts``)."""
+    cabins = [] if through_lifts else list(building.lifts_through(level.name))
     vertex_node: dict[int, str] = {}
     at: dict[tuple[float, float], str] = {}
     nodes: dict[str, tuple[float, float]] = {}
@@ -193,7 +195,7 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
     """The navigation of graph ``params.graph`` on level ``level_name``; ``floor_plan`` is
     the level's world (``rmf_world.level_world``)."""
     level = building.level(level_name)
-    lines = centre_lines(building, level, params.graph)
+    lines = centre_lines(building, level, params.graph, params.through_lifts)
     candidates = _task_vertices(level, lines)
     degree = Counter(v for a, b, _ in lines.edges for v in (a, b))
     lanes = one_way_lanes(lines, floor_plan, {lines.vertex_node[i] for i in candidates

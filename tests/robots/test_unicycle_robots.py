@@ -63,3 +63,30 @@ def test_vanishing_turn_rates_step_straight_without_dividing_by_zero(omega):
     np.testing.assert_allclose(new[0, :2], [1.0 + distance * np.cos(0.3),
                                             2.0 + distance * np.sin(0.3)], rtol=0, atol=1e-12)
     assert np.isfinite(new).all()
+
+
+def test_a_relocation_is_applied_once_when_its_sequence_number_is_new():
+    from mrta_drake.payloads import Relocations
+
+    robots = UnicycleRobots(["a", "b"], [[0.0, 0.0, 0.0], [5.0, 0.0, 0.0]],
+                            UnicycleParams(max_acceleration=100.0), rate_hz=20.0)
+    simulator = Simulator(robots)
+    context = simulator.get_mutable_context()
+    robots.GetInputPort("commands").FixValue(context, [1.0, 0.0, 0.0, 0.0])
+    moves = Relocations((None, (1, (50.0, 2.0, 0.0))))
+    robots.GetInputPort("relocations").FixValue(context, moves)
+    simulator.AdvanceTo(1.0)
+    state = robots.GetOutputPort("state").Eval(context).reshape(-1, 4)
+    # Robot b was put on the pose at the first step and stood still since (no command);
+    # robot a drove on, untouched.
+    np.testing.assert_allclose(state[1], [50.0, 2.0, 0.0, 0.0])
+    assert state[0, 0] == pytest.approx(1.0, abs=0.06)
+    robots.GetInputPort("commands").FixValue(context, [0.0, 0.0, 1.0, 0.0])
+    simulator.AdvanceTo(2.0)  # the same sequence number: not applied again
+    state = robots.GetOutputPort("state").Eval(context).reshape(-1, 4)
+    assert state[1, 0] == pytest.approx(51.0, abs=0.06)
+    robots.GetInputPort("relocations").FixValue(context, Relocations(
+        (None, (2, (7.0, 7.0, 0.0)))))
+    simulator.AdvanceTo(2.1)
+    x, y = robots.GetOutputPort("state").Eval(context).reshape(-1, 4)[1, :2]
+    assert 7.0 <= x <= 7.15 and y == pytest.approx(7.0)  # moved there, then drove on

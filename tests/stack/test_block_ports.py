@@ -3,7 +3,8 @@ docstring; the documented input and output names must be exactly the declared on
 
 Checked for every registered kind of every block slot and for the blocks ``add_stack`` adds
 itself, each built by ``add_stack`` for the hospital with disturbances (people, a blockage,
-a breakdown and an outage): a kind is swapped in with ``replace_block``; the overlay needs a
+a breakdown and an outage; the lift bank for the two-floor clinic, the one with lifts): a
+kind is swapped in with ``replace_block``; the overlay needs a
 Meshcat, the contact recorder and the people's body driver the physics robots. A per-robot
 port is documented with the placeholder ``<robot>`` (``progress_<robot>``), which stands
 for one port per robot name.
@@ -27,12 +28,13 @@ from mrta_drake.stack.diagram import add_stack
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "scenarios/hospital_disturbances.yaml"
+LIFTS_SCENARIO = ROOT / "scenarios/two_floor_6_robots.yaml"
 ROBOT = "<robot>"
 OPTIONAL = " (optional)"
 # The name in the diagram of the (first) system of each block slot.
 SYSTEM_OF_SLOT = {"allocator": "allocator", "waypoints": "waypoints_robot1",
                   "queues": "room_queues", "planner": "planner", "controller": "controller",
-                  "robots": "robots", "humans": "humans"}
+                  "robots": "robots", "humans": "humans", "lifts": "lift_bank"}
 # The blocks add_stack adds itself: (name in the diagram, the robots kind it needs).
 STACK_BLOCKS = [("recorder", None), ("meshcat_overlay", None), ("disturbances", None),
                 ("contacts", "physics"), ("human_bodies", "physics")]
@@ -58,9 +60,10 @@ def built():
     diagrams = {}
 
     def build(slot: str, kind: str | None):
-        key = (slot, kind) if kind is not None else None
+        key = (slot, kind) if kind is not None or slot == "lifts" else None
         if key not in diagrams:
-            swapped = replace_block(scenario, slot, kind) if kind else scenario
+            base = load_scenario(LIFTS_SCENARIO) if slot == "lifts" else scenario
+            swapped = replace_block(base, slot, kind) if kind else base
             builder = DiagramBuilder()
             add_stack(builder, swapped, meshcat=Meshcat() if kind is None else None)
             diagram = builder.Build()

@@ -28,7 +28,7 @@ def tutorial(number: int):
 def test_every_tutorial_is_listed_in_the_readme():
     readme = (TUTORIALS / "README.md").read_text()
     scripts = sorted(p.name for p in TUTORIALS.glob("[0-9][0-9]_*.py"))
-    assert len(scripts) == 6
+    assert len(scripts) == 7
     for name in scripts:
         assert f"({name})" in readme
 
@@ -155,3 +155,15 @@ def test_06_collect_measures_the_matrix_afresh_and_writes_it(tmp_path):
     assert (np.diag(written) == 0).all() and (written + np.eye(6) > 0).all()
     # Driven for real: slower on average than the robots' top speed, turning and queueing.
     assert 0.3 < shown["measured_speed"] < 1.0
+
+
+def test_07_an_imported_two_floor_building_runs_tasks_across_floors_through_the_lifts():
+    shown = tutorial(7).main(["--duration", "200"])
+    summary = shown["summary"]
+    assert summary["tasks"]["completed"] >= 3
+    assert any(a != b for pair in shown["by_floors"] for a, b in [pair.split(" -> ")])
+    assert len(shown["rides"]) >= 2
+    assert {ride["level"] for ride in shown["rides"]} <= set(shown["layout"].names)
+    safety = summary["safety"]
+    assert safety["robot_robot_contacts"] == 0 and safety["robot_wall_contacts"] == 0
+    assert summary["deadlocks"]["count"] == 0

@@ -65,13 +65,21 @@ def test_people_without_human_lanes_are_visitors_between_lane_nodes(tmp_path):
     assert floor_plan.obstacles.signed_distance(np.array(group.points)).min() > 0.5
 
 
-def test_several_levels_give_one_folder_each(tmp_path):
+def test_several_levels_give_one_folder_running_them_all(tmp_path):
     report = import_building(str(TWO_LEVELS), str(tmp_path), ImportOptions(robots=2))
-    assert report.scenarios == [str(tmp_path / "L1" / "scenario.yaml"),
-                                str(tmp_path / "L2" / "scenario.yaml")]
-    assert "running several levels through lifts is not yet supported" in report.lines[1]
-    scenario = load_scenario(tmp_path / "L2" / "scenario.yaml")
-    assert [loc.name for loc in scenario.locations] == ["l2_lab", "l2_office"]
+    assert report.scenarios == [str(tmp_path / "scenario.yaml")]
+    scenario = load_scenario(tmp_path / "scenario.yaml")
+    names = [loc.name for loc in scenario.locations]
+    assert names == ["L1/l1_desk", "L1/l1_store", "L2/l2_lab", "L2/l2_office"]
+    rides = scenario.roadways.lift_edges
+    assert {(r.lift, r.from_level, r.to_level) for r in rides} == {("lift_a", "L1", "L2"),
+                                                                    ("lift_a", "L2", "L1")}
+    # One robot per level; the generated stream has tasks that change levels.
+    assert [round(r.start[0]) < 30 for r in scenario.robots] == [True, False]
+    tasks = [task for batch in scenario.tasks.stream for task in batch.tasks]
+    assert any(names[t.pickup][:2] != names[t.dropoff][:2] for t in tasks)
+    # The 1 m lift door sets the wall safety distance.
+    assert scenario.blocks.controller.params["safety_distances"]["wall"] < 0.5
 
 
 def test_one_chosen_level(tmp_path):
@@ -80,15 +88,18 @@ def test_one_chosen_level(tmp_path):
     assert report.scenarios == [str(tmp_path / "scenario.yaml")]
 
 
-def test_a_scenario_on_a_building_with_several_levels_must_choose_one(tmp_path):
+def test_a_building_with_several_levels_and_no_lift_between_them_is_one_line(tmp_path):
+    building = yaml.safe_load(TWO_LEVELS.read_text())
+    building["lifts"] = {}
+    (tmp_path / "no_lift.building.yaml").write_text(yaml.safe_dump(building))
     (tmp_path / "scenario.yaml").write_text(yaml.safe_dump({
-        "world": {"kind": "rmf_building", "floor_plan": str(TWO_LEVELS)},
+        "world": {"kind": "rmf_building", "floor_plan": "no_lift.building.yaml"},
         "robots": [{"name": "r", "start": [1.5, -2.0]}]}))
     with pytest.raises(InputError) as info:
         load_scenario(tmp_path / "scenario.yaml")
     assert str(info.value) == (
-        f"{tmp_path / 'scenario.yaml'}: world.level: {TWO_LEVELS} has 2 levels (L1, L2): "
-        "running several levels is not yet supported, choose one")
+        f"{tmp_path / 'no_lift.building.yaml'}: lifts: no lift joins two levels on lanes of "
+        "graph 0: robots could not leave their level")
 
 
 def test_too_many_robots_is_one_line():

@@ -1,0 +1,120 @@
+"""Waypoint generators taking robots through a lift bank between two lane loops 100 m apart
+(two levels), with fake robots that the bank relocates."""
+
+import numpy as np
+from pydrake.common.value import Value
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+from mrta_drake.navigation.lift_bank import LiftBank, LiftParams, LiftSpec, LiftStop
+from mrta_drake.navigation.roadways import Roadways
+from mrta_drake.navigation.room_queues import RoomQueues
+from mrta_drake.navigation.waypoint_generator import WaypointGenerator, WaypointParams
+from mrta_drake.payloads import Relocations
+from mrta_drake.scenario.schema import LiftEdgeConfig, LocationConfig, RoadwaysConfig
+
+from .test_waypoint_generator import FakeRobots, World, fixed
+
+SHIFT = 100.0  # m between the two levels' loops
+CABIN = (10.0, -3.0)  # on L1; on L2 shifted by SHIFT
+
+
+def two_level_world() -> Roadways:
+    """The loop of test_waypoint_generator on each level (rooms A at x = 5 on L1 and
+    B at x = 25 on L2), a lift cabin south of node S10 on each, rides both ways."""
+    nodes, edges, locations = {}, [], []
+    for level, dx in (("L1", 0.0), ("L2", SHIFT)):
+        xs = (0, 10, 20, 30)
+        nodes |= {f"{level}/S{x}": [x + dx, 0.0] for x in xs}
+        nodes |= {f"{level}/N{x}": [x + dx, 1.5] for x in xs}
+        nodes[f"{level}/cab"] = [CABIN[0] + dx, CABIN[1]]
+        ring = ["S0", "S10", "S20", "S30", "N30", "N20", "N10", "N0", "S0"]
+        edges += [[f"{level}/{a}", f"{level}/{b}"]
+                  for a, b in zip(ring[:-1], ring[1:], strict=True)]
+        edges += [[f"{level}/S10", f"{level}/cab"], [f"{level}/cab", f"{level}/S10"]]
+        x = 5 if level == "L1" else 25
+        locations.append(LocationConfig(
+            id=len(locations), point=[x + dx, 5.0],
+            queue=[[x + dx + 1.0, 1.5], [x + dx + 2.0, 1.5]], entry=[[x + dx, 2.5]],
+            exit_node=f"{level}/N{x - 5}", approach_node=f"{level}/N{x + 5}"))
+    rides = [LiftEdgeConfig("lift", "L1/cab", "L2/cab", "L1", "L2", 5.0),
+             LiftEdgeConfig("lift", "L2/cab", "L1/cab", "L2", "L1", 5.0)]
+    return Roadways(RoadwaysConfig(nodes=nodes, edges=edges, lift_edges=rides), locations)
+
+
+class RelocatedRobots(FakeRobots):
+    """FakeRobots that also take a ``relocations`` input, applied once per sequence."""
+
+    def __init__(self, starts):
+        super().__init__(starts)
+        self._relocations = self.DeclareAbstractInputPort("relocations",
+                                                          Value[object](Relocations()))
+        self._seen = [0] * len(starts)
+
+    def _move(self, context, discrete_state):
+        super()._move(context, discrete_state)
+        x = discrete_state.get_mutable_vector(self._state).get_value().copy()
+        for k, move in enumerate(self._relocations.Eval(context).moves):
+            if move is not None and move[0] > self._seen[k]:
+                x[4 * k:4 * k + 3], x[4 * k + 3] = move[1], 0.0
+                self._seen[k] = move[0]
+        discrete_state.get_mutable_vector(self._state).SetFromVector(x)
+
+
+class LiftWorld(World):
+    """World's set-up with the two-level roadways and a lift bank."""
+
+    def __init__(self, starts, plan_source):
+        self.roadways = roadways = two_level_world()
+        self.robots = [f"r{i}" for i in range(len(starts))]
+        builder = DiagramBuilder()
+        plan = builder.AddSystem(plan_source)
+        queues = builder.AddSystem(RoomQueues(self.robots, roadways.location_ids, rate_hz=10.0))
+        fake = builder.AddSystem(RelocatedRobots([roadways.place(s).point for s in starts]))
+        lift = LiftSpec("lift", (LiftStop("L1", CABIN, 0.0, "L1/cab"),
+                                 LiftStop("L2", (CABIN[0] + SHIFT, CABIN[1]), 4.0, "L2/cab")),
+                        "L1")
+        self.bank = builder.AddSystem(LiftBank(self.robots, [lift], LiftParams(door_time=2.0),
+                                               rate_hz=10.0))
+        builder.Connect(fake.GetOutputPort("state"), self.bank.GetInputPort("robot_state"))
+        builder.Connect(self.bank.GetOutputPort("relocations"), fake.GetInputPort("relocations"))
+        self.generators = []
+        for i, (robot, start) in enumerate(zip(self.robots, starts, strict=True)):
+            generator = builder.AddSystem(WaypointGenerator(
+                self.robots, i, roadways, start, WaypointParams(), rate_hz=10.0))
+            for source, out, sink, into in (
+                    (plan, "plan", generator, "plan"),
+                    (fake, "state", generator, "robot_state"),
+                    (queues, "queue_state", generator, "queue_state"),
+                    (self.bank, "lift_state", generator, "lift_state"),
+                    (generator, "lift_request", self.bank, f"request_{robot}"),
+                    (generator, "target", fake, f"target_{i}"),
+                    (generator, "progress", plan, f"progress_{robot}")):
+                builder.Connect(source.GetOutputPort(out), sink.GetInputPort(into))
+            builder.Connect(generator.GetOutputPort("queue_request"),
+                            queues.get_request_input_port(robot))
+            self.generators.append(generator)
+        self.queues, self.fake = queues, fake
+        self.diagram = builder.Build()
+        self.simulator = Simulator(self.diagram)
+        self.context = self.simulator.get_mutable_context()
+        self.log = []
+
+
+def test_two_robots_take_turns_in_the_lift_and_reach_the_other_level():
+    world = LiftWorld([0, 0], fixed([1], [1]))
+    world.run(until=150)
+    for i in (0, 1):
+        (visit,) = world.progress(i).visits
+        assert visit.location == 1
+    events = [(e.kind, e.robot) for e in world._eval(world.bank, "events")]
+    assert [e for e in events if e[0] in ("board", "arrive")] == [
+        ("board", "r0"), ("arrive", "r0"), ("board", "r1"), ("arrive", "r1")]
+    # While r0 rides, r1 waits 3 m back from the cabin along its route (on node S10).
+    assert any(targets[1].stop_at_current and np.allclose(targets[1].current, (10.0, 0.0))
+               for _, _, _, targets in world.log)
+    # Both end on level 2 (x beyond the gap) and the lift is free.
+    _, _, positions, _ = world.log[-1]
+    assert (positions[:, 0] > SHIFT - 10.0).all()
+    status = world._eval(world.bank, "lift_state").lift("lift")
+    assert status.holder is None and status.level == "L2"

@@ -1,0 +1,62 @@
+"""Levels side by side: the layout's offsets, and a building's levels joined by its lifts."""
+
+from pathlib import Path
+
+import pytest
+
+from mrta_drake.errors import InputError
+from mrta_drake.navigation.lift_bank import LiftParams, ride_time
+from mrta_drake.navigation.roadways import Roadways
+from mrta_drake.world.levels import MIN_LEVEL_GAP, LevelLayout
+from mrta_drake.world.rmf_building import load_building
+from mrta_drake.world.rmf_levels import building_levels
+
+TWO_LEVELS = Path(__file__).parents[1] / "data" / "buildings" / "two_levels.building.yaml"
+
+
+def test_levels_are_placed_east_of_each_other_a_gap_apart():
+    layout = LevelLayout.side_by_side([("A", 0.0, (-2.0, 10.0, 0.0, 5.0)),
+                                       ("B", 4.0, (0.0, 20.0, -1.0, 3.0)),
+                                       ("C", 8.0, (5.0, 6.0, 0.0, 1.0))], gap=40.0)
+    assert [p.offset for p in layout.levels] == [0.0, 50.0, 105.0]
+    assert layout.placement("B").bounds == (50.0, 70.0, -1.0, 3.0)
+    assert layout.level_of((55.0, 0.0)) == "B" and layout.level_of((30.0, 0.0)) is None
+    assert layout.moved((1.0, 2.0), "A", "C") == (106.0, 2.0)
+    assert layout.to_world("B", (1.0, 2.0)) == (51.0, 2.0)
+    assert layout.bounds == (-2.0, 111.0, -1.0, 5.0)
+
+
+def test_a_gap_below_the_minimum_is_one_line():
+    with pytest.raises(InputError, match=f"level_gap: must be >= {MIN_LEVEL_GAP:g} m"):
+        LevelLayout.side_by_side([("A", 0.0, (0.0, 1.0, 0.0, 1.0))], gap=5.0)
+
+
+def test_a_buildings_levels_are_joined_by_rides_costing_their_time():
+    levels = building_levels(load_building(TWO_LEVELS))
+    offset = levels.layout.placement("L2").offset
+    assert offset == pytest.approx(levels.layout.placement("L1").bounds[1] + MIN_LEVEL_GAP
+                                   - (levels.layout.placement("L2").bounds[0] - offset))
+    (lift,) = levels.lifts
+    assert [(s.level, s.elevation) for s in lift.stops] == [("L1", 0.0), ("L2", 4.0)]
+    assert lift.stop("L2").cabin == pytest.approx((10.0 + offset, -2.0))
+    # Every obstacle, place and node of L2 is shifted and named after its level.
+    assert all(b.name.startswith(("L1/", "L2/")) for b in levels.floor_plan.obstacles.boxes)
+    assert levels.floor_plan.places["L2/l2_lab"] == pytest.approx((1.5 + offset, -2.0))
+    params = LiftParams()
+    roadways_config = levels.roadways_with_lifts(params, speed=0.5)
+    (up, down) = roadways_config.lift_edges
+    assert (up.from_level, up.to_level, down.from_level, down.to_level) == ("L1", "L2",
+                                                                          "L2", "L1")
+    assert up.length == pytest.approx(ride_time(params, 0.0, 4.0) * 0.5)
+    # The allocator's estimate counts the ride's time, not the jump across the plane.
+    roadways = Roadways(roadways_config, levels.locations)
+    ids = {loc.name: loc.id for loc in levels.locations}
+    leg = roadways.leg(ids["L1/l1_desk"], ids["L2/l2_lab"])
+    walked = sum(((b - a) ** 2).sum() ** 0.5 for a, b in zip(leg[:-1], leg[1:], strict=True)
+                 if roadways.lift_edge(a, b) is None)
+    assert roadways.leg_length(ids["L1/l1_desk"], ids["L2/l2_lab"]) == pytest.approx(
+        walked + up.length)
+    assert walked < offset  # the route does not cross the gap on foot
+    # A closure never closes a ride.
+    closed = roadways.closed([(11.0, offset - 1.0, -10.0, 10.0)])
+    assert closed.leg(ids["L1/l1_desk"], ids["L2/l2_lab"]) is not None
