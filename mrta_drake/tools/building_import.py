@@ -110,7 +110,7 @@ def _write_level(building: Building, level_name: str, out_dir: str, options: Imp
     level = building.levels[level_name]
     rng = np.random.default_rng(options.seed)
     starts = robot_starts(level, navigation, world.floor_plan, options.robots)
-    humans = _humans(level, navigation, starts, options.people, rng)
+    humans = people_section(level, navigation, starts, options.people, rng)
     os.makedirs(out_dir, exist_ok=True)
     copy = os.path.join(out_dir, os.path.basename(building.source))
     if os.path.abspath(copy) != os.path.abspath(building.source):
@@ -118,7 +118,7 @@ def _write_level(building: Building, level_name: str, out_dir: str, options: Imp
     _write_navigation(os.path.join(out_dir, "navigation.yaml"), building, level_name,
                       options.graph, navigation)
     scenario = os.path.join(out_dir, "scenario.yaml")
-    _write_scenario(scenario, os.path.basename(building.source), level_name, options, starts,
+    write_scenario(scenario, os.path.basename(building.source), level_name, options, starts,
                     humans, wall_safety(navigation.roadways, world.floor_plan))
     report.scenarios.append(scenario)
     roadways = navigation.roadways
@@ -184,8 +184,8 @@ def _heading(lines, node: str) -> float:
     return 0.0
 
 
-def _humans(level: Level, navigation: BuildingNavigation, starts, count: int,
-            rng: np.random.Generator) -> dict:
+def people_section(level: Level, navigation: BuildingNavigation, starts, count: int,
+                   rng: np.random.Generator) -> dict:
     """The ``humans:`` section: walkers looping along human lanes, else visitors."""
     if count == 0:
         return {}
@@ -235,11 +235,14 @@ def _write_navigation(path: str, building: Building, level: str, graph: int,
         "# Fields follow LocationConfig and RoadwaysConfig (mrta_drake/scenario/schema.py); "
         "world frame:\n# x east, y north, metres. Edit freely: the scenario reads this file "
         "as it is.\n")
-    _write_yaml(path, header, navigation.as_yaml())
+    write_yaml(path, header, navigation.as_yaml())
 
 
-def _write_scenario(path: str, building_file: str, level: str, options: ImportOptions,
-                    starts, humans: dict, safety: float) -> None:
+def write_scenario(path: str, building_file: str, level: str, options: ImportOptions,
+                   starts, humans: dict, safety: float) -> None:
+    """Writes the imported scenario to ``path``: the building's ``level`` ("" for every
+    level), robots at ``starts``, the ``humans`` section, a generated task stream, and the
+    controller's wall safety distance when ``safety`` (m) is below the default."""
     content = {
         "world": {"kind": "rmf_building", "floor_plan": building_file, "level": level,
                   "graph": options.graph},
@@ -259,10 +262,11 @@ def _write_scenario(path: str, building_file: str, level: str, options: ImportOp
     where = f"level {level}" if level else "every level"
     header = (f"# {building_file}, {where}: imported by `mrta-sim import` (seed "
               f"{options.seed}).\n# Run: mrta-sim run {os.path.basename(path)}\n")
-    _write_yaml(path, header, content)
+    write_yaml(path, header, content)
 
 
-def _write_yaml(path: str, header: str, content: dict) -> None:
+def write_yaml(path: str, header: str, content: dict) -> None:
+    """Writes ``content`` as YAML to ``path`` after the comment lines ``header``."""
     with open(path, "w", encoding="utf-8") as f:
         f.write(header)
         yaml.safe_dump(content, f, sort_keys=False, default_flow_style=None, width=100)

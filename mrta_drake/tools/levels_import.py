@@ -22,11 +22,11 @@ from mrta_drake.scenario.schema import TasksConfig
 from mrta_drake.tools.building_import import (
     ImportOptions,
     ImportReport,
-    _humans,
-    _write_scenario,
-    _write_yaml,
+    people_section,
     robot_starts,
     wall_safety,
+    write_scenario,
+    write_yaml,
 )
 from mrta_drake.world.rmf_building import Building
 from mrta_drake.world.rmf_levels import BuildingLevels
@@ -49,7 +49,7 @@ def write_all_levels(building: Building, out_dir: str, options: ImportOptions,
             continue
         level_starts = robot_starts(building.levels[name], navigation, world.floor_plan,
                                     shares[name])
-        for group, entries in _humans(building.levels[name], navigation, level_starts,
+        for group, entries in people_section(building.levels[name], navigation, level_starts,
                                       people[name], rng).items():
             humans.setdefault(group, []).extend(
                 _shifted_people(entries, levels, name, len(humans.get(group, ()))))
@@ -61,7 +61,7 @@ def write_all_levels(building: Building, out_dir: str, options: ImportOptions,
     _write_navigation(os.path.join(out_dir, "navigation.yaml"), building, options.graph,
                       levels)
     scenario = os.path.join(out_dir, "scenario.yaml")
-    _write_scenario(scenario, os.path.basename(building.source), "", options,
+    write_scenario(scenario, os.path.basename(building.source), "", options,
                     [[round(float(v), 3) for v in s] for s in starts], humans,
                     wall_safety(levels.roadways, levels.floor_plan))
     report.scenarios.append(scenario)
@@ -105,4 +105,4 @@ def _write_navigation(path: str, building: Building, graph: int, levels: Buildin
         "roadways": {"nodes": roadways.nodes, "edges": roadways.edges,
                      "lift_edges": [dataclasses.asdict(e) for e in roadways.lift_edges]},
     }
-    _write_yaml(path, header, content)
+    write_yaml(path, header, content)

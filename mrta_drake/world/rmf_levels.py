@@ -24,7 +24,7 @@ from mrta_drake.world.rmf_building import Building
 from mrta_drake.world.rmf_navigation import (
     BuildingNavigation,
     BuildingNavigationParams,
-    _in_cabin,
+    in_cabin,
     level_navigation,
 )
 from mrta_drake.world.rmf_world import level_world
@@ -102,7 +102,7 @@ def _cabin_node(navigation: BuildingNavigation, level, lift) -> str | None:
     """The roadway node of ``navigation`` inside ``lift``'s cabin on ``level``, or None."""
     lines = navigation.centre_lines
     for vertex, node in lines.vertex_node.items():
-        if _in_cabin(level.point(vertex), lift) and node in navigation.roadways.nodes:
+        if in_cabin(level.point(vertex), lift) and node in navigation.roadways.nodes:
             return node
     return None
 

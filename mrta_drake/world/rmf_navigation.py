@@ -128,7 +128,7 @@ def centre_lines(building: Building, level: Level, graph: int,
         if lane.graph != graph:
             continue
         ends = (lane.start, lane.end)
-        if any(_in_cabin(level.point(i), lift) for i in ends for lift in cabins):
+        if any(in_cabin(level.point(i), lift) for i in ends for lift in cabins):
             continue
         for i in ends:
             if i in vertex_node:
@@ -156,7 +156,8 @@ def centre_lines(building: Building, level: Level, graph: int,
     return CentreLines(nodes, tuple(edges), vertex_node)
 
 
-def _in_cabin(xy, lift) -> bool:
+def in_cabin(xy, lift) -> bool:
+    """Whether ``xy`` (m) lies in ``lift``'s cabin, grown by 5 cm on every side."""
     c, s = math.cos(lift.yaw), math.sin(lift.yaw)
     dx, dy = xy[0] - lift.xy[0], xy[1] - lift.xy[1]
     return (abs(c * dx + s * dy) <= 0.5 * lift.width + 0.05
