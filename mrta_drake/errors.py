@@ -1,4 +1,5 @@
-"""The one error type for bad user input (scenario YAML, task files, maps, CLI flags)."""
+"""The one error type for bad user input (scenario YAML, task files, maps, CLI flags), and the
+checks self-checking params dataclasses run in ``__post_init__``."""
 
 
 class InputError(ValueError):
@@ -24,3 +25,26 @@ class InputError(ValueError):
         else:
             field = path + ("" if self.field.startswith("[") else ".") + self.field
         return InputError(file or self.file, field, self.message)
+
+
+def require_positive(params, *names: str, unit: str = "") -> None:
+    """Every field ``names`` of ``params`` > 0 (``unit``, e.g. " m", follows the bound)."""
+    for name in names:
+        value = getattr(params, name)
+        if not value > 0:
+            raise InputError(None, name, f"must be > 0{unit}, got {value!r}")
+
+
+def require_non_negative(params, *names: str, unit: str = "") -> None:
+    """Every field ``names`` of ``params`` >= 0 (``unit``, e.g. " m", follows the bound)."""
+    for name in names:
+        value = getattr(params, name)
+        if not value >= 0:
+            raise InputError(None, name, f"must be >= 0{unit}, got {value!r}")
+
+
+def require_choice(params, name: str, choices) -> None:
+    """Field ``name`` of ``params`` one of ``choices``."""
+    value = getattr(params, name)
+    if value not in choices:
+        raise InputError(None, name, f"must be one of {', '.join(choices)}, got {value!r}")

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from mrta_drake.control.param_groups import require_non_negative, require_positive
+from mrta_drake.errors import require_non_negative, require_positive
 
 
 @dataclass(frozen=True)

@@ -21,14 +21,10 @@ import numpy as np
 from mrta_drake.control.barriers import BarrierRates, SafetyDistances
 from mrta_drake.control.followers import FOLLOWER_RULES
 from mrta_drake.control.nominal import NominalParams
-from mrta_drake.control.param_groups import (
-    moved_from_flat,
-    require_choice,
-    require_non_negative,
-    require_positive,
-)
+from mrta_drake.control.param_groups import moved_from_flat
 from mrta_drake.control.qp_solver import QpParams
 from mrta_drake.control.wall_rays import SensingParams
+from mrta_drake.errors import require_choice, require_non_negative, require_positive
 
 COORDINATION_MODES = ("clusters", "decentralized", "centralized")
 

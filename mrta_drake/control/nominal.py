@@ -37,9 +37,8 @@ from functools import cached_property
 import numba
 import numpy as np
 
-from mrta_drake.control.param_groups import require_non_negative, require_positive
 from mrta_drake.control.paths import has_path, projection
-from mrta_drake.errors import InputError
+from mrta_drake.errors import InputError, require_non_negative, require_positive
 from mrta_drake.payloads import ROBOT_STOPPED_SPEED, RobotPath
 
 

@@ -22,7 +22,7 @@ import numba
 import numpy as np
 from pydrake.solvers import ClarabelSolver, MathematicalProgram, OsqpSolver, SolverOptions
 
-from mrta_drake.control.param_groups import require_choice, require_positive
+from mrta_drake.errors import require_choice, require_positive
 
 SOLVERS = ("clarabel", "osqp")
 _PAD = 4  # row counts are padded to a multiple of this so that few programs are built

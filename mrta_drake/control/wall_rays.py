@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from mrta_drake.control.param_groups import require_non_negative, require_positive
+from mrta_drake.errors import require_non_negative, require_positive
 from mrta_drake.payloads import ROBOT_STATE_SIZE
 from mrta_drake.scenario.disturbances import blockage_obstacles
 from mrta_drake.world.obstacles import cast_rays_into

@@ -31,7 +31,7 @@ import networkx as nx
 import numpy as np
 from skimage.morphology import skeletonize
 
-from mrta_drake.errors import InputError
+from mrta_drake.errors import InputError, require_non_negative
 from mrta_drake.navigation.clearance_field import ClearanceField, segment_clearance
 from mrta_drake.navigation.lane_derivation import (
     CentrelineEdge,
@@ -63,9 +63,8 @@ class SkeletonParams:
     min_width_run: float = 1.0
 
     def __post_init__(self):
-        for name in ("min_spur", "junction_merge", "simplify_tolerance", "min_width_run"):
-            if not getattr(self, name) >= 0.0:
-                raise InputError(None, name, f"must be >= 0 m, got {getattr(self, name)}")
+        require_non_negative(self, "min_spur", "junction_merge", "simplify_tolerance",
+                             "min_width_run", unit=" m")
 
 
 def centreline_graph(field: ClearanceField, lanes: LaneParams,

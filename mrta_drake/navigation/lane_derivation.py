@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mrta_drake.errors import InputError
+from mrta_drake.errors import InputError, require_non_negative, require_positive
 from mrta_drake.navigation.clearance_field import Clearance, segment_clearance
 from mrta_drake.scenario.schema import RoadwaysConfig
 
@@ -110,11 +110,8 @@ class LaneParams:
     check_step: float = 0.05
 
     def __post_init__(self):
-        for name in ("offset", "robot_radius", "check_step"):
-            if not getattr(self, name) > 0.0:
-                raise InputError(None, name, f"must be > 0 m, got {getattr(self, name)}")
-        if not self.margin >= 0.0:
-            raise InputError(None, "margin", f"must be >= 0 m, got {self.margin}")
+        require_positive(self, "offset", "robot_radius", "check_step", unit=" m")
+        require_non_negative(self, "margin", unit=" m")
 
     @property
     def clearance(self) -> float:

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import networkx as nx
 import numpy as np
 
-from mrta_drake.errors import InputError
+from mrta_drake.errors import InputError, require_non_negative, require_positive
 from mrta_drake.navigation.clearance_field import Clearance, segment_clearance, segment_samples
 from mrta_drake.navigation.lane_derivation import (
     CentrelineEdge,
@@ -121,12 +121,9 @@ class LocationParams:
             raise InputError(None, "queue_slots", f"must be >= 1, got {self.queue_slots}")
         if self.parking_spots < 0:
             raise InputError(None, "parking_spots", f"must be >= 0, got {self.parking_spots}")
-        for name in ("slot_spacing", "wall_safety"):
-            if not getattr(self, name) > 0.0:
-                raise InputError(None, name, f"must be > 0 m, got {getattr(self, name)}")
-        for name in ("head_gap", "queue_shift", "snap", "on_line", "access_stub", "aside"):
-            if not getattr(self, name) >= 0.0:
-                raise InputError(None, name, f"must be >= 0 m, got {getattr(self, name)}")
+        require_positive(self, "slot_spacing", "wall_safety", unit=" m")
+        require_non_negative(self, "head_gap", "queue_shift", "snap", "on_line", "access_stub",
+                             "aside", unit=" m")
         low, high = self.parking_distance
         if not 0.0 < low <= high:
             raise InputError(None, "parking_distance",

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import networkx as nx
 import yaml
 
-from mrta_drake.errors import InputError
+from mrta_drake.errors import require_positive
 from mrta_drake.navigation.clearance_field import ClearanceField
 from mrta_drake.navigation.free_space_skeleton import SkeletonParams, centreline_graph
 from mrta_drake.navigation.lane_derivation import (
@@ -60,8 +60,7 @@ class NavigationParams:
     resolution: float = 0.05
 
     def __post_init__(self):
-        if not self.resolution > 0.0:
-            raise InputError(None, "resolution", f"must be > 0 m, got {self.resolution}")
+        require_positive(self, "resolution", unit=" m")
 
 
 def derive_navigation(world: OccupancyGrid | FloorPlan | Obstacles, points: list[NamedPoint],

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import networkx as nx
 import numpy as np
 
-from mrta_drake.errors import InputError
+from mrta_drake.errors import InputError, require_positive
 from mrta_drake.navigation.lane_derivation import (
     CentrelineEdge,
     CentrelineGraph,
@@ -46,7 +46,6 @@ from mrta_drake.navigation.lane_derivation import (
 from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig
 from mrta_drake.world.floor_plan import FloorPlan
 from mrta_drake.world.rmf_building import Building, Level, Vertex
-from mrta_drake.world.rmf_world import check_lengths
 
 NOT_TASK_FLAGS = ("is_charger", "is_passthrough_point")
 
@@ -75,8 +74,8 @@ class BuildingNavigationParams:
             raise InputError(None, "queue_slots", f"must be >= 1, got {self.queue_slots}")
         if self.parking_spots < 0:
             raise InputError(None, "parking_spots", f"must be >= 0, got {self.parking_spots}")
-        check_lengths(self, positive=("slot_spacing", "head_gap", "slot_clearance",
-                                      "parking_distance", "parking_lane_gap"))
+        require_positive(self, "slot_spacing", "head_gap", "slot_clearance", "parking_distance",
+                         "parking_lane_gap", unit=" m")
 
 
 @dataclass(frozen=True)

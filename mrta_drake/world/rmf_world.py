@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mrta_drake.errors import InputError
+from mrta_drake.errors import InputError, require_non_negative, require_positive
 from mrta_drake.world.floor_plan import FloorPlan
 from mrta_drake.world.obstacles import Box, Cylinder, Obstacles
 from mrta_drake.world.rmf_building import Building, Level, Lift, Model
@@ -49,19 +49,9 @@ class BuildingWorldParams:
     bounds_margin: float = 1.0
 
     def __post_init__(self):
-        check_lengths(self, positive=("wall_thickness", "wall_height", "model_radius",
-                                      "model_height"),
-                      non_negative=("lane_clearance", "bounds_margin"))
-
-
-def check_lengths(params, positive=(), non_negative=()) -> None:
-    """InputError naming the first field of ``params`` among ``positive`` that is not > 0 m,
-    or among ``non_negative`` that is < 0 m."""
-    for names, bad, bound in ((positive, lambda v: not v > 0, "> 0"),
-                              (non_negative, lambda v: not v >= 0, ">= 0")):
-        for name in names:
-            if bad(getattr(params, name)):
-                raise InputError(None, name, f"must be {bound} m, got {getattr(params, name)}")
+        require_positive(self, "wall_thickness", "wall_height", "model_radius", "model_height",
+                         unit=" m")
+        require_non_negative(self, "lane_clearance", "bounds_margin", unit=" m")
 
 
 @dataclass(frozen=True, eq=False)
