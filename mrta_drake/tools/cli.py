@@ -80,16 +80,19 @@ def _parser() -> argparse.ArgumentParser:
     travel.add_argument("--quiet", action="store_true", help="no progress bar")
 
     building = commands.add_parser("import", help="make a runnable scenario folder from an "
-                                   "Open-RMF .building.yaml")
-    building.add_argument("building", help="Open-RMF .building.yaml file")
+                                   "Open-RMF .building.yaml, or a ROS map with --locations")
+    building.add_argument("building", help="Open-RMF .building.yaml file, or a ROS map_server "
+                          ".yaml file")
+    building.add_argument("--locations", metavar="POINTS.yaml", default="", help="with a ROS "
+                          "map: the named points robots serve (docs/worlds.md)")
     building.add_argument("--out", metavar="DIR", required=True, help="folder to write "
                           "scenario.yaml and navigation.yaml to")
     building.add_argument("--robots", type=int, default=3, help="robots (default 3)")
     building.add_argument("--people", type=int, default=0, help="people (default 0)")
     building.add_argument("--seed", type=int, default=0, help="seed of people and tasks "
                           "(default 0)")
-    building.add_argument("--level", default="", help="the level to import (default: the "
-                          "only one; with several, one folder per level)")
+    building.add_argument("--level", default="", help="the level to import (default: every "
+                          "level, joined by the lifts)")
     building.add_argument("--graph", type=int, default=0, help="navigation graph "
                           "(graph_idx) robots drive on (default 0)")
     return parser
@@ -244,10 +247,21 @@ def _travel_times(args) -> int:
 
 def _import(args) -> int:
     from mrta_drake.tools.building_import import ImportOptions, import_building
+    from mrta_drake.tools.map_import import import_ros_map
     from mrta_drake.world.rmf_scenario import building_at
 
     options = ImportOptions(robots=args.robots, people=args.people, seed=args.seed,
                             level=args.level, graph=args.graph)
+    if not args.building.endswith(".building.yaml"):
+        if not args.locations:
+            raise InputError(args.building, None, "a ROS map needs --locations POINTS.yaml "
+                             "(an Open-RMF building file ends in .building.yaml)")
+        _check_writable("--out", args.out, folder=True)
+        report = import_ros_map(args.building, args.locations, args.out, options)
+        print("\n".join(report.lines))
+        return 0
+    if args.locations:
+        raise InputError(None, "--locations", "is for ROS maps; a building names its places")
     building_at(args.building)  # a broken building is refused before anything is written
     _check_writable("--out", args.out, folder=True)
     report = import_building(args.building, args.out, options)
