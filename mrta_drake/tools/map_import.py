@@ -22,6 +22,7 @@ from mrta_drake.world.ros_map import load_ros_map
 
 PERSON_CLEARANCE = 1.0  # m from walls of the points people walk between
 PERSON_POINTS = 6  # random free points each imported scenario's people walk between
+WALK_CLEARANCE = 0.5  # m from walls people need to pass (a 0.25 m body and its margin)
 
 
 def import_ros_map(map_path: str, points_path: str, out_dir: str,
@@ -75,17 +76,20 @@ def _robot_starts(locations: list[dict], count: int, points_path: str) -> list[d
 
 def _free_points(plan: FloorPlan, locations: list[dict],
                  rng: np.random.Generator) -> list[list[float]]:
-    """Seeded random points at least ``PERSON_CLEARANCE`` from every obstacle, in the free
-    space connected to the locations' points (the building's inside, not what lies around
-    it)."""
+    """Seeded random points at least ``PERSON_CLEARANCE`` from every obstacle, all in the
+    one region people can walk through (``WALK_CLEARANCE`` from walls) that holds the most
+    locations, so a walk between any two of them exists."""
     from scipy import ndimage
 
     grid = plan.occupancy()
-    labels, _ = ndimage.label(~grid.occupied)
+    distance = ndimage.distance_transform_edt(~grid.occupied) * grid.resolution
+    labels, _ = ndimage.label(distance >= WALK_CLEARANCE)
     i, j = grid.world_to_cell(np.array([loc["point"] for loc in locations]))
-    inside = np.isin(labels, np.unique(labels[i, j])) & (labels > 0)
-    clear = ndimage.distance_transform_edt(~grid.occupied) * grid.resolution >= PERSON_CLEARANCE
-    rows, cols = np.nonzero(inside & clear)
+    held = labels[i, j][labels[i, j] > 0]
+    if len(held) == 0:
+        raise InputError(plan.source, "map", "no location is in a region people can walk")
+    region = labels == np.bincount(held).argmax()
+    rows, cols = np.nonzero(region & (distance >= PERSON_CLEARANCE))
     if len(rows) == 0:
         raise InputError(plan.source, "map", f"no free space {PERSON_CLEARANCE} m from walls "
                          "near the locations for people to walk in")
