@@ -27,9 +27,9 @@ All three drive the six-robot hospital scenario with its people for the same tim
 table compares the runs' figures (``summary.json``): the smallest surface-to-surface
 clearances robot-robot, robot-wall and robot-human (m; negative means overlap), the contact
 counts (how often bodies started to overlap), how far the robots drove and the deadlocks.
-Go-to-goal drives into people and robots; stop-and-go keeps off the robots in front of it
-but not off a person walking in from the side; the CBF controller keeps its distances to
-all of them.
+Go-to-goal drives into robots and nearer walls and people (people step out of its way:
+they yield to robots, docs/humans.md); stop-and-go keeps off the robots in front of it; the
+CBF controller keeps its distances to all of them.
 
 Run (``--meshcat`` shows the runs live, one after the other)::
 

@@ -16,7 +16,7 @@ from mrta_drake.payloads import (
     HumanStates,
     frozen_array,
 )
-from mrta_drake.world.obstacles import Obstacles, closest_points_of
+from mrta_drake.world.obstacles import Obstacles, cast_rays_into, closest_points_of
 
 ELLIPSE_TIME = 2.0  # s: the elliptical potential stretches along the other's next 2 s of walk
 FIELD_OF_VIEW = np.deg2rad(100.0)  # half angle of the field of view
@@ -49,9 +49,13 @@ class SocialForceHumans(LeafSystem):
     1. Waypoint: within ``waypoint_tolerance`` of its target (or within ``TAKEN_REACH`` of a
        target covered by a robot's or another person's body), the person targets the next
        waypoint of its loop (wrapping around).
-    2. Acceleration, m/s^2: relaxation to the desired velocity (``desired_speed`` toward the
-       target) with ``relaxation_time``; repulsion from other people and from robots (robots
-       count as pedestrians, moving with ``v (cos theta, sin theta)``) with the elliptical
+    2. Acceleration, m/s^2: relaxation to the desired velocity with ``relaxation_time``:
+       ``desired_speed`` toward the target, or, with a robot in the way, slower and aside
+       (yielding, ``SocialForceParams``: urgency from the robot's gap and approach; aside to
+       the right, or to the left when only the left has room to pass beside the robot, by a
+       ray cast from the robot's centre; a stand when neither has); repulsion from other
+       people and from robots (robots count as pedestrians, moving with ``v (cos theta,
+       sin theta)``, with ``V0`` times ``robot_repulsion_gain``) with the elliptical
        potential ``V0 exp(-b'/sigma)``, ``V0 = repulsion_strength``, ``sigma =
        repulsion_range``, ``b'`` the ellipse's semi-minor axis minus both body radii (so
        bodies, not centres, keep apart), stretched along the other's next ``ELLIPSE_TIME`` s
@@ -64,12 +68,14 @@ class SocialForceHumans(LeafSystem):
        ``|grad b|`` is capped at ``GRADIENT_CAP`` where the ellipse degenerates.
     3. Semi-implicit Euler step, speed capped at ``max_speed``.
     4. Hard constraints on the step: overlapping people are pushed apart; nobody steps
-       closer to a robot's surface than min(``ROBOT_STANDOFF``, the gap before the step), so
-       only a robot's own motion causes contact (robots are never pushed, and the people are
-       not shoved out of a robot that drove into them: contacts stay visible to the
-       metrics); everyone is pushed out to clearance ``radius`` from obstacles, and a step
-       that would still lose clearance below ``radius`` (or break a robot gap) is cancelled
-       and the person stops, so nobody ever enters a wall.
+       closer to a robot's surface than min(``ROBOT_STANDOFF``, the gap before the step),
+       the robot taken both where it is and where its velocity takes it by the end of the
+       step, so only a robot's own motion causes contact (robots are never pushed, and the
+       people are not shoved out of a robot that drove into them: contacts stay visible to
+       the metrics); everyone is pushed out to clearance ``radius`` from obstacles, and a
+       step that would still lose clearance below ``radius`` (or break a robot gap) is
+       cancelled and the person stops, so nobody ever enters a wall or steps into a
+       robot.
 
     A person with ``entry_time`` > 0 waits until that time and until nobody is within
     ``ENTRY_GAP`` of its start. The number of people never changes: a waiting person is
@@ -131,8 +137,10 @@ class SocialForceHumans(LeafSystem):
         self._parking = self._parking_spots(parking)
         self._constants = np.array([self._dt, params.waypoint_tolerance, params.relaxation_time,
                                     params.repulsion_strength, params.repulsion_range,
-                                    params.wall_strength, params.wall_range, params.max_speed],
-                                   dtype=float)
+                                    params.wall_strength, params.wall_range, params.max_speed,
+                                    params.robot_repulsion_gain, params.yield_distance,
+                                    params.waiting_gap, params.yield_time, params.passing_gap,
+                                    params.sidestep_ratio], dtype=float)
 
         first = self._waypoints[:, 0] - self._starts
         present = self._entry <= 0.0
@@ -237,8 +245,8 @@ def _placed(x, parking):
 
 
 # The update, compiled: indices of ``SocialForceHumans._constants``.
-_DT, _TOLERANCE, _RELAXATION, _STRENGTH, _RANGE, _WALL_STRENGTH, _WALL_RANGE, _MAX_SPEED = \
-    range(8)
+(_DT, _TOLERANCE, _RELAXATION, _STRENGTH, _RANGE, _WALL_STRENGTH, _WALL_RANGE, _MAX_SPEED,
+ _ROBOT_GAIN, _YIELD_DISTANCE, _WAITING_GAP, _YIELD_TIME, _PASSING_GAP, _SIDESTEP) = range(14)
 
 
 @numba.njit(cache=True)
@@ -316,15 +324,18 @@ def _step_people(p, v, heading, targets, a, robot_p, robot_v, robot_r, radii_all
         distance = math.sqrt(tx * tx + ty * ty)
         if distance > 1e-9 and not (counts[i] == 1 and distance < tolerance):
             direction[j, 0], direction[j, 1] = tx / distance, ty / distance
+    desired = _yielding_velocities(pa, direction, speeds[a], radii, robot_p, robot_v, robot_r,
+                                   obstacles, constants)
+    for j in range(k):
         for c in range(2):
-            accel[j, c] = (speeds[i] * direction[j, c] - va[j, c]) / constants[_RELAXATION]
+            accel[j, c] = (desired[j, c] - va[j, c]) / constants[_RELAXATION]
     force = np.zeros((k, 2))
     _add_repulsion(pa, direction, radii, pa, va, radii, True, constants[_STRENGTH],
                    constants[_RANGE], force)
     accel += force
     force = np.zeros((k, 2))
-    _add_repulsion(pa, direction, radii, robot_p, robot_v, robot_r, False, constants[_STRENGTH],
-                   constants[_RANGE], force)
+    _add_repulsion(pa, direction, radii, robot_p, robot_v, robot_r, False,
+                   constants[_STRENGTH] * constants[_ROBOT_GAIN], constants[_RANGE], force)
     accel += force
     closest, clearance = closest_points_of(pa, *obstacles)
     outward = _outward(pa, closest, clearance)
@@ -336,7 +347,10 @@ def _step_people(p, v, heading, targets, a, robot_p, robot_v, robot_r, radii_all
 
     va_new = _cap_speed(va + dt * accel, constants[_MAX_SPEED])
     free_step = pa + dt * va_new
-    pa_new, blocked = _project(free_step, pa, closest, clearance, radii, robot_p, robot_r,
+    # Each robot where it is and where its velocity takes it by the end of the step.
+    bodies = np.concatenate((robot_p, robot_p + dt * robot_v))
+    body_r = np.concatenate((robot_r, robot_r))
+    pa_new, blocked = _project(free_step, pa, closest, clearance, radii, bodies, body_r,
                                obstacles)
     va_new = _cap_speed(va_new + (pa_new - free_step) / dt, constants[_MAX_SPEED])
     for j in range(k):
@@ -349,10 +363,64 @@ def _step_people(p, v, heading, targets, a, robot_p, robot_v, robot_r, radii_all
 
 
 @numba.njit(cache=True)
+def _yielding_velocities(p, direction, speeds, radii, robot_p, robot_v, robot_r, obstacles,
+                         constants) -> np.ndarray:
+    """Desired velocities (a, 2), m/s, of people at ``p`` (a, 2) walking in unit
+    ``direction`` (a, 2) at ``speeds`` (a,), yielding to the robot in their way with the
+    highest urgency (``SocialForceParams``): ``speed ((1 - u) e + u r s n)``, ``e`` the
+    walking direction, ``n`` its right normal, ``u`` the urgency, ``r`` the sidestep ratio,
+    ``s`` = +1 (right) when the robot has room to pass on the person's right, else -1 when
+    on its left, else 0 (the person slows to a stand)."""
+    reach, wait = constants[_YIELD_DISTANCE], constants[_WAITING_GAP]
+    desired = np.empty_like(p)
+    for i in range(len(p)):
+        ex, ey = direction[i, 0], direction[i, 1]
+        nx, ny = ey, -ex  # the person's right
+        urgency, robot = 0.0, -1
+        for j in range(len(robot_p)):
+            rx, ry = robot_p[j, 0] - p[i, 0], robot_p[j, 1] - p[i, 1]
+            band = radii[i] + robot_r[j] + constants[_PASSING_GAP]
+            if not (rx * ex + ry * ey > 0.0 and abs(rx * nx + ry * ny) < band):
+                continue
+            distance = math.sqrt(rx * rx + ry * ry)
+            approach = max(-(robot_v[j, 0] * rx + robot_v[j, 1] * ry) / max(distance, 1e-9),
+                           0.0)
+            gap = distance - radii[i] - robot_r[j] - approach * constants[_YIELD_TIME]
+            u = min(max((reach - gap) / (reach - wait), 0.0), 1.0)
+            if u > urgency:
+                urgency, robot = u, j
+        side = 0.0
+        if robot >= 0:
+            width = 2.0 * radii[i] + constants[_PASSING_GAP]
+            for s in (1.0, -1.0):
+                if _room(robot_p[robot, 0], robot_p[robot, 1], s * nx, s * ny, robot_r[robot],
+                         width, obstacles):
+                    side = s
+                    break
+        forward, aside = 1.0 - urgency, urgency * constants[_SIDESTEP] * side
+        desired[i, 0] = speeds[i] * (forward * ex + aside * nx)
+        desired[i, 1] = speeds[i] * (forward * ey + aside * ny)
+    return desired
+
+
+@numba.njit(cache=True)
+def _room(x, y, ux, uy, radius, width, obstacles) -> bool:
+    """True when the obstacles leave at least ``width`` (m) beside a robot of ``radius`` at
+    (``x``, ``y``), along the unit vector (``ux``, ``uy``)."""
+    reach = radius + width
+    hit = np.full((1, 1), reach)
+    origin = np.empty((1, 2))
+    origin[0, 0], origin[0, 1] = x, y
+    cast_rays_into(origin, np.full((1, 1), ux), np.full((1, 1), uy), *obstacles, hit)
+    return hit[0, 0] >= reach
+
+
+@numba.njit(cache=True)
 def _project(new, old, old_closest, old_clearance, radii, robot_p, robot_r, obstacles):
     """Hard constraints on the step ``old`` -> ``new`` (positions (a, 2); ``old_closest``
-    and ``old_clearance``: ``closest_points_of`` at ``old``): overlapping people are
-    pushed apart; nobody steps closer to a robot (surface to surface) than
+    and ``old_clearance``: ``closest_points_of`` at ``old``; robots: discs at ``robot_p``
+    (b, 2) of ``robot_r`` (b,)): overlapping people are pushed apart; nobody steps closer to
+    a robot (surface to surface) than
     min(``ROBOT_STANDOFF``, its gap before the step), so only a robot's own motion can
     cause contact; everyone ends at clearance >= radius from obstacles. Returns the new
     positions and the mask of people blocked, who would still break a robot floor or lose

@@ -78,6 +78,11 @@ def format_summary(summary: dict) -> str:
         f"  {'contacts':<18}{safety['robot_robot_contacts']} robot-robot, "
         f"{safety['robot_wall_contacts']} robot-wall, {safety['robot_human_contacts']} "
         "robot-human",
+    ]
+    if "robot_wall_close_time" in safety:  # summaries written before it have none
+        lines.append(f"  {'near walls':<18}{safety['robot_wall_close_time']:.1f} robot-s "
+                     f"within {safety['robot_wall_close_distance']:g} m of a wall")
+    lines += [
         f"  {'CBF slack':<18}max {safety['max_cbf_slack']:.3g} m/s^2, "
         f"{safety['cbf_slack_time']:.1f} s relaxed",
         f"  {'failures':<18}{summary['planner_failures']} planner, "
@@ -154,6 +159,7 @@ _COMPARED = [
     ("robot-robot contacts", lambda s: s["safety"]["robot_robot_contacts"]),
     ("robot-wall contacts", lambda s: s["safety"]["robot_wall_contacts"]),
     ("robot-human contacts", lambda s: s["safety"]["robot_human_contacts"]),
+    ("robot-s near walls", lambda s: s["safety"].get("robot_wall_close_time")),
     ("max CBF slack m/s^2", lambda s: s["safety"]["max_cbf_slack"]),
     ("planner failures", lambda s: s["planner_failures"]),
     ("controller failures", lambda s: s["controller_failures"]),

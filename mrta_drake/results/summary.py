@@ -13,9 +13,12 @@ clearances), times in s of simulation time unless named ``wall``/``cpu``. The ke
   ``final_pose`` [x, y, theta].
 - ``safety``: smallest robot-robot, robot-wall and robot-human clearance (``min_*``, None
   when there is no such pair) with when (``*_time``) and who (``*_between``); contact
-  onsets (``*_contacts``); from the controller telemetry at the recorder's samples:
-  ``max_cbf_slack`` (the largest CBF row relaxation, scaled rows, m/s^2) and
-  ``cbf_slack_time`` (time with some slack > ``SLACK_TOLERANCE``).
+  onsets (``*_contacts``); ``robot_wall_close_time``: robot-seconds with a robot's
+  clearance to walls below ``robot_wall_close_distance``, half the controller's wall safety
+  distance (``controller_wall_safety``); from the
+  controller telemetry at the recorder's samples: ``max_cbf_slack`` (the largest CBF row
+  relaxation, scaled rows, m/s^2) and ``cbf_slack_time`` (time with some slack >
+  ``SLACK_TOLERANCE``).
 - ``humans``: ``human_metrics.HumanMetrics`` fields, or None without humans.
 - ``deadlocks``: ``count``, the detection settings and ``episodes`` (see ``deadlocks``).
 - ``allocations``: from the allocator's events (when it reports them): ``count``,
@@ -60,8 +63,10 @@ from mrta_drake.results.deadlocks import (
 )
 from mrta_drake.results.human_metrics import human_metrics
 from mrta_drake.results.timing import leg_rows, task_rows, task_totals
+from mrta_drake.stack.blocks import resolve_block
 
 SLACK_TOLERANCE = 1e-6  # CBF slack above this counts as a relaxed constraint
+DEFAULT_WALL_SAFETY = 0.6  # m, robot centre to wall, for a controller without one
 
 RELOCATION_STEP = 10.0  # m in one sample: further than any robot drives, so a lift ride
 
@@ -107,7 +112,7 @@ def summarize(stack, duration: float, wall_time: float, cpu_time: float) -> dict
         "legs": leg_rows(events),
         "robots": _robots(names, times, states, modes, events),
         "safety": _safety(stack.world.obstacles, names, times, xy, radii, humans, human_radii,
-                          recorder.human_names, telemetry),
+                          recorder.human_names, telemetry, controller_wall_safety(scenario)),
         "humans": _humans(stack, times, xy, radii, humans, human_radii),
         "deadlocks": _deadlocks(names, times, xy, modes, humans, recorder.human_names),
         "allocations": _allocations([e["event"] for e in events
@@ -161,8 +166,18 @@ def _robots(names, times, states, modes, events) -> dict:
     return robots
 
 
+def controller_wall_safety(scenario) -> float:
+    """The wall safety distance (m, robot centre to wall) of the scenario's controller: its
+    params' ``safety_distances.wall``, or the flat ``safety_distance_wall``, or
+    ``DEFAULT_WALL_SAFETY`` when it has neither."""
+    params = resolve_block(scenario, "controller")[1]
+    grouped = getattr(params, "safety_distances", None)
+    value = getattr(grouped, "wall", getattr(params, "safety_distance_wall", None))
+    return DEFAULT_WALL_SAFETY if value is None else float(value)
+
+
 def _safety(obstacles, names, times, xy, radii, humans, human_radii, human_names,
-            telemetry) -> dict:
+            telemetry, wall_safety) -> dict:
     gaps = clearances(obstacles, xy, radii, humans, human_radii)
     result = {}
     for kind, values, who in (
@@ -182,6 +197,10 @@ def _safety(obstacles, names, times, xy, radii, humans, human_radii, human_names
                        f"min_{kind}_between": None}
         with np.errstate(invalid="ignore"):
             result[f"{kind}_contacts"] = int(_onsets(values < 0).sum())
+    close = 0.5 * wall_safety
+    result["robot_wall_close_distance"] = close
+    result["robot_wall_close_time"] = float(
+        (_weights(times)[:, None] * (gaps.robot_wall < close)).sum())
     slack = np.array([t.max_slack for t in telemetry])
     result["max_cbf_slack"] = float(slack.max()) if len(slack) else 0.0
     result["cbf_slack_time"] = float(_weights(times)[slack > SLACK_TOLERANCE].sum())

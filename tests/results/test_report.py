@@ -48,7 +48,8 @@ def test_report_prints_run_robot_and_safety_rows(folders, capsys):
     assert main(["report", str(first)]) == 0
     printed = capsys.readouterr().out
     for expected in ("real-time factor", "tasks      0 total", "min robot-robot",
-                     "min robot-wall", "contacts", "CBF slack", "deadlocks  none"):
+                     "min robot-wall", "contacts", "near walls", "CBF slack",
+                     "deadlocks  none"):
         assert expected in printed
     robot_rows = [line for line in printed.splitlines() if line.startswith("robot")]
     assert [row.split()[0] for row in robot_rows[1:]] == [f"robot{k}" for k in range(1, 7)]

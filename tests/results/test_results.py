@@ -5,6 +5,7 @@ import dataclasses
 import json
 import math
 import pathlib
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -27,11 +28,13 @@ from mrta_drake.payloads import (
     Visit,
     WaypointTarget,
 )
+from mrta_drake.results import summary
 from mrta_drake.results.deadlocks import find_deadlocks
 from mrta_drake.results.timing import leg_rows, task_rows, task_totals
 from mrta_drake.scenario.schema import HumanConfig, HumansConfig, TaskBatch, TaskConfig
 from mrta_drake.stack.diagram import add_stack
 from mrta_drake.stack.run_recorder import RunRecorder, _jsonable
+from mrta_drake.world.obstacles import Box, Obstacles
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 ROUTES = ROOT / "scenarios/hospital_routes_6_robots.yaml"
@@ -255,6 +258,35 @@ def test_recorder_notes_modes_plans_starts_arrivals_and_allocator_events(tmp_pat
     assert on_file[0]["plans"]["a"][0]["planned"] is None  # NaN is written as null
 
 
+# --- Time near walls -----------------------------------------------------------------------------
+
+
+def test_wall_close_time_is_robot_seconds_nearer_a_wall_than_half_the_safety_distance():
+    wall = Obstacles(boxes=(Box("wall", (0.0, -1.0), (20.0, 2.0)),))  # its face: y = 0
+    times = np.arange(5.0)  # each sample holds 1 s, the last none
+    # Centres; the robots' surfaces are 0.1 m nearer the wall.
+    ys = np.array([[1.1, 0.3, 0.3, 1.1, 0.3],  # near at 1 and 2 s (and at the end)
+                   [1.1, 1.1, 1.1, 0.35, 1.1]]).T  # near at 3 s
+    xy = np.stack([np.zeros_like(ys), ys], axis=-1)
+    telemetry = [SimpleNamespace(max_slack=0.0)] * len(times)
+
+    def safety(wall_safety):
+        return summary._safety(wall, ["a", "b"], times, xy, np.array([0.1, 0.1]),
+                               np.zeros((5, 0, 2)), np.zeros(0), [], telemetry, wall_safety)
+
+    assert safety(0.6)["robot_wall_close_distance"] == 0.3
+    assert safety(0.6)["robot_wall_close_time"] == 3.0
+    assert safety(0.45)["robot_wall_close_time"] == 2.0  # 0.225 m: robot b's 0.25 m is clear
+    assert safety(0.35)["robot_wall_close_time"] == 0.0
+
+
+def test_the_wall_safety_distance_is_read_from_the_controller_params():
+    assert summary.controller_wall_safety(load_scenario(ROUTES)) == 0.6
+    moved = load_scenario(ROUTES, overrides={
+        "blocks.controller.params": {"safety_distance_wall": 0.8}})
+    assert summary.controller_wall_safety(moved) == 0.8
+
+
 # --- A real run ----------------------------------------------------------------------------------
 
 
@@ -278,6 +310,8 @@ def test_summary_json_has_every_section_and_is_strict_json(run):
     assert summary["tasks"]["total"] == 0 and summary["tasks"]["per_task"] == []
     for key in ("min_robot_robot", "min_robot_wall", "min_robot_human"):
         assert summary["safety"][key] > 0.0
+    assert summary["safety"]["robot_wall_close_distance"] == 0.3
+    assert 0.0 <= summary["safety"]["robot_wall_close_time"] <= 6 * 30.0
     assert summary["safety"]["min_robot_human_between"][1] == "nurse"
     assert summary["humans"]["min_distance"] == pytest.approx(
         summary["safety"]["min_robot_human"])

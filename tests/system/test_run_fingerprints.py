@@ -11,9 +11,9 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 SCRIPT = pathlib.Path(__file__).with_name("run_fingerprint.py")
 
 FINGERPRINTS = {
-    "hospital_6_robots.yaml": "715239b35061d5536eb87fe49e6f06bca3f6f9f3d2ded5769736e1e433897232",
+    "hospital_6_robots.yaml": "390395c124c153df2524ae476c8a84d640c47a209f752a625719a589a7e4b89c",
     "hospital_disturbances.yaml":
-        "2d477a6306ef475587d256217f4c1a24e3b60d7e1960e8056db539473c76aaaf",
+        "8d645b26613e01bdff9fe6181d606bc53911e132bb02a0ff8b00510976d21187",
 }
 
 
