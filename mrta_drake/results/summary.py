@@ -168,12 +168,11 @@ def _robots(names, times, states, modes, events) -> dict:
 
 def controller_wall_safety(scenario) -> float:
     """The wall safety distance (m, robot centre to wall) of the scenario's controller: its
-    params' ``safety_distances.wall``, or the flat ``safety_distance_wall``, or
-    ``DEFAULT_WALL_SAFETY`` when it has neither."""
+    params' ``safety_distances.wall``, or ``DEFAULT_WALL_SAFETY`` for a controller without
+    one."""
     params = resolve_block(scenario, "controller")[1]
-    grouped = getattr(params, "safety_distances", None)
-    value = getattr(grouped, "wall", getattr(params, "safety_distance_wall", None))
-    return DEFAULT_WALL_SAFETY if value is None else float(value)
+    distances = getattr(params, "safety_distances", None)
+    return float(getattr(distances, "wall", DEFAULT_WALL_SAFETY))
 
 
 def _safety(obstacles, names, times, xy, radii, humans, human_radii, human_names,

@@ -283,7 +283,7 @@ def test_wall_close_time_is_robot_seconds_nearer_a_wall_than_half_the_safety_dis
 def test_the_wall_safety_distance_is_read_from_the_controller_params():
     assert summary.controller_wall_safety(load_scenario(ROUTES)) == 0.6
     moved = load_scenario(ROUTES, overrides={
-        "blocks.controller.params": {"safety_distance_wall": 0.8}})
+        "blocks.controller.params": {"safety_distances": {"wall": 0.8}}})
     assert summary.controller_wall_safety(moved) == 0.8
 
 
