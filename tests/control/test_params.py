@@ -102,5 +102,6 @@ def test_a_field_go_to_goal_never_used_is_unknown():
 def test_a_bad_value_in_a_group_gives_one_line(group, value, message):
     with pytest.raises(InputError) as error:
         _controller_params("cluster_cbf", **{group: value})
-    assert str(error.value).startswith(f"{SCENARIO}: {PARAMS}: {message}")
+    group_path = group.rsplit(".", 1)[0]
+    assert str(error.value).startswith(f"{SCENARIO}: {PARAMS}.{group_path}.{message}")
     assert "\n" not in str(error.value)
