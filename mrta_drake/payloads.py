@@ -300,7 +300,9 @@ NO_HUMANS = HumanStates()
 class ControllerTelemetry:
     """One control tick's account. Barrier values are the smallest h = |p - p_o|^2 - d^2
     per obstacle kind (m^2; inf when none). ``clusters`` lists robot index tuples, each
-    led by its first member."""
+    led by its first member. ``qp_calls``: each QP handed to a solver this tick, as its
+    number of robots and its wall-clock time (s; a program's first solve includes building
+    it)."""
 
     time: float = 0.0
     min_barrier_wall: float = float("inf")
@@ -311,6 +313,7 @@ class ControllerTelemetry:
     clusters: tuple[tuple[int, ...], ...] = ()
     solve_time: float = 0.0  # s (wall clock) spent in solvers this tick
     failures: int = 0  # solver failures this tick (robots braked)
+    qp_calls: tuple[tuple[int, float], ...] = ()  # per solver call: (robots in the QP, s)
 
 
 # --- Disturbances: disturbance schedule -> planner, waypoints, allocator, controller, results

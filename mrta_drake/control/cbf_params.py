@@ -38,8 +38,9 @@ class CoordinationParams:
     QP, the others within ``cluster_radius`` as moving obstacles) or ``centralized`` (one QP
     for all). ``cluster_radius`` is also the range of robot-pair rows.
 
-    ``leader_rule``: who leads a cluster, a key of ``clusters.LEADER_RULES`` (``priority``,
-    ``distance_to_goal`` or one registered with ``register_leader_rule``). ``followers``:
+    ``leader_rule``: who leads a cluster, a key of ``clusters.LEADER_RULES`` (``priority``: the
+    smallest leads; ``largest_priority``; ``distance_to_goal``; or one registered with
+    ``register_leader_rule``). ``followers``:
     which other members get the slow-down nominal (``followers.FOLLOWER_RULES``: ``all`` or
     ``in_the_way``, within ``yield_clearance`` m of a path's next ``yield_horizon`` m; see
     ``mrta_drake.control.followers``).

@@ -237,12 +237,12 @@ class ClusterCbfController(LeafSystem):
     def _solve(self, time: float, plan: TickPlan) -> tuple[np.ndarray, ControllerTelemetry]:
         # Only QPs whose clipped nominal breaks a row reach the solver (the rest are settled).
         u = plan.qps.settled.copy()
-        failures, solve_time, max_slack = 0, 0.0, 0.0
+        failures, max_slack, calls = 0, 0.0, []
         for g in plan.qps.to_solve() if plan.qps.needs_solver.any() else ():
             members = list(plan.qps.groups[g])
             u_nominal, G, b, lower, upper = plan.qps.arrays(g)
             solution = self._qp.solve(u_nominal, G, b, lower, upper)
-            solve_time += solution.solve_time
+            calls.append((len(members), solution.solve_time))
             if solution.success:
                 u[members] = solution.u
                 max_slack = max(max_slack, max(solution.slack.tolist(), default=0.0))
@@ -255,7 +255,8 @@ class ClusterCbfController(LeafSystem):
         telemetry = ControllerTelemetry(
             time=float(time), min_barrier_wall=wall, min_barrier_human=human,
             min_barrier_robot=robot, max_slack=max_slack, control_deviation=deviation,
-            clusters=plan.clusters, solve_time=solve_time, failures=failures)
+            clusters=plan.clusters, solve_time=sum(t for _, t in calls), failures=failures,
+            qp_calls=tuple(calls))
         return u, telemetry
 
     def _update(self, context, discrete_state) -> None:

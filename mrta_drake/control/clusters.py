@@ -24,6 +24,11 @@ def by_priority(priorities: np.ndarray, distances_to_goal: np.ndarray) -> np.nda
     return np.asarray(priorities, dtype=float)
 
 
+def by_largest_priority(priorities: np.ndarray, distances_to_goal: np.ndarray) -> np.ndarray:
+    """The largest scenario priority leads (the original MRTA-Sim stack's order)."""
+    return -np.asarray(priorities, dtype=float)
+
+
 def by_distance_to_goal(priorities: np.ndarray, distances_to_goal: np.ndarray) -> np.ndarray:
     """The robot nearest its goal leads (it clears the way soonest)."""
     return np.asarray(distances_to_goal, dtype=float)
@@ -31,6 +36,7 @@ def by_distance_to_goal(priorities: np.ndarray, distances_to_goal: np.ndarray) -
 
 LEADER_RULES: dict[str, LeaderRule] = {
     "priority": by_priority,
+    "largest_priority": by_largest_priority,
     "distance_to_goal": by_distance_to_goal,
 }
 

@@ -128,9 +128,10 @@ def _robot_limits(limits: NominalParams) -> UnicycleParams:
 
 def _telemetry_vector(telemetry: ControllerTelemetry, n: int) -> np.ndarray:
     """Telemetry as numbers: the scalar fields, then the clusters' members one cluster after
-    the other, then where each cluster ends in that list (both padded with -1 to n)."""
+    the other, then where each cluster ends in that list, then the QP calls' robot counts
+    and their times (each padded with -1 to n: a tick has at most n QPs)."""
     k = len(_TELEMETRY_FIELDS)
-    vector = np.full(k + 2 * n, -1.0)
+    vector = np.full(k + 4 * n, -1.0)
     vector[:k] = [getattr(telemetry, name) for name in _TELEMETRY_FIELDS]
     members, ends = [], []
     for cluster in telemetry.clusters:
@@ -138,6 +139,9 @@ def _telemetry_vector(telemetry: ControllerTelemetry, n: int) -> np.ndarray:
         ends.append(len(members))
     vector[k:k + len(members)] = members
     vector[k + n:k + n + len(ends)] = ends
+    calls = len(telemetry.qp_calls)
+    vector[k + 2 * n:k + 2 * n + calls] = [size for size, _ in telemetry.qp_calls]
+    vector[k + 3 * n:k + 3 * n + calls] = [seconds for _, seconds in telemetry.qp_calls]
     return vector
 
 
@@ -147,9 +151,13 @@ def _telemetry_from_vector(vector, n: int) -> ControllerTelemetry:
     fields["failures"] = int(fields["failures"])
     members = vector[k:k + n].astype(int).tolist()
     clusters, first = [], 0
-    for end in vector[k + n:].astype(int).tolist():
+    for end in vector[k + n:k + 2 * n].astype(int).tolist():
         if end < 0:
             break
         clusters.append(tuple(members[first:end]))
         first = end
-    return ControllerTelemetry(clusters=tuple(clusters), **fields)
+    sizes = vector[k + 2 * n:k + 3 * n].astype(int).tolist()
+    calls = tuple((size, float(seconds))
+                  for size, seconds in zip(sizes, vector[k + 3 * n:].tolist(), strict=True)
+                  if size > 0)
+    return ControllerTelemetry(clusters=tuple(clusters), qp_calls=calls, **fields)

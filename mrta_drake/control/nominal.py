@@ -10,6 +10,9 @@ place (``v_des = 0``). A robot with nothing to do, or a cluster follower
 With dense (grid-planner) paths the local goal is about ``lookahead`` ahead, so robots cruise at
 ``k_x lookahead`` = 0.75 m/s; ``max_speed`` caps the speed on sparse paths.
 
+The paper also scales the desired speed by ``cos(heading error)``: ``heading_speed_factor``
+(off by default; see docs/fidelity.md).
+
 Beyond the paper:
 - the local goal is searched on the path polyline (not only its vertices), from the robot's
   projection on; identical for dense paths, and sparse paths are followed without cutting
@@ -63,6 +66,8 @@ class NominalParams:
     pass_offset: float = 0.7  # m, passing beside a body in the lane (not in the paper; 0: off)
     pass_clearance: float = 0.6  # m, half width of the lane checked for bodies
     pass_range: float = 4.0  # m, how far ahead bodies are checked
+    heading_speed_factor: bool = False  # desired speed x cos(heading error), as in the paper
+    corner_steering: bool = True  # a standing robot blocked by a barrier turns along it
 
     def __post_init__(self):
         require_positive(self, "k_x", "k_v", "k_theta", "lookahead", "heading_gate",
@@ -80,7 +85,8 @@ class NominalParams:
         return np.array([self.k_x, self.k_v, self.k_theta, self.lookahead, self.heading_gate,
                          self.heading_gate_cluster, self.max_speed, self.k_slow,
                          self.slow_accel, self.goal_tolerance, self.brake_accel,
-                         self.pass_offset, self.pass_clearance, self.pass_range])
+                         self.pass_offset, self.pass_clearance, self.pass_range,
+                         float(self.heading_speed_factor)])
 
 
 def slow_down(speed, params: NominalParams) -> np.ndarray:
@@ -144,7 +150,8 @@ def slow_down_input(speed, gains):
 
 # Indices into ``NominalParams.gains``.
 (_K_X, _K_V, _K_THETA, _LOOKAHEAD, _GATE, _GATE_CLUSTER, _MAX_SPEED, _K_SLOW, _SLOW_ACCEL,
- _GOAL_TOLERANCE, _BRAKE_ACCEL, _PASS_OFFSET, _PASS_CLEARANCE, _PASS_RANGE) = range(14)
+ _GOAL_TOLERANCE, _BRAKE_ACCEL, _PASS_OFFSET, _PASS_CLEARANCE, _PASS_RANGE,
+ _HEADING_SPEED_FACTOR) = range(15)
 
 
 @numba.njit(cache=True)
@@ -260,4 +267,6 @@ def _track(x, y, theta, v, gx, gy, is_end, has_stop, remaining, heading_gate, ga
             v_des, feedforward = min(v_stop, gains[_MAX_SPEED]), -brake
     if abs(heading_error) > heading_gate:
         v_des, feedforward = 0.0, 0.0
+    elif gains[_HEADING_SPEED_FACTOR] > 0.0:
+        v_des *= math.cos(heading_error)
     return gains[_K_V] * (v_des - v) + feedforward, gains[_K_THETA] * heading_error

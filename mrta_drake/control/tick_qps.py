@@ -77,7 +77,8 @@ def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocitie
     indices), with their wall ``hits`` and ``hit_mask`` (as from ``WallRays``), the humans,
     ``movers`` (one (q, 4) array per group as in ``safety_rows``; None: none) and hard
     bounds ``lower``, ``upper`` (N, 2). Each group's rows are ``safety_rows``; its robots'
-    ``u_nominal`` (a float array (N, 2)) are steered in place (``steer_blocked``). A group
+    ``u_nominal`` (a float array (N, 2)) are steered in place (``steer_blocked``; not with
+    ``nominal.corner_steering`` off). A group
     needs a solver when its clipped nominal breaks a row (or its rows are not finite: the
     solve then fails); for the robots of the others the clipped nominal is the optimum
     (``CbfQp.solve`` would return it): ``settled`` holds it, and zero for robots in no
@@ -101,18 +102,21 @@ def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocitie
             (human_velocities, (-1, 2)))),
         np.ascontiguousarray(hit_mask, dtype=bool).reshape(n, -1), members, group_start,
         movers, mover_start, params.row_params, params.coordination.stall_speed,
-        params.nominal.k_theta, u_nominal, lower, upper, settled)
+        params.nominal.k_theta, params.nominal.corner_steering, u_nominal, lower, upper,
+        settled)
     return TickQps(groups, u_nominal, lower, upper, G, G_start, tuple(rows), row_start,
                    needs_solver, settled)
 
 
 @numba.njit(cache=True)
 def _group_rows(states, hits, humans, human_velocities, mask, members, group_start, movers,
-                mover_start, params, stall_speed, k_theta, u_nominal, lower, upper, settled):
+                mover_start, params, stall_speed, k_theta, corner_steering, u_nominal, lower,
+                upper, settled):
     """``qp_problems`` for the groups ``members[group_start[g]:group_start[g + 1]]`` with
     movers ``movers[mover_start[g]:mover_start[g + 1]]``: every group's rows (G of group g
     flattened at ``G[G_start[g]:G_start[g + 1]]``, the other arrays at
-    ``row_start[g]:row_start[g + 1]``), steering ``u_nominal`` in place, and whether each
+    ``row_start[g]:row_start[g + 1]``), steering ``u_nominal`` in place (with
+    ``corner_steering``), and whether each
     group needs its QP solved; ``settled`` gets the others' clipped nominal inputs."""
     groups = len(group_start) - 1
     radius2 = params[9] * params[9]
@@ -136,8 +140,9 @@ def _group_rows(states, hits, humans, human_velocities, mask, members, group_sta
                   movers[mover_start[g]:mover_start[g + 1]], params, G_g, b[r0:r1],
                   kind[r0:r1], h[r0:r1], member[r0:r1], other[r0:r1], normal[r0:r1])
         u = u_nominal[index]
-        steer(u, group_states, G_g, b[r0:r1], member[r0:r1], other[r0:r1], normal[r0:r1],
-              stall_speed, k_theta)
+        if corner_steering:
+            steer(u, group_states, G_g, b[r0:r1], member[r0:r1], other[r0:r1],
+                  normal[r0:r1], stall_speed, k_theta)
         u_nominal[index] = u
         flat = u.ravel()
         clipped = np.minimum(np.maximum(flat, lower[index].ravel()), upper[index].ravel())

@@ -140,7 +140,8 @@ class SocialForceHumans(LeafSystem):
                                     params.wall_strength, params.wall_range, params.max_speed,
                                     params.robot_repulsion_gain, params.yield_distance,
                                     params.waiting_gap, params.yield_time, params.passing_gap,
-                                    params.sidestep_ratio], dtype=float)
+                                    params.sidestep_ratio, float(params.yield_to_robots)],
+                                   dtype=float)
 
         first = self._waypoints[:, 0] - self._starts
         present = self._entry <= 0.0
@@ -246,7 +247,8 @@ def _placed(x, parking):
 
 # The update, compiled: indices of ``SocialForceHumans._constants``.
 (_DT, _TOLERANCE, _RELAXATION, _STRENGTH, _RANGE, _WALL_STRENGTH, _WALL_RANGE, _MAX_SPEED,
- _ROBOT_GAIN, _YIELD_DISTANCE, _WAITING_GAP, _YIELD_TIME, _PASSING_GAP, _SIDESTEP) = range(14)
+ _ROBOT_GAIN, _YIELD_DISTANCE, _WAITING_GAP, _YIELD_TIME, _PASSING_GAP, _SIDESTEP,
+ _YIELDS) = range(15)
 
 
 @numba.njit(cache=True)
@@ -370,9 +372,14 @@ def _yielding_velocities(p, direction, speeds, radii, robot_p, robot_v, robot_r,
     highest urgency (``SocialForceParams``): ``speed ((1 - u) e + u r s n)``, ``e`` the
     walking direction, ``n`` its right normal, ``u`` the urgency, ``r`` the sidestep ratio,
     ``s`` = +1 (right) when the robot has room to pass on the person's right, else -1 when
-    on its left, else 0 (the person slows to a stand)."""
+    on its left, else 0 (the person slows to a stand). People who do not yield
+    (``yield_to_robots`` off) walk on at ``speed e``."""
     reach, wait = constants[_YIELD_DISTANCE], constants[_WAITING_GAP]
     desired = np.empty_like(p)
+    if constants[_YIELDS] == 0.0:
+        for i in range(len(p)):
+            desired[i, 0], desired[i, 1] = speeds[i] * direction[i, 0], speeds[i] * direction[i, 1]
+        return desired
     for i in range(len(p)):
         ex, ey = direction[i, 0], direction[i, 1]
         nx, ny = ey, -ex  # the person's right

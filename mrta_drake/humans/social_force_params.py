@@ -44,6 +44,7 @@ class SocialForceParams:
     yield_time: float = 1.0  # s, of a robot's approach counted off its gap
     passing_gap: float = 0.3  # m, surface gap kept sideways from a robot passed
     sidestep_ratio: float = 0.5  # sideways speed at full urgency, per unit of desired speed
+    yield_to_robots: bool = True  # off: people walk on into a robot's way (the original)
 
     def __post_init__(self):
         for name in ("radius", "desired_speed", "max_speed", "relaxation_time",

@@ -32,10 +32,13 @@ _NO_POINTS = frozen_array(np.zeros((0, 2)))  # of every idle or failed path
 @dataclass(frozen=True)
 class PlannerServiceParams:
     """Costmap and planner parameters of the block (its rates are the scenario's
-    ``rates.planner`` and ``rates.planner_target_check``)."""
+    ``rates.planner`` and ``rates.planner_target_check``). ``cost_resting_robots``: paths go
+    around robots at rest (see ``PlannerService``; off: the static map only, as in the
+    paper)."""
 
     costmap: CostmapParams = field(default_factory=CostmapParams)
     planner: PlannerParams = field(default_factory=PlannerParams)
+    cost_resting_robots: bool = True
 
 
 @dataclass(frozen=True)
@@ -90,7 +93,7 @@ class PlannerService(LeafSystem):
     only keeps robots apart; two robots whose paths run through each other (e.g. head-on
     along a wall) stop nose to nose and, with paths that never leave that line, stay there.
     A standing robot's own cells cost the same in every direction, so they do not bend its
-    own path.
+    own path. With ``cost_resting_robots`` off only broken-down robots are costed.
 
     Optional input ``disturbances`` (abstract ``Disturbances``): while blockages are in force
     their boxes are obstacles of the costmap (``Costmap.with_obstacles``, recomputed around
@@ -99,7 +102,8 @@ class PlannerService(LeafSystem):
     """
 
     def __init__(self, planner: GridPlanner, robot_names: Sequence[str], *,
-                 replan_rate_hz: float, target_check_rate_hz: float):
+                 replan_rate_hz: float, target_check_rate_hz: float,
+                 cost_resting_robots: bool = True):
         super().__init__()
         if not (replan_rate_hz > 0.0 and target_check_rate_hz > 0.0):
             raise ValueError("replan_rate_hz and target_check_rate_hz must be positive")
@@ -107,6 +111,7 @@ class PlannerService(LeafSystem):
         self._open_costmap = planner.base_costmap
         self._costmaps = {(): self._open_costmap}  # by closures (``_closures``)
         self._robots = tuple(robot_names)
+        self._cost_resting_robots = cost_resting_robots
         self._replan_period = 1.0 / replan_rate_hz
         n = len(self._robots)
         initial = _ServiceState(
@@ -139,7 +144,8 @@ class PlannerService(LeafSystem):
         y_min, y_max) (m) at the costmap's default resolution."""
         costmap = Costmap.from_obstacles(obstacles, bounds, params.costmap)
         return cls(GridPlanner(costmap, params.planner), robot_names,
-                   replan_rate_hz=replan_rate_hz, target_check_rate_hz=target_check_rate_hz)
+                   replan_rate_hz=replan_rate_hz, target_check_rate_hz=target_check_rate_hz,
+                   cost_resting_robots=params.cost_resting_robots)
 
     @property
     def planner(self) -> GridPlanner:
@@ -200,7 +206,7 @@ class PlannerService(LeafSystem):
         resting = tuple((k, round(states[k, 0] / res) * res, round(states[k, 1] / res) * res)
                         for k in range(len(self._robots))
                         if abs(states[k, 3]) < ROBOT_STOPPED_SPEED
-                        and (targets[k].active or k in broken))
+                        and (k in broken or (self._cost_resting_robots and targets[k].active)))
         closed = (*disturbed, resting)
         return closed if any(closed) else ()
 

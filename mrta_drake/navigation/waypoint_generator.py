@@ -43,6 +43,8 @@ class WaypointParams:
     parking_clearance: float = 0.8  # a parking spot is taken with another robot this close
     door_clearance: float = 1.0  # a holder waits at its slot while another robot moves this
     # close to the room's entry path or point
+    door_wait: bool = True  # that wait at all (off: the holder enters at once, as in the paper)
+    parking: bool = True  # a robot with nothing to do parks off the point (off: it stays there)
     lift_request_distance: float = 4.0  # ask for a lift this close to its cabin's point
     lift_wait_distance: float = 3.0  # wait for it this far back along the route from the
     # cabin's point, one more metre per robot ahead in its queue
@@ -205,7 +207,7 @@ class WaypointGenerator(LeafSystem):
     - enter: once holding the room, drive through the remaining slots and the entry path;
       but while another robot moves within ``door_clearance`` of the entry path or the point
       (e.g. one that had parked in the room, leaving), wait at the slot: two robots in a
-      doorway cannot pass.
+      doorway cannot pass (unless ``door_wait`` is off).
     - serve: within ``reach_tolerance`` of the point and holding the room, stand for
       ``service_time``; the stop is then done (a ``Visit`` at that time) and the next begins.
       A stop at the location the robot is already at starts here (requesting the room);
@@ -216,9 +218,10 @@ class WaypointGenerator(LeafSystem):
     update: a new plan with the same first stop location changes nothing (only the stop);
     one with another location re-routes from the next roadway node ahead on the leg, from
     the exit node of the queue it waited in, or out of the room it entered. A completed stop
-    is never redone. Without stops the robot parks: at a location with parking spots it
-    drives to the first one no other robot is within ``parking_clearance`` of (park), off
-    the point; elsewhere the target is inactive and it stands still.
+    is never redone. Without stops the robot parks (unless ``parking`` is off): at a location
+    with parking spots it drives to the first one no other robot is within
+    ``parking_clearance`` of (park), off the point; elsewhere the target is inactive and it
+    stands still.
     A parked robot given a stop starts it as if standing on the location's point.
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
@@ -387,7 +390,7 @@ class WaypointGenerator(LeafSystem):
             if s.phase == RobotMode.PARK:
                 return s
             place = None if s.last_location is None else self._roadways.place(s.last_location)
-            if (place is None or not len(place.parking)
+            if (not self._params.parking or place is None or not len(place.parking)
                     or _distance(robots.xy, place.point) > self._params.reach_tolerance):
                 return _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0,
                                 since=None)
@@ -543,7 +546,8 @@ class WaypointGenerator(LeafSystem):
                 s = replace(s, phase=RobotMode.QUEUE, route=(), index=len(place.queue) - 1)
         if s.phase == RobotMode.QUEUE:
             # Entering while another robot comes out would stand both in the doorway.
-            if holding and not self._door_busy(place, robots.states):
+            if holding and not (self._params.door_wait
+                                and self._door_busy(place, robots.states)):
                 route = _points(place.queue[s.index::-1]) + _points(place.entry)
                 s = replace(s, phase=RobotMode.ENTER, route=route + (_point(place.point),),
                             index=0)

@@ -13,6 +13,9 @@ Sections that may be a path (relative to the scenario file) instead of inline da
 MRTA-Sim ``tasks_stream`` file, whose ``agents`` must then match the robots' start
 locations).
 
+The scenario's ``profile`` (``profiles.py``) fills the fields it switches, after
+``overrides`` and where neither they nor the file set them.
+
 A ``tasks.generate`` block is expanded into seeded random batches (``task_generation.py``)
 with the scenario's seed, after ``overrides`` (e.g. ``{"seed": 3}``) are applied.
 """
@@ -25,6 +28,7 @@ from collections.abc import Mapping
 
 from mrta_drake.errors import InputError
 from mrta_drake.scenario.disturbances import check_blockages_inside, check_disturbances
+from mrta_drake.scenario.profiles import with_profile
 from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig, RobotConfig, Scenario
 from mrta_drake.scenario.section_files import (
     TaskFile,
@@ -66,7 +70,7 @@ def load_scenario(path: str, *, check_world: bool = True,
                 raise InputError(section_file, key, f"file has no `{key}:` section")
             raw[key] = content[key]
     raw.pop("source", None)
-    raw = _with_overrides(raw, overrides or {}, path)
+    raw = with_profile(_with_overrides(raw, overrides or {}, path), path)
     scenario = load_typed(raw, Scenario, path)
     scenario = _resolve_files(scenario, base, path)
     task_file = load_task_file(scenario.tasks.file) if scenario.tasks.file else TaskFile([])

@@ -273,7 +273,10 @@ class RatesConfig:
 @dataclass(frozen=True)
 class Scenario:
     """A complete runnable scenario. ``source`` is the file it was loaded from (set by
-    ``load_scenario``; relative paths inside resolve against its folder)."""
+    ``load_scenario``; relative paths inside resolve against its folder). ``profile``:
+    ``mrta_drake`` (this project's behaviour) or ``paper`` (every switch of
+    docs/fidelity.md at the MRTA-Sim paper's value where the scenario leaves it unset; see
+    ``profiles.py``)."""
 
     world: WorldConfig = field(default_factory=WorldConfig)
     robots: list[RobotConfig] = field(default_factory=list)
@@ -286,4 +289,5 @@ class Scenario:
     disturbances: DisturbancesConfig = field(default_factory=DisturbancesConfig)
     seed: int = 0
     duration: float = 60.0
+    profile: str = "mrta_drake"
     source: str = ""

@@ -173,6 +173,21 @@ def test_path_cutting_a_corner_is_followed_around_it():
     states, _ = _run([[-3.0, 0.3, 0.0]], [path], block, 25.0)
     assert _arrival_times(states, [path[-1]])[0] < 25.0
     assert _min_wall_distance(states, block) >= RADIUS
+    # Without corner steering (the paper) it stays nosed into the corner.
+    params = CbfParams(nominal=NominalParams(corner_steering=False))
+    states, _ = _run([[-3.0, 0.3, 0.0]], [path], block, 25.0, params)
+    assert np.isinf(_arrival_times(states, [path[-1]])[0])
+    assert _min_wall_distance(states, block) >= RADIUS
+
+
+def test_heading_speed_factor_scales_the_desired_speed_by_cos_heading_error():
+    # Heading error 0.5 rad (inside the gate), standing: a = k_v v_des, v_des = k_x x 0.5 m.
+    path = RobotPath("r", PATH_OK, frozen_array([[0.0, 0.0], [5.0, 0.0]]))
+    state = np.array([0.0, 0.0, 0.5, 0.0])
+    plain = nominal_control(state, path, NominalParams())
+    scaled = nominal_control(state, path, NominalParams(heading_speed_factor=True))
+    assert scaled[0] == pytest.approx(plain[0] * math.cos(0.5))
+    assert scaled[1] == plain[1]
 
 
 @pytest.mark.parametrize("start,velocity", [((5.0, -5.0), (0.0, 1.0)),
@@ -285,6 +300,27 @@ def test_the_telemetry_port_gives_the_tick_s_telemetry():
     _, expected = controller.control(0.0, starts, paths)
     assert telemetry.clusters == ((0, 2), (1, 3), (4,))
     assert telemetry == expected
+
+
+def test_each_solver_call_is_in_the_telemetry_with_its_size_and_time():
+    # Two robots driving at each other 1 m apart (one cluster: one QP of 2) and one alone
+    # nosing into a wall 0.7 m ahead (a QP of 1): both QPs need the solver.
+    wall = Obstacles((Box("wall", (20.7, 0.0), (0.2, 4.0)),))
+    n = 3
+    controller = ClusterCbfController([f"robot{i}" for i in range(n)], wall, rate_hz=20.0)
+    simulator = Simulator(controller)
+    context = simulator.get_mutable_context()
+    starts = [[0.0, 0.0, 0.0, 0.8], [1.0, 0.0, math.pi, 0.8], [19.9, 0.0, 0.0, 0.8]]
+    ends = [[5.0, 0.0], [-4.0, 0.0], [25.0, 0.0]]
+    controller.get_input_port(0).FixValue(context, np.ravel(starts))
+    paths = FleetPaths(tuple(RobotPath(f"robot{i}", PATH_OK, frozen_array([s[:2], e]))
+                             for i, (s, e) in enumerate(zip(starts, ends, strict=True))))
+    controller.get_input_port(1).FixValue(context, Value[object](paths))
+    simulator.AdvanceTo(0.01)
+    telemetry = controller.GetOutputPort("telemetry").Eval(context)
+    assert sorted(size for size, _ in telemetry.qp_calls) == [1, 2]
+    assert all(seconds > 0.0 for _, seconds in telemetry.qp_calls)
+    assert telemetry.solve_time == pytest.approx(sum(t for _, t in telemetry.qp_calls))
 
 
 def _slowed(params, states, paths):

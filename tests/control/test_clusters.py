@@ -10,6 +10,7 @@ from mrta_drake.control.cluster_cbf_controller import ClusterCbfController
 from mrta_drake.control.clusters import (
     LEADER_RULES,
     by_distance_to_goal,
+    by_largest_priority,
     cluster_labels,
     form_clusters,
     register_leader_rule,
@@ -50,6 +51,13 @@ def test_clusters_are_ordered_by_lowest_index_and_led_by_priority():
     positions = [[10.0, 0.0], [0.0, 0.0], [11.0, 0.0], [1.0, 1.0]]
     # Smaller priority value leads; robot 2 outranks robot 0, robot 3 outranks robot 1.
     assert _clusters(positions, priorities=[5, 3, 1, 0]) == ((2, 0), (3, 1))
+
+
+def test_largest_priority_rule_lets_the_larger_value_lead():
+    positions = [[10.0, 0.0], [0.0, 0.0], [11.0, 0.0], [1.0, 1.0]]
+    assert LEADER_RULES["largest_priority"] is by_largest_priority
+    assert _clusters(positions, priorities=[5, 3, 1, 0], rule=by_largest_priority) == (
+        (0, 2), (1, 3))
 
 
 def test_inactive_robots_never_lead_unless_all_are_inactive():

@@ -1,3 +1,4 @@
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -155,6 +156,19 @@ def test_person_slows_steps_right_and_passes_a_robot_standing_in_a_corridor():
     assert gap.min() >= DEFAULTS.passing_gap
     assert walk.xy[-1, 0, 0] > 4.0
     assert np.abs(walk.heading[:, 0]).max() > 0.2  # it visibly turned
+
+
+def test_a_person_who_does_not_yield_walks_on_at_full_speed_into_the_robot_s_way():
+    people = [Person("p", (-4.0, 0.0), ((6.0, 0.0),), 1.0)]
+    robot = [[0.0, 0.0, np.pi, 0.0]]
+    params = dataclasses.replace(DEFAULTS, yield_to_robots=False)
+    yielding = _run(people, 4.0, CORRIDOR, robots=robot)
+    walking_on = _run(people, 4.0, CORRIDOR, robots=robot, params=params)
+    # Without yielding, only the repulsion and the no-overlap stop act: the person comes
+    # nearer the robot, sooner, than one who yields.
+    assert walking_on.gaps()[:, 0].min() < yielding.gaps()[:, 0].min()
+    assert walking_on.xy[80, 0, 0] > yielding.xy[80, 0, 0] + 0.1  # 4 s: further on
+    assert walking_on.gaps().min() >= 0.0  # it still never steps into the robot
 
 
 def test_person_passes_on_the_left_when_only_the_left_has_room():

@@ -50,10 +50,11 @@ class SwitchingTarget(LeafSystem):
                                                else after))
 
 
-def build(planner, sources: dict, replan_rate_hz=2.0, states=STATES):
+def build(planner, sources: dict, replan_rate_hz=2.0, states=STATES, cost_resting_robots=True):
     builder = DiagramBuilder()
     service = builder.AddSystem(PlannerService(planner, ROBOTS, replan_rate_hz=replan_rate_hz,
-                                               target_check_rate_hz=10.0))
+                                               target_check_rate_hz=10.0,
+                                               cost_resting_robots=cost_resting_robots))
     states = builder.AddSystem(ConstantVectorSource(np.array(states)))
     builder.Connect(states.get_output_port(), service.GetInputPort("robot_state"))
     for robot in ROBOTS:
@@ -122,13 +123,14 @@ def test_paths_go_around_robots_standing_in_the_way(planner):
     # Regression (robots standing nose to nose along a wall stayed there, their paths
     # running through each other): r0 and r1 stand 1 m apart in the west half, each to
     # drive on past the other.
-    def paths_with(r1_speed, r1_active):
+    def paths_with(r1_speed, r1_active, cost_resting_robots=True):
         states = [1.5, 2.0, 0.0, 0.0, 2.5, 2.0, np.pi, r1_speed, 6.0, 3.0, 0.0, 0.0]
         sources = {"r0": WaypointTarget("r0", True, current=(3.4, 2.0)),
                    "r1": WaypointTarget("r1", r1_active,
                                         current=(0.6, 2.0) if r1_active else None),
                    "r2": WaypointTarget("r2")}
-        simulator, paths = build(planner, sources, states=states)
+        simulator, paths = build(planner, sources, states=states,
+                                 cost_resting_robots=cost_resting_robots)
         simulator.AdvanceTo(0.05)
         return paths().paths
 
@@ -144,6 +146,9 @@ def test_paths_go_around_robots_standing_in_the_way(planner):
     assert closest(r0, (2.5, 2.0)) < 0.1 and closest(r1, (1.5, 2.0)) > 0.7
     r0, _, _ = paths_with(0.0, False)
     assert closest(r0, (2.5, 2.0)) < 0.1
+    # Switched off (the paper's static map), the standing robots are no obstacle either.
+    r0, r1, _ = paths_with(0.0, True, cost_resting_robots=False)
+    assert closest(r0, (2.5, 2.0)) < 0.1 and closest(r1, (1.5, 2.0)) < 0.1
 
 
 def test_from_obstacles_builds_the_costmap_and_planner():

@@ -288,6 +288,16 @@ def test_a_robot_done_at_a_room_parks_off_the_point_and_frees_the_room():
     assert final.room(B).holder is None
 
 
+def test_without_parking_a_robot_done_at_a_room_stays_on_the_point_and_frees_the_room():
+    world = World([C], fixed([B]), params=WaypointParams(parking=False), parking=True)
+    world.run(until=60.0)
+    assert [v.location for v in world.progress(0).visits] == [B]
+    _, final, positions, targets = world.log[-1]
+    assert world.distance(positions, 0, B) < 1.0
+    assert not targets[0].active
+    assert final.room(B).holder is None
+
+
 def fleet(*routes) -> FleetPlan:
     """Robot ``r<i>`` gets the stops ``routes[i]`` ((key, location) pairs)."""
     return FleetPlan(tuple(RobotPlan(f"r{i}", tuple(Stop(k, loc) for k, loc in stops))
@@ -318,11 +328,12 @@ def test_a_robot_parked_in_a_room_waits_for_the_holder_before_serving_there():
     assert [v.key for v in world.progress(0).visits] == ["a", "d"]
 
 
-def queueing_at_b(queue: RoomQueue, slot: int):
+def queueing_at_b(queue: RoomQueue, slot: int, params: WaypointParams | None = None):
     """Robot r0 alone (of two), in the queue phase for its stop at B at ``slot``, with B's
     ``queue``: (generator, context, B's place)."""
     roadways = loop_world(parking=True)
-    generator = WaypointGenerator(["r0", "r1"], 0, roadways, A, WaypointParams(), rate_hz=10.0)
+    generator = WaypointGenerator(["r0", "r1"], 0, roadways, A, params or WaypointParams(),
+                                  rate_hz=10.0)
     context = generator.CreateDefaultContext()
     generator.GetInputPort("plan").FixValue(context, plan(("a", B)))
     generator.GetInputPort("queue_state").FixValue(context, QueueState((queue,)))
@@ -350,6 +361,16 @@ def test_a_holder_waits_at_its_slot_while_another_robot_moves_in_the_doorway():
     assert step((entry[0] - 0.6, entry[1] - 0.2), 0.5) == tuple(slot)
     # r1 standing there is no reason to wait (the planner routes around a standing robot).
     assert step((entry[0] - 0.6, entry[1] - 0.2), 0.0) == tuple(entry)
+
+
+def test_without_door_wait_the_holder_enters_while_another_robot_moves_in_the_doorway():
+    generator, context, place = queueing_at_b(RoomQueue(B, holder="r0"), slot=0,
+                                              params=WaypointParams(door_wait=False))
+    entry = place.entry[0]
+    generator.GetInputPort("robot_state").FixValue(
+        context, [*place.queue[0], 0.0, 0.0, entry[0], entry[1] + 0.6, -1.57, 0.5])
+    Simulator(generator, context).AdvanceTo(0.05)
+    assert generator.GetOutputPort("target").Eval(context).current == tuple(entry)
 
 
 def test_queued_robots_move_up_without_entering_while_another_holds_the_room():
