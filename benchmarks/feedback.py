@@ -9,14 +9,15 @@ Two cases, each run with every variant of the allocator's feedback switches
 - paper: ``scenarios/hospital_6_robots.yaml`` as it is (the original 6+6 stream, the ten
   people), 600 s.
 
-Each variant is one sweep (``mrta_drake.tools.sweep``: fresh processes, ``--workers``),
-resumable from ``benchmarks/results/feedback_runs/``. Per case and variant: tasks
+Each variant is one sweep (``mrta_drake.tools.sweep``: fresh processes), the variants'
+sweeps side by side sharing ``--workers`` processes, resumable from
+``benchmarks/results/feedback_runs/``. Per case and variant: tasks
 completed, on time and late; broken promises (tasks planned on time at their last
 allocation that missed their deadline); drop-off and leg prediction errors pooled over the
 runs (median and p90 of the absolute error, mean signed error); re-plans on drift.
 
-    python benchmarks/feedback.py                 # everything (~1 h on 2 shared cores)
-    python benchmarks/feedback.py --seeds 2       # the first seeds only
+    python benchmarks/feedback.py                 # everything (hours on 2 shared cores)
+    python benchmarks/feedback.py --seeds 4 --variants "open loop" "learn + re-plan"
 
 Prints the tables and writes benchmarks/results/feedback.json.
 """
@@ -25,6 +26,7 @@ import argparse
 import json
 import pathlib
 import sys
+from concurrent.futures import ThreadPoolExecutor
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
 
@@ -49,6 +51,8 @@ VARIANTS = {  # name -> allocator params set
                                "travel_time_estimator": "quantile"},
     "learn + re-plan + 5 s margin": {"learn_travel_times": True, "replan_on_delay": True,
                                      "planning_margin": 5.0},
+    "learn + re-plan, 5 s drift": {"learn_travel_times": True, "replan_on_delay": True,
+                                   "drift_margin": 5.0, "replan_interval": 5.0},
 }
 
 
@@ -108,6 +112,7 @@ def main():
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--variants", nargs="*", default=list(VARIANTS),
                         help="variant names (default: all)")
+    parser.add_argument("--cases", nargs="*", default=["busy", "paper"])
     args = parser.parse_args()
     busy = load_sweep(str(BUSY_SWEEP))
     cases = {
@@ -117,9 +122,12 @@ def main():
     }
     output = {"seeds": SEEDS[:args.seeds], "variants": {v: VARIANTS[v] for v in args.variants},
               "cases": {}}
-    for case, spec in cases.items():
-        results = {variant: figures(run_case(case, spec, VARIANTS[variant], args.workers))
-                   for variant in args.variants}
+    workers = max(1, args.workers // len(args.variants))
+    for case in args.cases:
+        with ThreadPoolExecutor(len(args.variants)) as pool:
+            runs = {variant: pool.submit(run_case, case, cases[case], VARIANTS[variant],
+                                         workers) for variant in args.variants}
+            results = {variant: figures(run.result()) for variant, run in runs.items()}
         output["cases"][case] = results
         print(f"\n{case}\n{table(results)}", flush=True)
     RESULTS.mkdir(parents=True, exist_ok=True)

@@ -24,12 +24,13 @@ class FeedbackParams:
     ``replan_on_delay``: between batches, allocate again when a robot's progress (with the
     travel times planned with) makes one of its planned drop-offs late or moves it by more
     than ``drift_margin`` (s) from its planned time, at most once every
-    ``replan_interval`` (s). Both switches false, with no margin, is the open loop: plans
+    ``replan_interval`` (s). Both switches are on by default (measured better:
+    docs/allocation.md); both false, with no margin, is the open loop (``OPEN_LOOP``): plans
     made only when batches arrive or robots break down, from the scenario's matrix.
     """
 
-    learn_travel_times: bool = False
-    replan_on_delay: bool = False
+    learn_travel_times: bool = True
+    replan_on_delay: bool = True
     travel_time_estimator: str = "mean"
     recent_weight: float = 0.3
     quantile: float = 0.8

@@ -150,7 +150,8 @@ class TaskAllocator(LeafSystem):
         service_time: time for one pickup or drop-off (s).
         rate_hz: how often arrivals are checked (Hz); a batch is allocated at the first
             check at or after its arrival.
-        feedback: the feedback switches; the default is the open loop.
+        feedback: the feedback switches; the default is the open loop (a block made from a
+            scenario gets the scenario's allocator params, closed loop by default).
     """
 
     def __init__(
@@ -238,15 +239,15 @@ class TaskAllocator(LeafSystem):
             progress = [self._progress(context, r) for r in range(len(self._fleet))]
         if feedback.learn_travel_times:
             current = self._learn(current, progress)
+        released = [task for batch in self._batches[:arrived] for task in batch]
         drift = None
         if arrived == current.next_batch and out == current.out:
             if feedback.replan_on_delay and self._may_replan(current, now):
-                drift = self._drift(now, arrived, progress, current)
+                drift = self._drift(now, released, progress, current)
             if drift is None:
                 if current is not self._state(context):
                     state.get_mutable_abstract_state(self._state_index).set_value(current)
                 return
-        released = [task for batch in self._batches[:arrived] for task in batch]
         if progress is None:
             progress = [self._progress(context, r) for r in range(len(self._fleet))]
         travel = self._planning_travel(current)
@@ -319,9 +320,8 @@ class TaskAllocator(LeafSystem):
         last = current.events[-1].time if current.events else -np.inf
         return now - last >= self._feedback.replan_interval
 
-    def _drift(self, now, arrived, progress, current: _State):
+    def _drift(self, now, released, progress, current: _State):
         """The drift of the current plan at ``now`` (``drift.Drift``), or None."""
-        released = [task for batch in self._batches[:arrived] for task in batch]
         travel = self._planning_travel(current)
         problem, _ = self._problem(now, released, progress, current.plan, travel, current.out,
                                    current.lost)
