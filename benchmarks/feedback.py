@@ -19,7 +19,8 @@ runs (median and p90 of the absolute error, mean signed error); re-plans on drif
     python benchmarks/feedback.py                 # everything (hours on 2 shared cores)
     python benchmarks/feedback.py --seeds 4 --variants "open loop" "learn + re-plan"
 
-Prints the tables and writes benchmarks/results/feedback.json.
+Prints the tables and writes benchmarks/results/feedback.json, keeping the variants and
+cases an earlier invocation wrote there and this one did not run.
 """
 
 import argparse
@@ -80,6 +81,7 @@ def figures(summaries: list[dict]) -> dict:
     legs = [leg for s in summaries for leg in s["legs"] if leg["predicted"] is not None]
     return {
         "runs": len(summaries),
+        "seeds": [s["seed"] for s in summaries],
         "completed": sum(s["tasks"]["completed"] for s in summaries),
         "on_time": sum(s["tasks"]["on_time"] for s in summaries),
         "late": sum(s["tasks"]["late"] for s in summaries),
@@ -120,18 +122,19 @@ def main():
                           {k: v for k, v in busy.fixed.items()}, busy.plugins, busy.source),
         "paper": SweepSpec(str(PAPER), {"seed": [0]}, {}, [], str(PAPER)),
     }
-    output = {"seeds": SEEDS[:args.seeds], "variants": {v: VARIANTS[v] for v in args.variants},
-              "cases": {}}
+    path = RESULTS / "feedback.json"
+    output = json.loads(path.read_text()) if path.is_file() else {"variants": {}, "cases": {}}
+    output["variants"] |= {v: VARIANTS[v] for v in args.variants}
     workers = max(1, args.workers // len(args.variants))
     for case in args.cases:
         with ThreadPoolExecutor(len(args.variants)) as pool:
             runs = {variant: pool.submit(run_case, case, cases[case], VARIANTS[variant],
                                          workers) for variant in args.variants}
             results = {variant: figures(run.result()) for variant, run in runs.items()}
-        output["cases"][case] = results
+        output["cases"][case] = output["cases"].get(case, {}) | results
         print(f"\n{case}\n{table(results)}", flush=True)
     RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "feedback.json").write_text(json.dumps(output, indent=1) + "\n")
+    path.write_text(json.dumps(output, indent=1) + "\n")
 
 
 if __name__ == "__main__":

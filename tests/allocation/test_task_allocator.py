@@ -1,6 +1,8 @@
 """TaskAllocator in a Drake simulation, with fake robots that do their stops on time (or
 late by a fixed delay) and report their progress."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from pydrake.common.value import AbstractValue
@@ -8,7 +10,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from mrta_drake.allocation import FEASIBLE, INFEASIBLE, GreedyAllocator, SmtAllocator
-from mrta_drake.allocation.feedback_params import OPEN_LOOP, FeedbackParams
+from mrta_drake.allocation.feedback_params import OPEN_LOOP
 from mrta_drake.allocation.task_allocator import AllocationEvent, ReplanEvent, TaskAllocator
 from mrta_drake.errors import InputError
 from mrta_drake.payloads import FleetPlan, RobotProgress, Visit
@@ -141,10 +143,10 @@ def test_bad_stream_is_an_input_error():
 
 
 @pytest.mark.parametrize("feedback, predicted", [
-    (FeedbackParams(), 72.0),
-    (FeedbackParams(learn_travel_times=True), 82.0),
-    (FeedbackParams(planning_margin=3.0), 75.0),
-    (FeedbackParams(learn_travel_times=True, planning_margin=3.0), 85.0),
+    (OPEN_LOOP, 72.0),
+    (replace(OPEN_LOOP, learn_travel_times=True), 82.0),
+    (replace(OPEN_LOOP, planning_margin=3.0), 75.0),
+    (replace(OPEN_LOOP, learn_travel_times=True, planning_margin=3.0), 85.0),
 ])
 def test_learned_travel_times_and_margins_change_what_is_planned(feedback, predicted):
     # Every stop takes 10 s longer than the matrix says: task 0's drop-off leg 0 -> 1 took
@@ -164,7 +166,7 @@ def test_a_robot_falling_behind_makes_a_replan_with_its_reason(deadline, reason,
     # 10 s more: from 6 s on, the drop-offs move by more than the 5 s margin (task 1's past
     # its deadline of 85 s), and 10 s after the last allocation the plan is redone.
     stream = (TaskBatch(0.0, (TaskConfig(0, 4, 500.0), TaskConfig(4, 0, deadline))),)
-    feedback = FeedbackParams(replan_on_delay=True, drift_margin=5.0, replan_interval=10.0)
+    feedback = replace(OPEN_LOOP, replan_on_delay=True, drift_margin=5.0, replan_interval=10.0)
     simulator, allocator, _ = simulate(stream, [0], GreedyAllocator(), 10.0, feedback)
     simulator.AdvanceTo(9.5)
     assert len(allocator("events")) == 1
