@@ -234,9 +234,7 @@ class TaskAllocator(LeafSystem):
         while arrived < len(self._arrivals) and self._arrivals[arrived] <= now:
             arrived += 1
         feedback = self._feedback
-        progress = None
-        if feedback.learn_travel_times or feedback.replan_on_delay:
-            progress = [self._progress(context, r) for r in range(len(self._fleet))]
+        progress = [self._progress(context, r) for r in range(len(self._fleet))]
         if feedback.learn_travel_times:
             current = self._learn(current, progress)
         released = [task for batch in self._batches[:arrived] for task in batch]
@@ -248,8 +246,6 @@ class TaskAllocator(LeafSystem):
                 if current is not self._state(context):
                     state.get_mutable_abstract_state(self._state_index).set_value(current)
                 return
-        if progress is None:
-            progress = [self._progress(context, r) for r in range(len(self._fleet))]
         travel = self._planning_travel(current)
         removed = [r for r in out if r not in current.out]
         done = {visit.key for robot in progress for visit in robot.visits}
