@@ -83,13 +83,15 @@ class FleetPlan:
 
 @dataclass(frozen=True)
 class Visit:
-    """A completed stop: the robot reached ``location`` and finished ``key`` at ``time`` (s)."""
+    """A completed stop: the robot reached ``location`` and finished ``key`` at ``time`` (s),
+    having set off for it at ``began`` (s; None when unknown)."""
 
     key: str
     location: int
     time: float
     task: int | None = None
     action: str = VISIT
+    began: float | None = None
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,9 @@
 When a batch of tasks arrives it freezes what each robot has done and the leg it is driving
 (from the ``progress_<robot>`` inputs, with measured times), hands everything else to the
 configured allocator, and outputs the new ``FleetPlan``. A robot breaking down (or being
-repaired) is a reason to allocate again too. State changes only in its periodic
+repaired) is a reason to allocate again too, and so, with the feedback switches on
+(``FeedbackParams``), is a plan drifting away from the robots' progress; it can plan with
+travel times learned from the legs the robots complete. State changes only in its periodic
 unrestricted update.
 """
 
@@ -15,6 +17,8 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
+from mrta_drake.allocation.drift import find_drift
+from mrta_drake.allocation.feedback_params import OPEN_LOOP, FeedbackParams
 from mrta_drake.allocation.problem import (
     UNKNOWN,
     Action,
@@ -24,8 +28,10 @@ from mrta_drake.allocation.problem import (
     RobotStatus,
     check_stream,
     committed_start,
+    shortest_travel,
     stream_tasks,
 )
+from mrta_drake.allocation.travel_time_model import LearnedTravelTimes
 from mrta_drake.errors import InputError
 from mrta_drake.payloads import (
     DROPOFF,
@@ -73,9 +79,20 @@ class AllocationEvent:
 
 
 @dataclass(frozen=True)
+class ReplanEvent(AllocationEvent):
+    """An allocation made between batches because the plan drifted (``FeedbackParams``
+    ``replan_on_delay``): ``reason`` says how (``drift.Drift.reason``, e.g. ``"late: task 7
+    (+14 s)"``), ``drifted`` the tasks whose drop-offs moved."""
+
+    reason: str = ""
+    drifted: tuple[int, ...] = ()
+
+
+@dataclass(frozen=True)
 class _State:
     """The TaskAllocator's abstract state: also the robots out of service (broken down) at
-    the last allocation, and the tasks whose items were lost. Immutable, so copies share it
+    the last allocation, the tasks whose items were lost, the travel times learned and how
+    many of each robot's visits they were learned from. Immutable, so copies share it
     (Drake copies the state every update)."""
 
     next_batch: int
@@ -83,6 +100,8 @@ class _State:
     events: tuple[AllocationEvent, ...] = ()
     out: tuple[int, ...] = ()
     lost: tuple[int, ...] = ()
+    learned: LearnedTravelTimes = LearnedTravelTimes()
+    seen: tuple[int, ...] = ()
 
     def __deepcopy__(self, memo):
         return self
@@ -111,6 +130,14 @@ class TaskAllocator(LeafSystem):
     rejoins at the first check after, planned from the location it last completed. With no
     robot in service nothing is allocated.
 
+    Feedback (``feedback``, a ``FeedbackParams``; docs/allocation.md): with
+    ``learn_travel_times`` every check learns from the legs completed since the last one
+    and every allocation plans with the learned times (plus ``planning_margin``); with
+    ``replan_on_delay`` a check with no batch or breakdown allocates again when
+    ``drift.find_drift`` finds a drop-off turned late or moved by more than
+    ``drift_margin``, at most ``replan_interval`` after the last allocation (a
+    ``ReplanEvent``). Done and under-way actions are kept as for a batch.
+
     Args:
         stream: the task batches (``scenario_schema.TaskBatch`` or alike: ``arrival`` s,
             ``tasks`` with ``pickup``, ``dropoff``, ``deadline``), arrivals in order; task
@@ -123,6 +150,8 @@ class TaskAllocator(LeafSystem):
         service_time: time for one pickup or drop-off (s).
         rate_hz: how often arrivals are checked (Hz); a batch is allocated at the first
             check at or after its arrival.
+        feedback: the feedback switches; the default is the open loop (a block made from a
+            scenario gets the scenario's allocator params, closed loop by default).
     """
 
     def __init__(
@@ -137,6 +166,7 @@ class TaskAllocator(LeafSystem):
         *,
         rate_hz: float,
         source: str | None = None,
+        feedback: FeedbackParams = OPEN_LOOP,
     ):
         super().__init__()
         if not len(robot_names) == len(start_locations) == len(capacities):
@@ -159,6 +189,8 @@ class TaskAllocator(LeafSystem):
         self._batches = stream_tasks(stream)
         self._allocator = allocator
         self._source = source
+        self._feedback = feedback
+        self._model = feedback.travel_time_model(empty.travel)
 
         self._progress_ports = [
             self.DeclareAbstractInputPort(
@@ -169,6 +201,7 @@ class TaskAllocator(LeafSystem):
         initial = _State(
             next_batch=0,
             plan=FleetPlan(plans=tuple(RobotPlan(robot=name) for name in robot_names)),
+            seen=(0,) * len(robot_names),
         )
         self._state_index = self.DeclareAbstractState(AbstractValue.Make(initial))
         ticket = {self.abstract_state_ticket(self._state_index)}
@@ -200,10 +233,20 @@ class TaskAllocator(LeafSystem):
         arrived = current.next_batch
         while arrived < len(self._arrivals) and self._arrivals[arrived] <= now:
             arrived += 1
-        if arrived == current.next_batch and out == current.out:
-            return
-        released = [task for batch in self._batches[:arrived] for task in batch]
+        feedback = self._feedback
         progress = [self._progress(context, r) for r in range(len(self._fleet))]
+        if feedback.learn_travel_times:
+            current = self._learn(current, progress)
+        released = [task for batch in self._batches[:arrived] for task in batch]
+        drift = None
+        if arrived == current.next_batch and out == current.out:
+            if feedback.replan_on_delay and self._may_replan(current, now):
+                drift = self._drift(now, released, progress, current)
+            if drift is None:
+                if current is not self._state(context):
+                    state.get_mutable_abstract_state(self._state_index).set_value(current)
+                return
+        travel = self._planning_travel(current)
         removed = [r for r in out if r not in current.out]
         done = {visit.key for robot in progress for visit in robot.visits}
         by_id = {task.id: task for task in released if task.id not in current.lost}
@@ -211,7 +254,8 @@ class TaskAllocator(LeafSystem):
             task for r in removed
             for task in self._status(self._fleet[r], progress[r], done, by_id)[0].carrying))
         lost = current.lost + newly_lost
-        problem, committed = self._problem(now, released, progress, current.plan, out, lost)
+        problem, committed = self._problem(now, released, progress, current.plan, travel, out,
+                                           lost)
         in_service = [r for r in range(len(self._fleet)) if r not in out]
         if in_service:
             allocation = self._allocator.allocate(problem)
@@ -229,15 +273,56 @@ class TaskAllocator(LeafSystem):
         orphans = {stop.task for r in removed for stop in current.plan.plans[r].stops
                    if stop.task is not None and stop.task not in lost}
         event = _event(now, range(current.next_batch, arrived), problem, allocation)
+        if drift is not None:
+            event = ReplanEvent(**_fields(event), reason=drift.reason, drifted=drift.tasks)
         event = dataclasses.replace(
             event, removed=tuple(self._fleet[r].name for r in removed),
             returned=tuple(self._fleet[r].name for r in current.out if r not in out),
             lost_tasks=newly_lost,
             reassigned=tuple(sorted(orphans & {stop.task for p in plan.plans for stop in p.stops})))
         state.get_mutable_abstract_state(self._state_index).set_value(
-            _State(next_batch=arrived, plan=plan, events=(*current.events, event), out=out,
-                   lost=lost)
+            dataclasses.replace(current, next_batch=arrived, plan=plan,
+                                events=(*current.events, event), out=out, lost=lost)
         )
+
+    def _planning_travel(self, current: _State) -> np.ndarray:
+        """The travel times (s) to plan with: the scenario's in the open loop."""
+        feedback = self._feedback
+        if not feedback.learn_travel_times and feedback.planning_margin == 0:
+            return self._travel
+        return shortest_travel(self._model.matrix(current.learned))
+
+    def _learn(self, current: _State, progress: Sequence[RobotProgress]) -> _State:
+        """``current`` having learned from every visit completed since it last learned: a
+        leg from the robot's previous location (its start for the first visit) that took
+        the time from setting off to completing, less the service time."""
+        learned, seen = current.learned, list(current.seen)
+        for r, report in enumerate(progress):
+            visits = report.visits
+            for k in range(seen[r], len(visits)):
+                visit = visits[k]
+                if visit.began is None:
+                    continue
+                origin = visits[k - 1].location if k else self._fleet[r].location
+                learned = self._model.observe(learned, origin, visit.location,
+                                              visit.time - visit.began - self._service_time)
+            seen[r] = len(visits)
+        if learned is current.learned and tuple(seen) == current.seen:
+            return current
+        return dataclasses.replace(current, learned=learned, seen=tuple(seen))
+
+    def _may_replan(self, current: _State, now: float) -> bool:
+        """Whether ``replan_interval`` has passed since the last allocation."""
+        last = current.events[-1].time if current.events else -np.inf
+        return now - last >= self._feedback.replan_interval
+
+    def _drift(self, now, released, progress, current: _State):
+        """The drift of the current plan at ``now`` (``drift.Drift``), or None."""
+        travel = self._planning_travel(current)
+        problem, _ = self._problem(now, released, progress, current.plan, travel, current.out,
+                                   current.lost)
+        plans = [plan for r, plan in enumerate(current.plan.plans) if r not in current.out]
+        return find_drift(problem, plans, self._feedback.drift_margin)
 
     def _progress(self, context, r: int) -> RobotProgress:
         port = self._progress_ports[r]
@@ -245,9 +330,10 @@ class TaskAllocator(LeafSystem):
             return RobotProgress(robot=self._fleet[r].name)
         return port.Eval(context)
 
-    def _problem(self, now, released, progress, previous: FleetPlan, out=(), lost=()):
-        """The problem to solve at ``now`` for the robots not ``out`` of service, without
-        the ``lost`` tasks, and each robot's committed stop (as a tuple; none when out)."""
+    def _problem(self, now, released, progress, previous: FleetPlan, travel, out=(), lost=()):
+        """The problem to solve at ``now`` with ``travel`` times (s) for the robots not
+        ``out`` of service, without the ``lost`` tasks, and each robot's committed stop (as
+        a tuple; none when out)."""
         by_id = {task.id: task for task in released if task.id not in lost}
         done = {visit.key for robot in progress for visit in robot.visits}
         robots, committed, finishing = [], [], set()
@@ -262,8 +348,7 @@ class TaskAllocator(LeafSystem):
                 if stop.key not in done and (current is None or stop.key != current.key)
                 and stop.task in by_id
             )
-            start = committed_start(status, now, by_id, self._travel, self._service_time,
-                                    planned)
+            start = committed_start(status, now, by_id, travel, self._service_time, planned)
             robots.append(start)
             if current is None:
                 committed.append(())
@@ -276,7 +361,7 @@ class TaskAllocator(LeafSystem):
             task for task in by_id.values()
             if f"t{task.id}/{DROPOFF}" not in done and task.id not in finishing
         )
-        problem = AllocationProblem(self._travel, tuple(robots), open_tasks,
+        problem = AllocationProblem(travel, tuple(robots), open_tasks,
                                     self._service_time, self._source)
         return problem, committed
 
@@ -310,6 +395,10 @@ def _stops(problem: AllocationProblem, allocation: Allocation, r: int) -> tuple[
         Stop(action.key, problem.location(action), action.kind, action.task, time)
         for action, time in zip(allocation.routes[r], allocation.times[r], strict=True)
     )
+
+
+def _fields(event) -> dict:
+    return {f.name: getattr(event, f.name) for f in dataclasses.fields(event)}
 
 
 def _event(now, batches, problem: AllocationProblem, allocation: Allocation) -> AllocationEvent:

@@ -57,8 +57,9 @@ class _Drive:
     ``release`` the room the robot asks to release; ``closed`` the blockages (names) in
     force at the last update; ``detours`` the route changes they forced; ``waiting``: to
     serve at a point whose room another robot still holds (e.g. parked in that room), so
-    standing still rather than driving onto the holder. ``lift_slot``: waiting for a lift,
-    the robot's place in its queue; -1 once it holds the cabin."""
+    standing still rather than driving onto the holder; ``began`` when the robot set off
+    for its stop (s). ``lift_slot``: waiting for a lift, the robot's place in its queue; -1
+    once it holds the cabin."""
 
     phase: RobotMode = RobotMode.IDLE
     stop: Stop | None = None
@@ -71,6 +72,7 @@ class _Drive:
     closed: tuple[str, ...] = ()
     detours: tuple[Detour, ...] = ()
     waiting: bool = False
+    began: float | None = None
     lift_slot: int = -1
 
     def __deepcopy__(self, memo):
@@ -375,6 +377,8 @@ class WaypointGenerator(LeafSystem):
             s = self._follow_plan(s, _first_to_do(stops, s.visits), robots, lanes, t)
             s = self._advance(s, robots, t, queues, stops, lanes, lifts)
         s = _changed(s, release=self._release(s, robots, queues))
+        if s.stop is not None and (old.stop is None or old.stop.key != s.stop.key):
+            s = replace(s, began=t)
         if s is not old:  # ``state`` comes holding the current state
             state.get_mutable_abstract_state(self._state_index).set_value(s)
 
@@ -564,7 +568,7 @@ class WaypointGenerator(LeafSystem):
             if t - since < params.service_time - 1e-9:
                 return _changed(s, since=since)
             stop = s.stop
-            visit = Visit(stop.key, stop.location, t, stop.task, stop.action)
+            visit = Visit(stop.key, stop.location, t, stop.task, stop.action, s.began)
             s = replace(
                 s, phase=RobotMode.IDLE, stop=None, since=None,
                 visits=s.visits + (visit,), last_location=stop.location,

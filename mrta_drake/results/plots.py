@@ -5,6 +5,8 @@
   where a lift ride moved its robot to another level.
 - ``gantt.png``: each robot's stops over time, coloured by task, with the task deadlines.
 - ``legs.png``: predicted against actual duration of every completed stop.
+- ``drift.png``: actual minus predicted drop-off time of every completed task over time,
+  with the re-plans on drift.
 - ``clearances.png``: the smallest robot-robot, robot-wall and robot-human clearance over
   time.
 
@@ -26,7 +28,7 @@ RASTER_RESOLUTION = 0.1  # m per cell of the drawn floor plan
 
 
 def write_plots(out_dir: str, stack, summary: dict) -> list[str]:
-    """Write the four plots of the run recorded by ``stack.recorder`` (summarized as
+    """Write the five plots of the run recorded by ``stack.recorder`` (summarized as
     ``summary``) to ``out_dir``; returns the files written."""
     recorder, scenario = stack.recorder, stack.scenario
     times, states, humans = recorder.arrays()
@@ -41,12 +43,13 @@ def write_plots(out_dir: str, stack, summary: dict) -> list[str]:
     deadlocks = summary["deadlocks"]["episodes"]
     os.makedirs(out_dir, exist_ok=True)
     paths = [os.path.join(out_dir, name) for name in
-             ("trajectories.png", "gantt.png", "legs.png", "clearances.png")]
+             ("trajectories.png", "gantt.png", "legs.png", "clearances.png", "drift.png")]
     plot_trajectories(paths[0], grid, names, states[..., :2], humans, locations, deadlocks)
     plot_gantt(paths[1], names, summary["legs"], summary["tasks"]["per_task"],
                float(times[-1]) if len(times) else 0.0)
     plot_legs(paths[2], names, summary["legs"])
     plot_clearances(paths[3], times, *gaps.smallest(), deadlocks)
+    plot_drift(paths[4], summary["predictions"])
     return paths
 
 
@@ -142,6 +145,23 @@ def plot_legs(path: str, names, legs) -> None:
     for name, colour in colours.items():
         right.plot([], [], "o", color=colour, label=name)
     right.legend(fontsize=7)
+    _save(figure, path)
+
+
+def plot_drift(path: str, predictions: dict) -> None:
+    """Actual minus predicted drop-off time (s) of each completed task against its actual
+    drop-off (s), with a vertical line at each re-plan on drift (``summary["predictions"]``)."""
+    figure = Figure(figsize=(9.0, 4.0))
+    axes = figure.add_subplot()
+    drift = np.array(predictions["drift"], dtype=float).reshape(-1, 2)
+    axes.plot(drift[:, 0], drift[:, 1], "o", ms=4, label="task drop-off")
+    for k, event in enumerate(predictions["replans"]["events"]):
+        axes.axvline(event["time"], color="grey", lw=0.6,
+                     label="re-plan on drift" if k == 0 else None)
+    axes.axhline(0.0, color="black", lw=0.8)
+    axes.set(xlabel="drop-off at (s)", ylabel="actual - predicted (s)",
+             title="Drift of the predicted drop-offs (positive: later than predicted)")
+    axes.legend(fontsize=8)
     _save(figure, path)
 
 

@@ -46,11 +46,7 @@ def format_summary(summary: dict) -> str:
         lines.append(f"lateness   mean {_number(tasks['mean_lateness'], '.1f', True)} s, "
                      f"max {_number(tasks['max_lateness'], '.1f', True)} s, tardiness "
                      f"{_number(tasks['total_tardiness'], '.1f')} s")
-    errors = [leg["actual"] - leg["predicted"] for leg in summary["legs"]
-              if leg["predicted"] is not None]
-    if errors:
-        lines.append(f"legs       {len(summary['legs'])} stops done; actual - predicted: mean "
-                     f"{sum(errors) / len(errors):+.1f} s, max {max(errors):+.1f} s")
+    lines += _format_predictions(summary.get("predictions"), len(summary["legs"]))
     if tasks["per_task"]:
         lines += ["", text_table(
             ["task", "arrival", "robot", "pickup pred", "actual", "drop-off pred", "actual",
@@ -96,6 +92,27 @@ def format_summary(summary: dict) -> str:
     lines.append(_format_deadlocks(summary["deadlocks"]))
     lines += _format_disturbances(summary.get("disturbances") or [], summary["duration"])
     return "\n".join(lines)
+
+
+def _format_predictions(predictions: dict | None, stops: int) -> list[str]:
+    """Lines on the allocator's predictions (``summary["predictions"]``)."""
+    if not predictions:
+        return []
+    lines = []
+    for key, label in (("dropoff_error", "drop-offs"), ("leg_error", "legs")):
+        error = predictions[key]
+        if error["count"]:
+            what = f"{stops} stops done; " if key == "leg_error" else ""
+            lines.append(f"{label:<11}{what}actual - predicted: |median| "
+                         f"{error['median_abs']:.1f} s, |p90| {error['p90_abs']:.1f} s, bias "
+                         f"{error['bias']:+.1f} s, max {error['max']:+.1f} s")
+    broken, replans = predictions["broken_promises"], predictions["replans"]
+    reasons = ", ".join(f"{n} {kind}" for kind, n in sorted(replans["reasons"].items()))
+    lines.append(f"promises   {predictions['promised']} planned on time, {len(broken)} broken"
+                 + (f" ({', '.join(map(str, broken))})" if broken else "")
+                 + f"; {len(predictions['unpromised'])} not promised; {replans['count']} "
+                 f"re-plans on drift" + (f" ({reasons})" if reasons else ""))
+    return lines
 
 
 def _format_disturbances(disturbances: list[dict], duration: float) -> list[str]:

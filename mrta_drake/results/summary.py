@@ -7,6 +7,8 @@ clearances), times in s of simulation time unless named ``wall``/``cpu``. The ke
   ``wall_time``, ``cpu_time``, ``real_time_factor`` (simulated / wall).
 - ``tasks``: ``timing.task_totals`` plus ``per_task``: ``timing.task_rows``.
 - ``legs``: ``timing.leg_rows``, predicted against actual duration of every completed stop.
+- ``predictions``: how well the allocator's predictions held (``predictions.predictions``):
+  drop-off and leg errors, broken promises, re-plans on drift and their reasons.
 - ``robots``: per robot ``distance``, ``busy_time`` (a stop to do: driving or serving),
   ``queue_time`` (waiting in a room queue), ``idle_time`` (nothing to do),
   ``stops_completed``, ``planner_failures`` (planner failure reports naming it),
@@ -62,6 +64,7 @@ from mrta_drake.results.deadlocks import (
     find_deadlocks,
 )
 from mrta_drake.results.human_metrics import human_metrics
+from mrta_drake.results.predictions import predictions
 from mrta_drake.results.timing import leg_rows, task_rows, task_totals
 from mrta_drake.stack.blocks import resolve_block
 
@@ -98,6 +101,8 @@ def summarize(stack, duration: float, wall_time: float, cpu_time: float) -> dict
                    else np.zeros(humans.shape[1]))
     events = recorder.events
     tasks = task_rows(scenario.tasks.stream, events, float(times[-1]) if len(times) else 0.0)
+    legs = leg_rows(events)
+    allocations = [e["event"] for e in events if e["type"] == "allocation"]
     telemetry = recorder.telemetry
     return {
         "scenario": scenario.source,
@@ -109,14 +114,14 @@ def summarize(stack, duration: float, wall_time: float, cpu_time: float) -> dict
         "cpu_time": cpu_time,
         "real_time_factor": duration / wall_time if wall_time > 0 else None,
         "tasks": task_totals(tasks) | {"per_task": tasks},
-        "legs": leg_rows(events),
+        "legs": legs,
+        "predictions": predictions(tasks, legs, allocations),
         "robots": _robots(names, times, states, modes, events),
         "safety": _safety(stack.world.obstacles, names, times, xy, radii, humans, human_radii,
                           recorder.human_names, telemetry, controller_wall_safety(scenario)),
         "humans": _humans(stack, times, xy, radii, humans, human_radii),
         "deadlocks": _deadlocks(names, times, xy, modes, humans, recorder.human_names),
-        "allocations": _allocations([e["event"] for e in events
-                                     if e["type"] == "allocation"]),
+        "allocations": _allocations(allocations),
         "planner_failures": int(max((e["total"] for e in events
                                      if e["type"] == "planner_failure"), default=0)),
         "controller_failures": int(sum(t.failures for t in telemetry)),

@@ -200,7 +200,13 @@ class NoParams:
 def task_allocator_block(allocator_class, params_class) -> BlockType:
     """An allocator block: a ``TaskAllocator`` around ``allocator_class(params)``, any class
     with ``allocate(AllocationProblem) -> Allocation`` (like ``GreedyAllocator``), whose
-    parameters are ``params_class`` (e.g. ``NoParams``)."""
+    parameters are ``params_class`` (e.g. ``NoParams``). The block's parameters are those
+    plus the feedback switches (``allocation.feedback_params.FeedbackParams``)."""
+    from mrta_drake.allocation.feedback_params import (
+        FeedbackParams,
+        allocator_params,
+        with_feedback,
+    )
 
     def make(ctx: BuildContext, params):
         from mrta_drake.allocation.task_allocator import TaskAllocator
@@ -215,10 +221,11 @@ def task_allocator_block(allocator_class, params_class) -> BlockType:
         return TaskAllocator(
             ctx.scenario.tasks.stream, ctx.robot_names, starts,
             [r.capacity for r in ctx.scenario.robots], ctx.travel_times,
-            allocator_class(params), ctx.scenario.tasks.service_time,
-            rate_hz=ctx.rates.allocator, source=ctx.scenario.source)
+            allocator_class(allocator_params(params)), ctx.scenario.tasks.service_time,
+            rate_hz=ctx.rates.allocator, source=ctx.scenario.source,
+            feedback=FeedbackParams.of(params))
 
-    return BlockType(params_class, make)
+    return BlockType(with_feedback(params_class), make)
 
 
 def _smt_allocator() -> BlockType:

@@ -1,6 +1,8 @@
 """TaskAllocator in a Drake simulation, with fake robots that do their stops on time (or
 late by a fixed delay) and report their progress."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from pydrake.common.value import AbstractValue
@@ -8,7 +10,8 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from mrta_drake.allocation import FEASIBLE, INFEASIBLE, GreedyAllocator, SmtAllocator
-from mrta_drake.allocation.task_allocator import TaskAllocator
+from mrta_drake.allocation.feedback_params import OPEN_LOOP
+from mrta_drake.allocation.task_allocator import AllocationEvent, ReplanEvent, TaskAllocator
 from mrta_drake.errors import InputError
 from mrta_drake.payloads import FleetPlan, RobotProgress, Visit
 from mrta_drake.scenario.schema import TaskBatch, TaskConfig
@@ -23,7 +26,7 @@ class FakeRobot(LeafSystem):
         super().__init__()
         self._index, self._delay = index, delay
         self._plan = self.DeclareAbstractInputPort("plan", AbstractValue.Make(FleetPlan(())))
-        initial = (RobotProgress(robot=name, last_location=start), 0.0)
+        initial = (RobotProgress(robot=name, last_location=start), 0.0, 0.0)
         self._state = self.DeclareAbstractState(AbstractValue.Make(initial))
         self.DeclareAbstractOutputPort(
             "progress", lambda: AbstractValue.Make(initial[0]),
@@ -36,10 +39,10 @@ class FakeRobot(LeafSystem):
         return context.get_abstract_state(self._state).get_value()
 
     def _update(self, context, state):
-        (progress, finish), now = self._progress(context), context.get_time()
+        (progress, finish, began), now = self._progress(context), context.get_time()
         stop = progress.current_stop
         if stop is not None and now >= finish:
-            visit = Visit(stop.key, stop.location, finish, stop.task, stop.action)
+            visit = Visit(stop.key, stop.location, finish, stop.task, stop.action, began)
             progress = RobotProgress(progress.robot, (*progress.visits, visit), stop.location)
         if progress.current_stop is None:
             done = {visit.key for visit in progress.visits}
@@ -48,16 +51,18 @@ class FakeRobot(LeafSystem):
             stop = next((s for s in stops if s.key not in done), None)
             if stop is not None:
                 finish = now + TRAVEL[progress.last_location, stop.location] + 1.0 + self._delay
+                began = now
                 progress = RobotProgress(progress.robot, progress.visits,
                                          progress.last_location, stop)
-        state.get_mutable_abstract_state(self._state).set_value((progress, finish))
+        state.get_mutable_abstract_state(self._state).set_value((progress, finish, began))
 
 
-def simulate(stream, starts, allocator, delay=0.0):
+def simulate(stream, starts, allocator, delay=0.0, feedback=OPEN_LOOP):
     builder = DiagramBuilder()
     names = [f"robot{k}" for k in range(len(starts))]
     allocator_system = builder.AddSystem(
-        TaskAllocator(stream, names, starts, [2] * len(starts), TRAVEL, allocator, rate_hz=1.0))
+        TaskAllocator(stream, names, starts, [2] * len(starts), TRAVEL, allocator, rate_hz=1.0,
+                      feedback=feedback))
     robots = []
     for k, (name, start) in enumerate(zip(names, starts, strict=True)):
         robot = builder.AddSystem(FakeRobot(k, name, start, delay))
@@ -135,3 +140,45 @@ def test_bad_stream_is_an_input_error():
     with pytest.raises(InputError, match=r"tasks_stream\[0\].tasks\[0\].pickup"):
         TaskAllocator((TaskBatch(0.0, (TaskConfig(9, 2, 100.0),)),), ["a"], [0], [2],
                       TRAVEL, GreedyAllocator(), rate_hz=1.0)
+
+
+@pytest.mark.parametrize("feedback, predicted", [
+    (OPEN_LOOP, 72.0),
+    (replace(OPEN_LOOP, learn_travel_times=True), 82.0),
+    (replace(OPEN_LOOP, planning_margin=3.0), 75.0),
+    (replace(OPEN_LOOP, learn_travel_times=True, planning_margin=3.0), 85.0),
+])
+def test_learned_travel_times_and_margins_change_what_is_planned(feedback, predicted):
+    # Every stop takes 10 s longer than the matrix says: task 0's drop-off leg 0 -> 1 took
+    # 20 s for 10 planned (ratio 2), so task 1's leg 1 -> 2, not driven yet, is planned at
+    # 20 s with learning (the fleet-wide ratio); a margin adds to every leg.
+    stream = (TaskBatch(0.0, (TaskConfig(0, 1, 500.0),)),
+              TaskBatch(60.0, (TaskConfig(1, 2, 500.0),)))
+    simulator, allocator, _ = simulate(stream, [0], GreedyAllocator(), 10.0, feedback)
+    simulator.AdvanceTo(60.5)
+    assert dict(allocator("events")[-1].predicted)[1] == pytest.approx(predicted, abs=0.2)
+
+
+@pytest.mark.parametrize("deadline, reason, drifted", [
+    (500.0, "drift: tasks 0, 1 (+9 s)", (0, 1)), (85.0, "late: task 1 (+9 s)", (1,))])
+def test_a_robot_falling_behind_makes_a_replan_with_its_reason(deadline, reason, drifted):
+    # Planned at 0 s: task 0 picked up at 1 s, task 1 dropped at 84 s. The pickup takes
+    # 10 s more: from 6 s on, the drop-offs move by more than the 5 s margin (task 1's past
+    # its deadline of 85 s), and 10 s after the last allocation the plan is redone.
+    stream = (TaskBatch(0.0, (TaskConfig(0, 4, 500.0), TaskConfig(4, 0, deadline))),)
+    feedback = replace(OPEN_LOOP, replan_on_delay=True, drift_margin=5.0, replan_interval=10.0)
+    simulator, allocator, _ = simulate(stream, [0], GreedyAllocator(), 10.0, feedback)
+    simulator.AdvanceTo(9.5)
+    assert len(allocator("events")) == 1
+    simulator.AdvanceTo(10.5)
+    replan = allocator("events")[-1]
+    assert isinstance(replan, ReplanEvent)
+    assert (replan.time, replan.reason, replan.drifted, replan.batches) == (
+        10.0, reason, drifted, ())
+
+
+def test_the_open_loop_keeps_a_drifting_plan():
+    stream = (TaskBatch(0.0, (TaskConfig(0, 4, 500.0), TaskConfig(4, 0, 90.0))),)
+    simulator, allocator, _ = simulate(stream, [0], GreedyAllocator(), 10.0)
+    simulator.AdvanceTo(100.0)
+    assert [type(event) for event in allocator("events")] == [AllocationEvent]

@@ -63,9 +63,9 @@ def test_legs_plot_says_so_when_there_are_no_predictions(tmp_path):
 
 
 @pytest.mark.parametrize("plots", [True, False])
-def test_run_with_out_writes_the_four_plots_unless_switched_off(tmp_path, plots):
+def test_run_with_out_writes_the_five_plots_unless_switched_off(tmp_path, plots):
     simulate(load_scenario(ROUTES), duration=3.0, out_dir=str(tmp_path), plots=plots)
-    names = ("trajectories.png", "gantt.png", "legs.png", "clearances.png")
+    names = ("trajectories.png", "gantt.png", "legs.png", "clearances.png", "drift.png")
     if plots:
         for name in names:
             _assert_picture(tmp_path / name)

@@ -1,0 +1,141 @@
+"""Feedback benchmark: the open loop against each way of closing it (docs/allocation.md).
+
+Two cases, each run with every variant of the allocator's feedback switches
+(``FeedbackParams``):
+
+- busy: the six-robot hospital with people for 300 s under the generated task stream of
+  ``scenarios/sweeps/hospital_20_seeds.yaml``, over 20 seeds the sweeps do not use
+  (200-219);
+- paper: ``scenarios/hospital_6_robots.yaml`` as it is (the original 6+6 stream, the ten
+  people), 600 s.
+
+Each variant is one sweep (``mrta_drake.tools.sweep``: fresh processes), the variants'
+sweeps side by side sharing ``--workers`` processes, resumable from
+``benchmarks/results/feedback_runs/``. Per case and variant: tasks
+completed, on time and late; broken promises (tasks planned on time at their last
+allocation that missed their deadline); drop-off and leg prediction errors pooled over the
+runs (median and p90 of the absolute error, mean signed error); re-plans on drift.
+
+    python benchmarks/feedback.py                 # everything (hours on 2 shared cores)
+    python benchmarks/feedback.py --seeds 4 --variants "open loop" "learn + re-plan"
+
+Prints the tables and writes benchmarks/results/feedback.json, keeping the variants and
+cases an earlier invocation wrote there and this one did not run.
+"""
+
+import argparse
+import json
+import pathlib
+import sys
+from concurrent.futures import ThreadPoolExecutor
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
+
+from mrta_drake.results.predictions import error_stats  # noqa: E402
+from mrta_drake.results.report import text_table  # noqa: E402
+from mrta_drake.tools.sweep import SweepSpec, load_sweep, run_sweep  # noqa: E402
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results"
+RUNS = RESULTS / "feedback_runs"
+BUSY_SWEEP = ROOT / "scenarios" / "sweeps" / "hospital_20_seeds.yaml"
+PAPER = ROOT / "scenarios" / "hospital_6_robots.yaml"
+SEEDS = list(range(200, 220))
+PARAMS = "blocks.allocator.params."
+
+VARIANTS = {  # name -> allocator params set
+    "open loop": {"learn_travel_times": False, "replan_on_delay": False},
+    "learn (mean)": {"learn_travel_times": True, "replan_on_delay": False},
+    "re-plan": {"learn_travel_times": False, "replan_on_delay": True},
+    "learn + re-plan": {"learn_travel_times": True, "replan_on_delay": True},
+    "learn (q0.8) + re-plan": {"learn_travel_times": True, "replan_on_delay": True,
+                               "travel_time_estimator": "quantile"},
+    "learn + re-plan + 5 s margin": {"learn_travel_times": True, "replan_on_delay": True,
+                                     "planning_margin": 5.0},
+    "learn + re-plan, 5 s drift": {"learn_travel_times": True, "replan_on_delay": True,
+                                   "drift_margin": 5.0, "replan_interval": 5.0},
+}
+
+
+def run_case(name: str, spec: SweepSpec, variant: dict, workers: int) -> list[dict]:
+    """The summaries of ``spec``'s runs with the allocator params ``variant``."""
+    fixed = dict(spec.fixed) | {PARAMS + key: value for key, value in variant.items()}
+    spec = SweepSpec(spec.scenario, spec.grid, fixed, spec.plugins, spec.source)
+    slug = "_".join(f"{key}={value}" for key, value in sorted(variant.items()))
+    out = RUNS / name / slug
+    result = run_sweep(spec, str(out), workers=workers)
+    summaries = []
+    for row in result.rows:
+        path = out / "runs" / row["run_id"] / "summary.json"
+        if row["status"] != "ok" or not path.is_file():
+            raise RuntimeError(f"{name} {slug} {row['run_id']}: {row.get('error')}")
+        summaries.append(json.loads(path.read_text()))
+    return summaries
+
+
+def figures(summaries: list[dict]) -> dict:
+    """A variant's figures over its runs (see the module docstring)."""
+    tasks = [t for s in summaries for t in s["tasks"]["per_task"]]
+    done = [t for t in tasks
+            if t["actual_dropoff"] is not None and t["predicted_dropoff"] is not None]
+    legs = [leg for s in summaries for leg in s["legs"] if leg["predicted"] is not None]
+    return {
+        "runs": len(summaries),
+        "seeds": [s["seed"] for s in summaries],
+        "completed": sum(s["tasks"]["completed"] for s in summaries),
+        "on_time": sum(s["tasks"]["on_time"] for s in summaries),
+        "late": sum(s["tasks"]["late"] for s in summaries),
+        "missed": sum(s["tasks"]["missed"] for s in summaries),
+        "promised": sum(s["predictions"]["promised"] for s in summaries),
+        "broken_promises": sum(len(s["predictions"]["broken_promises"]) for s in summaries),
+        "replans": sum(s["predictions"]["replans"]["count"] for s in summaries),
+        "dropoff_error": error_stats([t["actual_dropoff"] - t["predicted_dropoff"]
+                                      for t in done]),
+        "leg_error": error_stats([leg["actual"] - leg["predicted"] for leg in legs]),
+    }
+
+
+def table(results: dict) -> str:
+    rows = []
+    for variant, f in results.items():
+        drop, leg = f["dropoff_error"], f["leg_error"]
+        rows.append([variant, f["runs"], f["completed"], f["on_time"], f["late"], f["missed"],
+                     f["broken_promises"], f"{drop['median_abs']:.1f}",
+                     f"{drop['p90_abs']:.1f}", f"{drop['bias']:+.1f}",
+                     f"{leg['median_abs']:.1f}", f"{leg['bias']:+.1f}", f["replans"]])
+    return text_table(["variant", "runs", "completed", "on time", "late", "missed",
+                       "broken promises", "drop |med| s", "drop |p90| s", "drop bias s",
+                       "leg |med| s", "leg bias s", "re-plans"], rows)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=len(SEEDS), help="busy seeds to run")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--variants", nargs="*", default=list(VARIANTS),
+                        help="variant names (default: all)")
+    parser.add_argument("--cases", nargs="*", default=["busy", "paper"])
+    args = parser.parse_args()
+    busy = load_sweep(str(BUSY_SWEEP))
+    cases = {
+        "busy": SweepSpec(busy.scenario, {"seed": SEEDS[:args.seeds]},
+                          {k: v for k, v in busy.fixed.items()}, busy.plugins, busy.source),
+        "paper": SweepSpec(str(PAPER), {"seed": [0]}, {}, [], str(PAPER)),
+    }
+    path = RESULTS / "feedback.json"
+    output = json.loads(path.read_text()) if path.is_file() else {"variants": {}, "cases": {}}
+    output["variants"] |= {v: VARIANTS[v] for v in args.variants}
+    workers = max(1, args.workers // len(args.variants))
+    for case in args.cases:
+        with ThreadPoolExecutor(len(args.variants)) as pool:
+            runs = {variant: pool.submit(run_case, case, cases[case], VARIANTS[variant],
+                                         workers) for variant in args.variants}
+            results = {variant: figures(run.result()) for variant, run in runs.items()}
+        output["cases"][case] = output["cases"].get(case, {}) | results
+        print(f"\n{case}\n{table(results)}", flush=True)
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(output, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()

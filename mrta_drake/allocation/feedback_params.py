@@ -1,0 +1,85 @@
+"""The switches of the loop from execution back to allocation (docs/allocation.md, "Allocation
+meets execution"), shared by every ``TaskAllocator`` block whatever allocator it runs."""
+
+import dataclasses
+import inspect
+from dataclasses import dataclass
+
+from mrta_drake.allocation.travel_time_model import Estimator, TravelTimeModel
+from mrta_drake.errors import InputError
+
+
+@dataclass(frozen=True)
+class FeedbackParams:
+    """How the allocator block learns from the run and re-plans.
+
+    ``learn_travel_times``: plan with travel times learned from every completed leg
+    (``allocation.travel_time_model``), summarised by ``travel_time_estimator`` (``mean``,
+    ``recent``: weight ``recent_weight`` for each new sample, or ``quantile``: the
+    ``quantile`` of the last ``quantile_window`` samples), a pair's own samples counting
+    against the fleet-wide ratio as ``prior_samples`` samples. ``planning_margin`` (s) is
+    added to every leg planned (with or without learning): a robust plan promises only what
+    it can keep with that margin.
+
+    ``replan_on_delay``: between batches, allocate again when a robot's progress (with the
+    travel times planned with) makes one of its planned drop-offs late or moves it by more
+    than ``drift_margin`` (s) from its planned time, at most once every
+    ``replan_interval`` (s). Both switches are on by default (measured better:
+    docs/allocation.md); both false, with no margin, is the open loop (``OPEN_LOOP``): plans
+    made only when batches arrive or robots break down, from the scenario's matrix.
+    """
+
+    learn_travel_times: bool = True
+    replan_on_delay: bool = True
+    travel_time_estimator: str = "mean"
+    recent_weight: float = 0.3
+    quantile: float = 0.8
+    quantile_window: int = 20
+    prior_samples: float = 2.0
+    planning_margin: float = 0.0
+    drift_margin: float = 10.0
+    replan_interval: float = 10.0
+
+    def __post_init__(self):
+        self.estimator()  # checks the estimator's fields
+        for name in ("prior_samples", "planning_margin", "drift_margin", "replan_interval"):
+            if not getattr(self, name) >= 0:
+                raise InputError(None, name, f"must be >= 0, got {getattr(self, name)}")
+        parent = getattr(super(), "__post_init__", None)
+        if parent is not None:
+            parent()
+
+    def estimator(self) -> Estimator:
+        return Estimator(self.travel_time_estimator, self.recent_weight, self.quantile,
+                         self.quantile_window)
+
+    def travel_time_model(self, prior) -> TravelTimeModel:
+        """The model planning with the scenario's matrix ``prior`` (s)."""
+        return TravelTimeModel(prior, self.estimator(), self.prior_samples,
+                               self.planning_margin)
+
+    @classmethod
+    def of(cls, params) -> "FeedbackParams":
+        """The feedback fields of ``params`` (an instance of a ``with_feedback`` class)."""
+        return cls(**{f.name: getattr(params, f.name) for f in dataclasses.fields(cls)})
+
+
+OPEN_LOOP = FeedbackParams(learn_travel_times=False, replan_on_delay=False, planning_margin=0.0)
+
+
+def with_feedback(params_class: type) -> type:
+    """``params_class`` (an allocator's frozen params dataclass) with the ``FeedbackParams``
+    fields added, for an allocator block's ``blocks.allocator.params``."""
+    combined = type(params_class.__name__, (FeedbackParams, params_class), {
+        "__doc__": "\n\n".join(inspect.cleandoc(cls.__doc__ or "")
+                                for cls in (params_class, FeedbackParams)),
+        "__module__": params_class.__module__,
+        "allocator_params": params_class,
+    })
+    return dataclass(frozen=True)(combined)
+
+
+def allocator_params(params):
+    """The allocator's own part of ``params`` (an instance of a ``with_feedback`` class)."""
+    own = params.allocator_params
+    return own(**{f.name: getattr(params, f.name) for f in dataclasses.fields(own)})
