@@ -81,7 +81,7 @@ VISITOR_POINTS = [[-3.0, 9.0], [3.0, 9.0], [-5.0, 3.0], [0.0, 12.0], [5.0, -5.0]
                   [-5.0, -5.0], [5.0, -18.0], [-5.0, -18.0], [0.0, -14.6], [0.0, -8.5]]
 GOALS = {6: 50.0, 50: 5.0}  # issue: at least 50x real time with 6 robots, 5x with 50
 PAPER = {2: 0.73, 4: 0.56, 6: 0.42}  # MRTA-Sim (Gazebo, ROS 2), Table III
-QUICKSTART = ["run", str(SCENARIO), "--duration", "60", "--quiet"]
+QUICKSTART = ["run", "scenarios/hospital_6_robots.yaml", "--duration", "60", "--quiet"]
 QUICKSTART_GOALS = {"cold": 15.0, "warm": 4.0}  # issue 18: wall s of the whole command
 
 
@@ -180,19 +180,18 @@ def variant(robots: int, floors: int, backend: str) -> str:
     return f"{where}, {fleet}, {backend} robots"
 
 
-def quickstart(cache: str | None) -> dict:
+def quickstart(cache: str) -> dict:
     """Wall and CPU s of the whole quickstart command (``mrta-sim run
     scenarios/hospital_6_robots.yaml --duration 60``) in a fresh process, start-up included;
-    with ``cache`` a numba cache folder (empty: the first run after installing)."""
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+    ``cache`` is the numba cache folder (empty: the first run after installing)."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=os.pathsep.join(
         [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]))
-    if cache is not None:
-        env["NUMBA_CACHE_DIR"] = cache
     with tempfile.TemporaryDirectory() as out:
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         wall = time.perf_counter()
         done = subprocess.run([sys.executable, "-m", "mrta_drake.tools.cli", *QUICKSTART,
-                               "--out", out], env=env, capture_output=True, text=True)
+                               "--out", out], cwd=ROOT, env=env, capture_output=True,
+                              text=True)
         wall = time.perf_counter() - wall
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if done.returncode:
