@@ -10,17 +10,18 @@ compiling the missing ones will take, so that the CLI can say so before the run 
 import importlib
 import pickle
 
-# Entry kernels of the default stack (module, function) and their compile time, CPU s, with
-# everything they call, measured with an empty cache on the benchmark host (docs/benchmarks.md).
+# Entry kernels of the default stack (module, function) and the CPU s of compiling each with
+# everything it calls: the quickstart's ~49 s of compiling (cold less warm CPU time) split as
+# numba's compile events shared it out, on the benchmark host (docs/benchmarks.md).
 ENTRY_KERNELS = {
-    ("mrta_drake.control.tick_kernel", "plan_tick"): 10.0,
-    ("mrta_drake.control.tick_qps", "_group_rows"): 10.0,
-    ("mrta_drake.control.qp_solver", "_prepare"): 3.0,
-    ("mrta_drake.control.wall_rays", "_wall_hits"): 2.0,
-    ("mrta_drake.navigation.grid_planner", "_path_points"): 6.0,
+    ("mrta_drake.control.tick_kernel", "plan_tick"): 8.5,
+    ("mrta_drake.control.tick_qps", "_group_rows"): 8.1,
+    ("mrta_drake.control.qp_solver", "_prepare"): 0.9,
+    ("mrta_drake.control.wall_rays", "_wall_hits"): 1.5,
+    ("mrta_drake.navigation.grid_planner", "_path_points"): 3.3,
     ("mrta_drake.navigation.grid_planner", "_search"): 1.0,
-    ("mrta_drake.robots.unicycle_robots", "_step"): 1.0,
-    ("mrta_drake.humans.social_force_humans", "_update_people"): 16.0,
+    ("mrta_drake.robots.unicycle_robots", "_step"): 0.2,
+    ("mrta_drake.humans.social_force_humans", "_update_people"): 25.5,
 }
 
 
