@@ -182,7 +182,7 @@ def _pairwise_sum(a):
     return sums[0]
 
 
-@numba.njit(cache=True)
+@numba.njit(numba.float64(numba.float64[::1], numba.int64, numba.int64), cache=True)
 def _block_sum(a, start, n):
     if n < 8:
         total = -0.0

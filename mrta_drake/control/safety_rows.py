@@ -128,7 +128,15 @@ def fill_rows(states, hits, mask, humans, human_velocities, movers, params, G, b
             row += 1
 
 
-@numba.njit(cache=True)
+_INDICES = numba.int64[::1]
+_ROW_SIGNATURE = numba.void(  # explicit: literal row, j and what arguments would compile 4 copies
+    numba.int64, numba.types.UniTuple(numba.float64, 8), numba.int64, numba.int64,
+    numba.float64, numba.float64, numba.int64, numba.float64, numba.float64,
+    numba.float64[:, ::1], numba.float64[::1], _INDICES, numba.float64[::1], _INDICES, _INDICES,
+    numba.float64[:, ::1])
+
+
+@numba.njit(_ROW_SIGNATURE, cache=True)
 def _put_row(row, terms, i, j, other_a, other_w, what, alpha1, alpha2, G, b, kind, h, member,
              other, normal):
     """Row ``row`` for robot i (and robot j >= 0 of a pair), divided by |r| (at least

@@ -87,8 +87,8 @@ def plan_tick(robots, world, paths, settings, out):
         settings)
     order, labels, starts, u_nominal, lower, upper, minima = out
     n = len(states)
-    labels[:] = cluster_labels(states[:, :2].copy(), radius2, reachable)
-    order[:] = cluster_order(labels, active, stalled, keys, priorities)
+    _copy_into(labels, cluster_labels(states[:, :2].copy(), radius2, reachable))
+    _copy_into(order, cluster_order(labels, active, stalled, keys, priorities))
     size = np.zeros(n, dtype=np.int64)
     for i in range(n):
         size[labels[i]] += 1
@@ -122,8 +122,17 @@ def _bodies(shared, human_positions, human_velocities):
     for passing."""
     n = len(shared)
     bodies = np.empty((n + len(human_positions), 3))
-    bodies[:n, :2], bodies[:n, 2] = shared[:, :2], np.abs(shared[:, 3])
+    for i in range(n):  # element by element: an array slice assignment costs ~8 s to compile
+        bodies[i, 0], bodies[i, 1], bodies[i, 2] = shared[i, 0], shared[i, 1], abs(shared[i, 3])
     for q in range(len(human_positions)):
         bodies[n + q, 0], bodies[n + q, 1] = human_positions[q, 0], human_positions[q, 1]
         bodies[n + q, 2] = math.hypot(human_velocities[q, 0], human_velocities[q, 1])
     return bodies
+
+
+@numba.njit(cache=True)
+def _copy_into(target, source):
+    """``target[:] = source`` for 1-D arrays of equal length, without numba's slice assignment
+    (broadcasting and its error messages take seconds to compile)."""
+    for i in range(len(target)):
+        target[i] = source[i]

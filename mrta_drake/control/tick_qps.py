@@ -143,11 +143,19 @@ def _group_rows(states, hits, humans, human_velocities, mask, members, group_sta
         if corner_steering:
             steer(u, group_states, G_g, b[r0:r1], member[r0:r1], other[r0:r1],
                   normal[r0:r1], stall_speed, k_theta)
-        u_nominal[index] = u
+        _scatter_rows(u_nominal, index, u)
         flat = u.ravel()
         clipped = np.minimum(np.maximum(flat, lower[index].ravel()), upper[index].ravel())
         finite, optimal = check_nominal(G_g, b[r0:r1], flat, clipped)
         needs_qp[g] = not (finite and optimal)
         if not needs_qp[g]:
-            settled[index] = clipped.reshape((k, 2))
+            _scatter_rows(settled, index, clipped.reshape((k, 2)))
     return G, G_start, b, kind, h, member, other, normal, row_start, needs_qp
+
+
+@numba.njit(cache=True)
+def _scatter_rows(target, index, rows):
+    """``target[index] = rows`` for (k, 2) ``rows``, element by element: numba's fancy-index
+    assignment (broadcasting and its error messages) takes seconds to compile."""
+    for a in range(len(index)):
+        target[index[a], 0], target[index[a], 1] = rows[a, 0], rows[a, 1]

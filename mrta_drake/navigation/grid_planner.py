@@ -150,8 +150,8 @@ class GridPlanner:
         """A path from world point ``start`` to world point ``goal`` (m); never raises for
         a point off the grid, in an obstacle or cut off from the other. Recent answers are
         kept until the costmap changes: a repeated query gets the same ``PlanResult``."""
-        start = np.asarray(start, dtype=float)
-        goal = np.asarray(goal, dtype=float)
+        start = np.array(start, dtype=float)  # writable copies: one compiled _path_points
+        goal = np.array(goal, dtype=float)
         key = (start.tobytes(), goal.tobytes())
         result = self._answers.get(key)
         if result is None:

@@ -119,8 +119,9 @@ def unicycle_step(states: np.ndarray, commands: np.ndarray, params: UnicyclePara
                   dt: float) -> np.ndarray:
     """Advance unicycle ``states`` (N, 4) [x, y, theta, v] by ``dt`` s under ``commands``
     (N, 2) [v, omega], applying ``params``' limits. Returns the new (N, 4) states."""
-    return _step(np.ascontiguousarray(states, dtype=float).reshape(-1, ROBOT_STATE_SIZE),
-                 np.ascontiguousarray(commands, dtype=float).reshape(-1, ROBOT_COMMAND_SIZE),
+    # Writable copies: a read-only array (a context's value) would compile a second _step.
+    return _step(np.array(states, dtype=float).reshape(-1, ROBOT_STATE_SIZE),
+                 np.array(commands, dtype=float).reshape(-1, ROBOT_COMMAND_SIZE),
                  params.max_reverse_speed, params.max_speed, params.max_yaw_rate,
                  params.max_acceleration * dt, dt)
 

@@ -131,6 +131,7 @@ def _run(args) -> int:
         meshcat = Meshcat()
         print(f"Meshcat: {meshcat.web_url()}", flush=True)
         realtime = args.realtime or 1.0
+    _announce_compiling()
     result = simulate(scenario, duration=args.duration, meshcat=meshcat,
                       record_html=args.record, out_dir=args.out,
                       progress=not args.quiet and sys.stderr.isatty(), realtime_rate=realtime,
@@ -141,6 +142,16 @@ def _run(args) -> int:
     if args.out:
         print(f"results written to {args.out}")
     return 0
+
+
+def _announce_compiling() -> None:
+    """Says once, on stderr, that the kernels are being compiled when numba's cache lacks
+    them (the first run after installing)."""
+    from mrta_drake.stack.kernel_cache import cold_kernel_seconds
+
+    seconds = cold_kernel_seconds()
+    if seconds > 0:
+        print(f"compiling kernels, once, ~{seconds:.0f} s", file=sys.stderr, flush=True)
 
 
 def _validate(args) -> int:
