@@ -18,7 +18,10 @@ def test_paper_profile_runs_every_shipped_scenario(path):
     scenario = load_scenario(path, overrides={"profile": "paper"})
     assert scenario.profile == "paper"
     assert scenario.blocks.planner.params == {"cost_resting_robots": False}
-    result = simulate(scenario, duration=15.0, plots=False)
+    # Robots without a task stay on their points in the paper (no parking): run until 15 s
+    # after the first batch arrives.
+    first_batch = min((batch.arrival for batch in scenario.tasks.stream), default=0.0)
+    result = simulate(scenario, duration=first_batch + 15.0, plots=False)
     moved = np.linalg.norm(result.robot_states[-1, :, :2] - result.robot_states[0, :, :2],
                            axis=1)
     assert moved.max() > 0.5
