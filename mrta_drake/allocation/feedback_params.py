@@ -6,7 +6,7 @@ import inspect
 from dataclasses import dataclass
 
 from mrta_drake.allocation.travel_time_model import Estimator, TravelTimeModel
-from mrta_drake.errors import InputError
+from mrta_drake.errors import require_non_negative
 
 
 @dataclass(frozen=True)
@@ -42,9 +42,8 @@ class FeedbackParams:
 
     def __post_init__(self):
         self.estimator()  # checks the estimator's fields
-        for name in ("prior_samples", "planning_margin", "drift_margin", "replan_interval"):
-            if not getattr(self, name) >= 0:
-                raise InputError(None, name, f"must be >= 0, got {getattr(self, name)}")
+        require_non_negative(self, "prior_samples", "planning_margin", "drift_margin",
+                             "replan_interval")
         parent = getattr(super(), "__post_init__", None)
         if parent is not None:
             parent()

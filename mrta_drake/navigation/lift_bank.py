@@ -9,7 +9,7 @@ import numpy as np
 from pydrake.common.value import Value
 from pydrake.systems.framework import BasicVector, LeafSystem
 
-from mrta_drake.errors import InputError
+from mrta_drake.errors import require_non_negative, require_positive
 from mrta_drake.payloads import (
     ROBOT_STATE_SIZE,
     LiftRequest,
@@ -33,11 +33,8 @@ class LiftParams:
     leave_distance: float = 2.0
 
     def __post_init__(self):
-        for name in ("speed", "acceleration", "board_tolerance", "leave_distance"):
-            if not getattr(self, name) > 0:
-                raise InputError(None, name, f"must be > 0, got {getattr(self, name)}")
-        if not self.door_time >= 0:
-            raise InputError(None, "door_time", f"must be >= 0 s, got {self.door_time}")
+        require_positive(self, "speed", "acceleration", "board_tolerance", "leave_distance")
+        require_non_negative(self, "door_time", unit=" s")
 
 
 @dataclass(frozen=True)
