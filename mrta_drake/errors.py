@@ -1,6 +1,9 @@
 """The one error type for bad user input (scenario YAML, task files, maps, CLI flags), and the
 checks self-checking params dataclasses run in ``__post_init__``."""
 
+import math
+import numbers
+
 
 class InputError(ValueError):
     """Bad user input; the message is one line naming the file, the field and the value.
@@ -28,19 +31,25 @@ class InputError(ValueError):
 
 
 def require_positive(params, *names: str, unit: str = "") -> None:
-    """Every field ``names`` of ``params`` > 0 (``unit``, e.g. " m", follows the bound)."""
+    """Every field ``names`` of ``params`` a finite number > 0 (``unit``, e.g. " m", follows
+    the bound)."""
     for name in names:
-        value = getattr(params, name)
-        if not value > 0:
-            raise InputError(None, name, f"must be > 0{unit}, got {value!r}")
+        _require_number(name, getattr(params, name), "> 0", unit, lambda value: value > 0)
 
 
 def require_non_negative(params, *names: str, unit: str = "") -> None:
-    """Every field ``names`` of ``params`` >= 0 (``unit``, e.g. " m", follows the bound)."""
+    """Every field ``names`` of ``params`` a finite number >= 0 (``unit``, e.g. " m", follows
+    the bound)."""
     for name in names:
-        value = getattr(params, name)
-        if not value >= 0:
-            raise InputError(None, name, f"must be >= 0{unit}, got {value!r}")
+        _require_number(name, getattr(params, name), ">= 0", unit, lambda value: value >= 0)
+
+
+def _require_number(name: str, value, bound: str, unit: str, holds) -> None:
+    """Raise ``InputError`` for field ``name`` unless ``value`` is a finite real number (not a
+    bool) for which ``holds(value)``."""
+    if not (isinstance(value, numbers.Real) and not isinstance(value, bool)
+            and math.isfinite(value) and holds(value)):
+        raise InputError(None, name, f"must be {bound}{unit}, got {value!r}")
 
 
 def require_choice(params, name: str, choices) -> None:

@@ -1,9 +1,8 @@
 """How people walk: the parameters of the social-force humans block (``blocks.humans.params``)."""
 
-import math
 from dataclasses import dataclass
 
-from mrta_drake.errors import InputError
+from mrta_drake.errors import InputError, require_non_negative, require_positive
 
 
 @dataclass(frozen=True)
@@ -47,13 +46,11 @@ class SocialForceParams:
     yield_to_robots: bool = True  # off: people walk on into a robot's way (the original)
 
     def __post_init__(self):
-        for name in ("radius", "desired_speed", "max_speed", "relaxation_time",
-                     "repulsion_range", "wall_range", "waypoint_tolerance", "yield_distance",
-                     "waiting_gap", "passing_gap"):
-            _check(name, getattr(self, name), "> 0", lambda value: value > 0)
-        for name in ("repulsion_strength", "robot_repulsion_gain", "wall_strength",
-                     "yield_time", "sidestep_ratio"):
-            _check(name, getattr(self, name), ">= 0", lambda value: value >= 0)
+        require_positive(self, "radius", "desired_speed", "max_speed", "relaxation_time",
+                         "repulsion_range", "wall_range", "waypoint_tolerance",
+                         "yield_distance", "waiting_gap", "passing_gap")
+        require_non_negative(self, "repulsion_strength", "robot_repulsion_gain",
+                             "wall_strength", "yield_time", "sidestep_ratio")
         if self.desired_speed > self.max_speed:
             raise InputError(None, "desired_speed", f"must be <= max_speed {self.max_speed}, "
                              f"got {self.desired_speed}")
@@ -61,10 +58,3 @@ class SocialForceParams:
             raise InputError(None, "waiting_gap", f"must be < yield_distance "
                              f"{self.yield_distance}, got {self.waiting_gap}")
 
-
-def _check(name: str, value, bound: str, holds) -> None:
-    """Raise ``InputError`` for field ``name`` unless ``value`` is a finite number for which
-    ``holds(value)``."""
-    if not (isinstance(value, int | float) and not isinstance(value, bool)
-            and math.isfinite(value) and holds(value)):
-        raise InputError(None, name, f"must be a number {bound}, got {value!r}")
