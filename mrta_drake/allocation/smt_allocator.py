@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import z3
 
 from mrta_drake.allocation.greedy_allocator import GreedyAllocator
+from mrta_drake.allocation.local_search import improve
 from mrta_drake.allocation.problem import (
     FEASIBLE,
     INFEASIBLE,
@@ -384,7 +385,7 @@ class _Solve:
         """The allocation, with the z3 work spent on it (resource units)."""
         if not self.problem.tasks:
             return Allocation.of(self.problem, [() for _ in self.problem.robots], optimal=True)
-        greedy = GreedyAllocator().allocate(self.problem) if self.params.greedy_start else None
+        greedy = best_heuristic(self.problem) if self.params.greedy_start else None
         try:
             allocation = self._solve(greedy)
         except _OutOfBudget:
@@ -415,7 +416,7 @@ class _Solve:
         return f"{self._out_of(self.limit) or 'budget'} ran out {when}"
 
     def _cut_short(self, greedy: Allocation | None, when: str) -> Allocation:
-        greedy = greedy or GreedyAllocator().allocate(self.problem)
+        greedy = greedy or best_heuristic(self.problem)
         status = FEASIBLE if not greedy.late_tasks else UNKNOWN
         return _replace(greedy, status=status, optimal=False, note=self._ran_out(when))
 
@@ -433,7 +434,7 @@ class _Solve:
                             note="" if optimal else self._ran_out("before the optimum"))
         if result == z3.unknown:
             return self._cut_short(greedy, "before the solver answered")
-        greedy = greedy or GreedyAllocator().allocate(self.problem)
+        greedy = greedy or best_heuristic(self.problem)
         conflict = self._minimal_conflict()
         best, most, assumptions = self._most_on_time(greedy)
         best, least = self._least_tardiness(best, assumptions)
@@ -573,6 +574,13 @@ class _Solve:
 
     def _tardiness_of(self, allocation: Allocation) -> float:
         return allocation.total_tardiness(self.problem)
+
+
+def best_heuristic(problem: AllocationProblem) -> Allocation:
+    """The greedy allocation, improved by local search when it has late tasks (an allocation
+    with every task on time is kept as it is)."""
+    greedy = GreedyAllocator().allocate(problem)
+    return improve(problem, greedy) if greedy.late_tasks else greedy
 
 
 def _stop_time(seconds: float | None) -> float | None:
