@@ -494,9 +494,11 @@ class _Solve:
         self.solver.add(z3.Implies(literal, constraint))
         return literal
 
-    def _tighten(self, best, value_of, term, lower, assumptions):
+    def _tighten(self, best, value_of, term, lower, assumptions, polish=None):
         """Search on ``term <= bound`` until ``value_of(best)`` is within the gap of the
         optimum. Returns the best allocation and whether it is proven within the gap.
+        ``polish`` (optional) improves each allocation the solver finds, never raising
+        ``value_of``; the solver is then hinted with the polished one.
 
         Each bound asks for a tenth of the remaining range (at least half the gap): easy
         improvements come first, so an answer cut short by the time limit is still good."""
@@ -507,6 +509,9 @@ class _Solve:
             result = self._check([*assumptions, self._bound_literal(term <= bound)])
             if result == z3.sat:
                 best = self._allocation()
+                if polish is not None:
+                    best = polish(best)
+                    self.encoding.hint(best)
                 value = value_of(best)
                 if value > bound + 1e-6:
                     raise RuntimeError(f"the schedule ({value}) breaks the bound ({bound})")
@@ -570,7 +575,18 @@ class _Solve:
             self.solver.add(late_by >= 0, late_by >= encoding.time[drop] - task.deadline)
             tardiness.append(late_by)
             lower += max(0.0, encoding.earliest[drop] - task.deadline)
-        return self._tighten(best, self._tardiness_of, z3.Sum(tardiness), lower, assumptions)
+        best = self._polish(best)
+        encoding.hint(best)
+        return self._tighten(best, self._tardiness_of, z3.Sum(tardiness), lower, assumptions,
+                             self._polish)
+
+    def _polish(self, allocation: Allocation) -> Allocation:
+        """``allocation`` improved by local search, if that keeps as many tasks on time
+        (then the total tardiness is no higher)."""
+        improved = improve(self.problem, allocation)
+        if len(improved.late_tasks) == len(allocation.late_tasks):
+            return improved
+        return allocation
 
     def _tardiness_of(self, allocation: Allocation) -> float:
         return allocation.total_tardiness(self.problem)

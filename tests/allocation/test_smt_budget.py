@@ -86,7 +86,8 @@ def test_the_budget_bounds_the_search_for_a_proof():
     cut = SmtAllocator(SmtAllocatorParams(budget=1000)).allocate(problem)
     assert verify_allocation(problem, cut) == ()
     assert cut.note == "budget ran out while building the encoding" and not cut.optimal
-    assert not cut.conflict and len(cut.late_tasks) > len(proven.late_tasks)
+    # The heuristic answer (greedy, then local search) is as good here, but not proven.
+    assert not cut.conflict and len(cut.late_tasks) >= len(proven.late_tasks)
 
 
 @pytest.mark.parametrize("field, value, words", [
