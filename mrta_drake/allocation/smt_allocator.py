@@ -8,6 +8,7 @@ gives the formulas.
 """
 
 import itertools
+import math
 import time as wallclock
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -160,6 +161,7 @@ class _Encoding:
         self._add_capacity(check_limit)
         self._add_releases(travel, service, check_limit)
         self._break_symmetries()
+        self._bound_on_time_per_robot(travel, service)
 
     def location(self, action: Action) -> int:
         return self.problem.location(action)
@@ -324,6 +326,43 @@ class _Encoding:
                     self.on_time[i] == self.on_time[j],
                     self.time[Action(i, PICKUP)] <= self.time[Action(j, PICKUP)],
                 ))
+
+    def _bound_on_time_per_robot(self, travel, service):
+        """How many tasks a robot can finish on time, by each deadline ``D``: an item is on
+        board from its pickup's completion to its drop-off's, at least ``d(p, q) + s``, and
+        at most ``κ`` items are on board at once, all within ``[ρ + reach, D]`` (``reach``:
+        the robot's shortest drive to a pickup plus ``s``). So the open tasks with deadlines
+        up to ``D`` that robot ``r`` does on time have ``Σ (d(p, q) + s) <= κ (D - ρ -
+        reach)``; ``done[i, r]`` stands for "on robot ``r`` and on time". Each bound that
+        can cut anything is added and kept in ``robot_bounds`` as (robot, number of tasks by
+        deadline, room in s)."""
+        problem, solver = self.problem, self.solver
+        self.robot_bounds = []
+        open_tasks = sorted((task for task in problem.tasks if self.carrier[task.id] is None),
+                            key=lambda task: (task.deadline, task.id))
+        if not open_tasks:
+            return
+        weights = [int(travel[task.pickup, task.dropoff] + service) for task in open_tasks]
+        for r, robot in enumerate(problem.robots):
+            reach = min(travel[robot.location, task.pickup] for task in open_tasks) + service
+            bounds, seen = [], 0
+            for k, (task, weight) in enumerate(zip(open_tasks, weights, strict=True)):
+                seen += weight
+                room = robot.capacity * (task.deadline - robot.ready_time - reach)
+                last = k + 1 == len(open_tasks) or open_tasks[k + 1].deadline > task.deadline
+                if last and seen > room:
+                    bounds.append((k + 1, max(0, math.floor(room))))
+            if not bounds:
+                continue
+            done = []
+            for task, weight in zip(open_tasks[:bounds[-1][0]], weights, strict=False):
+                literal = z3.Bool(f"done_{task.id}_{r}", self.ctx)
+                solver.add(z3.Or(z3.Not(self.assigned[task.id, r]),
+                                 z3.Not(self.on_time[task.id]), literal))
+                done.append((literal, weight))
+            for count, room in bounds:
+                solver.add(z3.PbLe(done[:count], room))
+                self.robot_bounds.append((r, count, room))
 
     def routes(self, model: z3.ModelRef) -> tuple[tuple[Action, ...], ...]:
         """The routes of a model: each robot's actions in order of their model times."""
