@@ -580,14 +580,18 @@ class _Solve:
         return self._tighten(best, _total_drop_time, total, lower, on_time)
 
     def _most_on_time(self, best: Allocation):
-        """Linear search upwards on the number of tasks on time, starting from ``best``.
-        Returns the best allocation, whether it is proven to have the most tasks on time,
-        and assumptions that keep at least that many on time."""
+        """Linear search upwards on the number of tasks on time, starting from ``best``,
+        each answer improved by local search. The tasks that can be on time alone bound the
+        count: ``best`` reaching it is proven without a search. Returns the best allocation,
+        whether it is proven to have the most tasks on time, and assumptions that keep at
+        least that many on time."""
         encoding, tasks = self.encoding, self.problem.tasks
         hopeful = [
             encoding.on_time[task.id] for task in tasks
             if encoding.earliest[Action(task.id, DROPOFF)] <= task.deadline
         ]
+        if len(tasks) - len(best.late_tasks) >= len(hopeful):
+            return best, True, hopeful
         result = self._check(hopeful)
         if result == z3.sat:
             return self._allocation(), True, hopeful
@@ -598,7 +602,7 @@ class _Solve:
             proven = result != z3.unknown
             if result != z3.sat:
                 break
-            best = self._allocation()
+            best = improve(self.problem, self._allocation())
         on_time = len(tasks) - len(best.late_tasks)
         if on_time == 0:
             return best, proven, []
