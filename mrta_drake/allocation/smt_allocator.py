@@ -55,8 +55,9 @@ class SmtAllocatorParams:
     runs out the best allocation found so far is returned (at worst the greedy one) with a
     note saying so. ``time_limit`` (s, wall clock; None: none) adds a wall-clock bound;
     answers it cuts short depend on the host's speed and load, so runs are not reproducible.
-    ``greedy_start`` runs the greedy allocator first and starts from its answer: when that
-    has every task on time it already proves feasibility. ``append_only`` keeps each robot's
+    ``greedy_start`` runs the greedy allocator first (improved by local search when it
+    leaves tasks late) and starts from its answer: when that has every task on time it
+    already proves feasibility. ``append_only`` keeps each robot's
     previous plan and places new tasks after it. ``random_seed`` is z3's.
     """
 
