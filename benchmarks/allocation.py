@@ -4,15 +4,20 @@ Single batches: 65 locations, 10-30 tasks x 5-20 robots, all tasks at t = 0, dea
 uniform in [1.5 x the longest travel time, 1000] s, capacity 2 and 3. Streams: 20 batches
 of 10 tasks every 60 s for 20 robots, each batch's deadlines its arrival plus the same
 range, executed exactly as planned between batches. Then the hard regime: single batches
-with deadlines at most 250 s, and a stream overloaded with a batch every 10 s.
+with deadlines at most 250 s, and a stream overloaded with a batch every 10 s. First of all
+the tight regime: the single batches of the 20 sizes (capacity 2, seed 0) with every deadline
+scaled by 0.5 and by 0.35, for the SMT allocator (default budget), the greedy allocator and
+OR-Tools routing (``routing_peer.py``, 10 s, if installed).
 
 Locations are random points on a floor of the hospital map's size (25 x 56 m); travel
 times are the Manhattan distance at 0.7 m/s, rounded up (longest ~110 s).
 
     python benchmarks/allocation.py            # full run (takes long on 2 cores)
     python benchmarks/allocation.py --quick    # a few small instances
+    python benchmarks/allocation.py --tight-only   # the tight regime alone (~15 min)
 
-Prints tables and writes benchmarks/results/allocation.json.
+Prints tables and writes benchmarks/results/allocation.json (``--tight-only``:
+benchmarks/results/allocation_tight.json).
 """
 
 import argparse
