@@ -18,17 +18,28 @@ only within the route, by 2-opt. Capacity holds in every route tried.
 from dataclasses import dataclass
 
 from mrta_drake.allocation.problem import Action, Allocation, AllocationProblem
+from mrta_drake.errors import InputError
 from mrta_drake.payloads import DROPOFF, PICKUP
 
 MAX_ROUNDS = 50  # rounds of all three moves, at most (each round improves the rank)
+MAX_EVALUATIONS = 400_000  # routes evaluated, at most: about 1 s of CPU on the reference machine
 TOLERANCE = 1e-9  # s: a rank must improve by more than this
 
 
 @dataclass(frozen=True)
 class LocalSearchParams:
-    """``max_rounds``: at most this many rounds of relocate, swap and 2-opt."""
+    """``max_rounds``: at most this many rounds of relocate, swap and 2-opt;
+    ``max_evaluations``: at most this many routes evaluated (a count, not a time, so the
+    answer is the same on any host), checked before each task a move tries."""
 
     max_rounds: int = MAX_ROUNDS
+    max_evaluations: int = MAX_EVALUATIONS
+
+    def __post_init__(self):
+        for name in ("max_rounds", "max_evaluations"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise InputError(None, name, f"must be a whole number >= 0, got {value!r}")
 
 
 def improve(problem: AllocationProblem, allocation: Allocation,
@@ -36,7 +47,7 @@ def improve(problem: AllocationProblem, allocation: Allocation,
     """``allocation`` improved by relocate, swap and 2-opt moves until none helps; never
     ranks worse than ``allocation``. The status is recomputed (``FEASIBLE`` when every task
     is on time, else ``UNKNOWN``)."""
-    search = _Routes(problem, allocation.routes)
+    search = _Routes(problem, allocation.routes, params.max_evaluations)
     for _ in range(params.max_rounds):
         if not (search.relocate() or search.swap() or search.two_opt()):
             break
@@ -49,8 +60,9 @@ def improve(problem: AllocationProblem, allocation: Allocation,
 class _Routes:
     """The routes being improved, with each one's cost (late, tardiness, drop-off times)."""
 
-    def __init__(self, problem: AllocationProblem, routes):
+    def __init__(self, problem: AllocationProblem, routes, max_evaluations: int):
         self.problem = problem
+        self.evaluations_left = max_evaluations
         self.travel = problem.travel.tolist()
         self.service = problem.service_time
         self.task = {task.id: task for task in problem.tasks}
@@ -60,6 +72,7 @@ class _Routes:
     def cost(self, robot: int, route: list[Action]):
         """(late tasks, tardiness, sum of drop-off times) of ``route`` for robot index
         ``robot``, or None when it overloads the robot or drops an item not on board."""
+        self.evaluations_left -= 1
         start = self.problem.robots[robot]
         on_board = set(start.carrying)
         time, here = float(start.ready_time), start.location
@@ -115,6 +128,8 @@ class _Routes:
         """Moves the first task whose best re-insertion improves the rank."""
         for source in range(len(self.routes)):
             for task in self._movable(source):
+                if self.evaluations_left <= 0:
+                    return False
                 rest = [a for a in self.routes[source] if a.task != task]
                 rest_cost = self.cost(source, rest)
                 for target in range(len(self.routes)):
@@ -137,6 +152,8 @@ class _Routes:
             for b in range(a + 1, len(self.routes)):
                 for i in self._movable(a):
                     for j in self._movable(b):
+                        if self.evaluations_left <= 0:
+                            return False
                         rest_a = [x for x in self.routes[a] if x.task != i]
                         rest_b = [x for x in self.routes[b] if x.task != j]
                         into_a = self._best_insertion(a, rest_a, j)
@@ -150,6 +167,8 @@ class _Routes:
     def two_opt(self) -> bool:
         """Reverses the first stretch of a route whose reversal improves the rank."""
         for robot, route in enumerate(self.routes):
+            if self.evaluations_left <= 0:
+                return False
             for i in range(len(route) - 1):
                 for j in range(i + 2, len(route) + 1):
                     trial = route[:i] + route[i:j][::-1] + route[j:]
