@@ -4,18 +4,24 @@ Single batches: 65 locations, 10-30 tasks x 5-20 robots, all tasks at t = 0, dea
 uniform in [1.5 x the longest travel time, 1000] s, capacity 2 and 3. Streams: 20 batches
 of 10 tasks every 60 s for 20 robots, each batch's deadlines its arrival plus the same
 range, executed exactly as planned between batches. Then the hard regime: single batches
-with deadlines at most 250 s, and a stream overloaded with a batch every 10 s.
+with deadlines at most 250 s, and a stream overloaded with a batch every 10 s. First of all
+the tight regime: the single batches of the 20 sizes (capacity 2, seed 0) with every deadline
+scaled by 0.5 and by 0.35, for the SMT allocator (default budget), the greedy allocator and
+OR-Tools routing (``routing_peer.py``, 10 s, if installed).
 
 Locations are random points on a floor of the hospital map's size (25 x 56 m); travel
 times are the Manhattan distance at 0.7 m/s, rounded up (longest ~110 s).
 
     python benchmarks/allocation.py            # full run (takes long on 2 cores)
     python benchmarks/allocation.py --quick    # a few small instances
+    python benchmarks/allocation.py --tight-only   # the tight regime alone (~15 min)
 
-Prints tables and writes benchmarks/results/allocation.json.
+Prints tables and writes benchmarks/results/allocation.json (``--tight-only``:
+benchmarks/results/allocation_tight.json).
 """
 
 import argparse
+import dataclasses
 import json
 import math
 import pathlib
@@ -44,12 +50,18 @@ from mrta_drake.allocation import (  # noqa: E402
 from mrta_drake.allocation.smt_allocator import MAX_BUDGET  # noqa: E402
 from mrta_drake.payloads import DROPOFF, PICKUP  # noqa: E402
 
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+import routing_peer  # noqa: E402
+
 NUM_LOCATIONS = 65
 FLOOR = (25.0, 56.0)  # m
 SPEED = 0.7  # m/s
 LATEST_DEADLINE = 1000.0  # s after the batch arrival
 TIME_LIMIT = 60.0  # s per allocation
 RESULTS = pathlib.Path(__file__).parent / "results" / "allocation.json"
+TIGHT_RESULTS = pathlib.Path(__file__).parent / "results" / "allocation_tight.json"
+TIGHT_SCALES = (0.5, 0.35)  # deadlines scaled: the tight regime
+ROUTING_SECONDS = 10.0  # OR-Tools' guided local search per instance
 
 
 def timed_smt(**params) -> SmtAllocator:
@@ -81,6 +93,21 @@ def single_batch(seed, num_tasks, num_robots, capacity, latest=LATEST_DEADLINE):
                    for r in range(num_robots))
     tasks = random_tasks(rng, travel, num_tasks, latest=latest)
     return AllocationProblem(travel, robots, tuple(tasks))
+
+
+def scaled_deadlines(problem: AllocationProblem, scale: float) -> AllocationProblem:
+    """``problem`` with every deadline moved to ``scale`` of its time after the release."""
+    tasks = tuple(dataclasses.replace(task, deadline=task.release + scale * (
+        task.deadline - task.release)) for task in problem.tasks)
+    return dataclasses.replace(problem, tasks=tasks)
+
+
+def tight_batch(num_tasks, num_robots, scale, seed=0):
+    """The single batch of ``run_single_batches`` (capacity 2) with its deadlines scaled by
+    ``scale``: the tight regime."""
+    problem = single_batch(seed * 1000 + num_tasks * 31 + num_robots * 7 + 2, num_tasks,
+                           num_robots, 2)
+    return scaled_deadlines(problem, scale)
 
 
 def solve(allocator, problem):
@@ -224,6 +251,79 @@ def run_tight(sizes, latest, time_limit):
     return rows
 
 
+def run_tight_regime(sizes, scales, routing_seconds):
+    """The single batches of ``run_single_batches`` (capacity 2, seed 0) with every deadline
+    scaled by each of ``scales``: the SMT allocator with its default budget, the greedy
+    allocator and OR-Tools routing (``routing_seconds`` of guided local search), if
+    installed. Per instance and allocator: late tasks, total tardiness (s), proven optimal
+    (most tasks on time, then least tardiness; an answer with every task on time is), CPU
+    and wall seconds."""
+    allocators = {"smt": SmtAllocator(), "greedy": GreedyAllocator()}
+    if routing_peer.available():
+        allocators["ortools"] = _RoutingPeer(routing_seconds)
+    rows = []
+    for scale in scales:
+        for num_tasks, num_robots in sizes:
+            problem = tight_batch(num_tasks, num_robots, scale)
+            row = {"scale": scale, "tasks": num_tasks, "robots": num_robots}
+            for name, allocator in allocators.items():
+                cpu = time.process_time()
+                allocation, seconds = solve(allocator, problem)
+                row[name] = {"late": len(allocation.late_tasks),
+                             "tardiness": round(allocation.total_tardiness(problem), 3),
+                             "proven": allocation.optimal or not allocation.late_tasks,
+                             "cpu_seconds": round(time.process_time() - cpu, 3),
+                             "seconds": round(seconds, 3), "work": allocation.work}
+            row["smt_meets_target"] = _meets_target(row, [n for n in allocators if n != "smt"])
+            rows.append(row)
+            print(f"  scale {scale:4.2f} {num_tasks:3d} x {num_robots:2d} " + " | ".join(
+                f"{name} late {row[name]['late']:2d} tard {row[name]['tardiness']:7.1f} "
+                f"{'proven' if row[name]['proven'] else '      '} {row[name]['cpu_seconds']:5.2f}"
+                f" s CPU" for name in allocators), flush=True)
+    if not routing_peer.available():
+        print("  ortools: not installed (pip install 'mrta-drake[benchmarks]')")
+    return {"allocators": list(allocators), "ortools_installed": routing_peer.available(),
+            "routing_seconds": routing_seconds, "rows": rows,
+            "totals": _tight_totals(rows, scales, list(allocators))}
+
+
+class _RoutingPeer:
+    """OR-Tools routing as an allocator (``allocate``) with a wall-clock limit."""
+
+    def __init__(self, seconds: float):
+        self.seconds = seconds
+
+    def allocate(self, problem):
+        return routing_peer.routing_allocation(problem, self.seconds)
+
+
+def _meets_target(row, peers) -> bool:
+    """The SMT answer is proven optimal, or no worse (late tasks, then tardiness) than the
+    best peer's."""
+    smt = row["smt"]
+    if smt["proven"]:
+        return True
+    best = min((row[p]["late"], row[p]["tardiness"]) for p in peers)
+    return (smt["late"], smt["tardiness"]) <= (best[0], best[1] + 1e-6)
+
+
+def _tight_totals(rows, scales, names):
+    totals = {}
+    for scale in scales:
+        mine = [row for row in rows if row["scale"] == scale]
+        totals[str(scale)] = {name: {
+            "late": sum(row[name]["late"] for row in mine),
+            "tardiness": round(sum(row[name]["tardiness"] for row in mine), 1),
+            "proven": sum(row[name]["proven"] for row in mine),
+            "mean_cpu_seconds": round(float(np.mean([row[name]["cpu_seconds"] for row in mine])),
+                                      3),
+            "mean_seconds": round(float(np.mean([row[name]["seconds"] for row in mine])), 3),
+        } for name in names} | {"smt_meets_target": sum(row["smt_meets_target"] for row in mine),
+                                 "instances": len(mine)}
+        print(f"  scale {scale}: {totals[str(scale)]}")
+    return totals
+
+
 def format_single_row(row):
     cells = [f"{row['tasks']:3d} {row['robots']:3d} {row['capacity']:2d}"]
     for name in ("smt", "smt_search_only", "greedy"):
@@ -251,13 +351,23 @@ def summarize(rows):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="a few small instances")
+    parser.add_argument("--tight-only", action="store_true",
+                        help="only the tight regime (deadlines scaled by 0.5 and 0.35)")
     args = parser.parse_args()
+    single_sizes = [(t, r) for t in (10, 15, 20, 25, 30) for r in (5, 10, 15, 20)]
+    print(f"tight regime: deadlines scaled by {TIGHT_SCALES}, capacity 2, seed 0; smt default "
+          f"budget, greedy, ortools {ROUTING_SECONDS:g} s")
+    tight_regime = run_tight_regime(single_sizes[:2] if args.quick else single_sizes,
+                                    TIGHT_SCALES, 1.0 if args.quick else ROUTING_SECONDS)
+    if args.tight_only:
+        write_results(TIGHT_RESULTS, args.quick, tight_regime=tight_regime)
+        return
     if args.quick:
         sizes = [(10, 5), (20, 20)]
         capacities, seeds, stream_batches, objective_sizes = (2,), (0,), 5, [(10, 5)]
         tight_sizes = [(10, 5)]
     else:
-        sizes = [(t, r) for t in (10, 15, 20, 25, 30) for r in (5, 10, 15, 20)]
+        sizes = single_sizes
         capacities, seeds, stream_batches = (2, 3), (0, 1), 20
         objective_sizes = [(t, r) for t in (10, 20, 30) for r in (5, 10, 20)]
         tight_sizes = [(t, r) for t in (10, 20, 30) for r in (5, 10)]
@@ -305,7 +415,7 @@ def main():
 
     write_results(RESULTS, args.quick, time_limit=TIME_LIMIT, single_batch=rows,
                   single_batch_summary=summary, objective_makespan=makespan,
-                  tight_single_batch=tight, streams=streams)
+                  tight_single_batch=tight, streams=streams, tight_regime=tight_regime)
 
 
 def write_results(path: pathlib.Path, quick: bool, **fields):

@@ -41,17 +41,9 @@ class GreedyAllocator:
             allocation = fresh
             if any(robot.planned for robot in problem.robots):
                 kept = _Insertion(problem, [robot.planned for robot in problem.robots]).run()
-                allocation = min(kept, fresh, key=lambda a: _quality(problem, a))
+                allocation = min(kept, fresh, key=lambda a: a.rank(problem))
         fields = dict(allocation.__dict__, solve_time=wallclock.perf_counter() - start)
         return Allocation(**fields)
-
-
-def _quality(problem: AllocationProblem, allocation: Allocation):
-    return (
-        len(allocation.late_tasks),
-        allocation.total_tardiness(problem),
-        sum(allocation.drop_times().values()),
-    )
 
 
 class _Insertion:

@@ -274,6 +274,12 @@ class Allocation:
             max(0.0, time - problem.task(t).deadline) for t, time in self.drop_times().items()
         )
 
+    def rank(self, problem: AllocationProblem) -> tuple[int, float, float]:
+        """What the heuristics minimize, in order: late tasks, total tardiness (s), total
+        drop-off time (s)."""
+        return (len(self.late_tasks), self.total_tardiness(problem),
+                sum(self.drop_times().values()))
+
 
 def keeping_planned(problem: AllocationProblem) -> AllocationProblem:
     """The problem left once every robot has done its ``planned`` actions: each robot starts

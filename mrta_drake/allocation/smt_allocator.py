@@ -8,6 +8,7 @@ gives the formulas.
 """
 
 import itertools
+import math
 import time as wallclock
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -15,6 +16,7 @@ from dataclasses import dataclass
 import z3
 
 from mrta_drake.allocation.greedy_allocator import GreedyAllocator
+from mrta_drake.allocation.local_search import improve
 from mrta_drake.allocation.problem import (
     FEASIBLE,
     INFEASIBLE,
@@ -53,8 +55,9 @@ class SmtAllocatorParams:
     runs out the best allocation found so far is returned (at worst the greedy one) with a
     note saying so. ``time_limit`` (s, wall clock; None: none) adds a wall-clock bound;
     answers it cuts short depend on the host's speed and load, so runs are not reproducible.
-    ``greedy_start`` runs the greedy allocator first and starts from its answer: when that
-    has every task on time it already proves feasibility. ``append_only`` keeps each robot's
+    ``greedy_start`` runs the greedy allocator first (improved by local search when it
+    leaves tasks late) and starts from its answer: when that has every task on time it
+    already proves feasibility. ``append_only`` keeps each robot's
     previous plan and places new tasks after it. ``random_seed`` is z3's.
     """
 
@@ -159,6 +162,7 @@ class _Encoding:
         self._add_capacity(check_limit)
         self._add_releases(travel, service, check_limit)
         self._break_symmetries()
+        self._bound_on_time_per_robot(travel, service)
 
     def location(self, action: Action) -> int:
         return self.problem.location(action)
@@ -324,6 +328,43 @@ class _Encoding:
                     self.time[Action(i, PICKUP)] <= self.time[Action(j, PICKUP)],
                 ))
 
+    def _bound_on_time_per_robot(self, travel, service):
+        """How many tasks a robot can finish on time, by each deadline ``D``: an item is on
+        board from its pickup's completion to its drop-off's, at least ``d(p, q) + s``, and
+        at most ``κ`` items are on board at once, all within ``[ρ + reach, D]`` (``reach``:
+        the robot's shortest drive to a pickup plus ``s``). So the open tasks with deadlines
+        up to ``D`` that robot ``r`` does on time have ``Σ (d(p, q) + s) <= κ (D - ρ -
+        reach)``; ``done[i, r]`` stands for "on robot ``r`` and on time". Each bound that
+        can cut anything is added and kept in ``robot_bounds`` as (robot, number of tasks by
+        deadline, room in s)."""
+        problem, solver = self.problem, self.solver
+        self.robot_bounds = []
+        open_tasks = sorted((task for task in problem.tasks if self.carrier[task.id] is None),
+                            key=lambda task: (task.deadline, task.id))
+        if not open_tasks:
+            return
+        weights = [int(travel[task.pickup, task.dropoff] + service) for task in open_tasks]
+        for r, robot in enumerate(problem.robots):
+            reach = min(travel[robot.location, task.pickup] for task in open_tasks) + service
+            bounds, seen = [], 0
+            for k, (task, weight) in enumerate(zip(open_tasks, weights, strict=True)):
+                seen += weight
+                room = robot.capacity * (task.deadline - robot.ready_time - reach)
+                last = k + 1 == len(open_tasks) or open_tasks[k + 1].deadline > task.deadline
+                if last and seen > room:
+                    bounds.append((k + 1, max(0, math.floor(room))))
+            if not bounds:
+                continue
+            done = []
+            for task, weight in zip(open_tasks[:bounds[-1][0]], weights, strict=False):
+                literal = z3.Bool(f"done_{task.id}_{r}", self.ctx)
+                solver.add(z3.Or(z3.Not(self.assigned[task.id, r]),
+                                 z3.Not(self.on_time[task.id]), literal))
+                done.append((literal, weight))
+            for count, room in bounds:
+                solver.add(z3.PbLe(done[:count], room))
+                self.robot_bounds.append((r, count, room))
+
     def routes(self, model: z3.ModelRef) -> tuple[tuple[Action, ...], ...]:
         """The routes of a model: each robot's actions in order of their model times."""
         routes = [[] for _ in self.problem.robots]
@@ -384,7 +425,7 @@ class _Solve:
         """The allocation, with the z3 work spent on it (resource units)."""
         if not self.problem.tasks:
             return Allocation.of(self.problem, [() for _ in self.problem.robots], optimal=True)
-        greedy = GreedyAllocator().allocate(self.problem) if self.params.greedy_start else None
+        greedy = best_heuristic(self.problem) if self.params.greedy_start else None
         try:
             allocation = self._solve(greedy)
         except _OutOfBudget:
@@ -415,7 +456,7 @@ class _Solve:
         return f"{self._out_of(self.limit) or 'budget'} ran out {when}"
 
     def _cut_short(self, greedy: Allocation | None, when: str) -> Allocation:
-        greedy = greedy or GreedyAllocator().allocate(self.problem)
+        greedy = greedy or best_heuristic(self.problem)
         status = FEASIBLE if not greedy.late_tasks else UNKNOWN
         return _replace(greedy, status=status, optimal=False, note=self._ran_out(when))
 
@@ -433,7 +474,7 @@ class _Solve:
                             note="" if optimal else self._ran_out("before the optimum"))
         if result == z3.unknown:
             return self._cut_short(greedy, "before the solver answered")
-        greedy = greedy or GreedyAllocator().allocate(self.problem)
+        greedy = greedy or best_heuristic(self.problem)
         conflict = self._minimal_conflict()
         best, most, assumptions = self._most_on_time(greedy)
         best, least = self._least_tardiness(best, assumptions)
@@ -493,9 +534,11 @@ class _Solve:
         self.solver.add(z3.Implies(literal, constraint))
         return literal
 
-    def _tighten(self, best, value_of, term, lower, assumptions):
+    def _tighten(self, best, value_of, term, lower, assumptions, polish=None):
         """Search on ``term <= bound`` until ``value_of(best)`` is within the gap of the
         optimum. Returns the best allocation and whether it is proven within the gap.
+        ``polish`` (optional) improves each allocation the solver finds, never raising
+        ``value_of``; the solver is then hinted with the polished one.
 
         Each bound asks for a tenth of the remaining range (at least half the gap): easy
         improvements come first, so an answer cut short by the time limit is still good."""
@@ -506,6 +549,9 @@ class _Solve:
             result = self._check([*assumptions, self._bound_literal(term <= bound)])
             if result == z3.sat:
                 best = self._allocation()
+                if polish is not None:
+                    best = polish(best)
+                    self.encoding.hint(best)
                 value = value_of(best)
                 if value > bound + 1e-6:
                     raise RuntimeError(f"the schedule ({value}) breaks the bound ({bound})")
@@ -535,14 +581,18 @@ class _Solve:
         return self._tighten(best, _total_drop_time, total, lower, on_time)
 
     def _most_on_time(self, best: Allocation):
-        """Linear search upwards on the number of tasks on time, starting from ``best``.
-        Returns the best allocation, whether it is proven to have the most tasks on time,
-        and assumptions that keep at least that many on time."""
+        """Linear search upwards on the number of tasks on time, starting from ``best``,
+        each answer improved by local search. The tasks that can be on time alone bound the
+        count: ``best`` reaching it is proven without a search. Returns the best allocation,
+        whether it is proven to have the most tasks on time, and assumptions that keep at
+        least that many on time."""
         encoding, tasks = self.encoding, self.problem.tasks
         hopeful = [
             encoding.on_time[task.id] for task in tasks
             if encoding.earliest[Action(task.id, DROPOFF)] <= task.deadline
         ]
+        if len(tasks) - len(best.late_tasks) >= len(hopeful):
+            return best, True, hopeful
         result = self._check(hopeful)
         if result == z3.sat:
             return self._allocation(), True, hopeful
@@ -553,7 +603,7 @@ class _Solve:
             proven = result != z3.unknown
             if result != z3.sat:
                 break
-            best = self._allocation()
+            best = improve(self.problem, self._allocation())
         on_time = len(tasks) - len(best.late_tasks)
         if on_time == 0:
             return best, proven, []
@@ -569,10 +619,28 @@ class _Solve:
             self.solver.add(late_by >= 0, late_by >= encoding.time[drop] - task.deadline)
             tardiness.append(late_by)
             lower += max(0.0, encoding.earliest[drop] - task.deadline)
-        return self._tighten(best, self._tardiness_of, z3.Sum(tardiness), lower, assumptions)
+        best = self._polish(best)
+        encoding.hint(best)
+        return self._tighten(best, self._tardiness_of, z3.Sum(tardiness), lower, assumptions,
+                             self._polish)
+
+    def _polish(self, allocation: Allocation) -> Allocation:
+        """``allocation`` improved by local search, if that keeps as many tasks on time
+        (then the total tardiness is no higher)."""
+        improved = improve(self.problem, allocation)
+        if len(improved.late_tasks) == len(allocation.late_tasks):
+            return improved
+        return allocation
 
     def _tardiness_of(self, allocation: Allocation) -> float:
         return allocation.total_tardiness(self.problem)
+
+
+def best_heuristic(problem: AllocationProblem) -> Allocation:
+    """The greedy allocation, improved by local search when it has late tasks (an allocation
+    with every task on time is kept as it is)."""
+    greedy = GreedyAllocator().allocate(problem)
+    return improve(problem, greedy) if greedy.late_tasks else greedy
 
 
 def _stop_time(seconds: float | None) -> float | None:

@@ -16,8 +16,9 @@ from mrta_drake.allocation import (
     Task,
     verify_allocation,
 )
-from mrta_drake.allocation.smt_allocator import MAX_BUDGET
+from mrta_drake.allocation.smt_allocator import MAX_BUDGET, best_heuristic
 from mrta_drake.errors import InputError
+from tests.allocation.tight_instances import tight_problem
 
 TINY_BUDGET = 200_000  # z3 resource units: a fraction of a second
 
@@ -66,6 +67,19 @@ def test_a_problem_that_exhausts_the_budget_gets_the_same_answer_every_time():
         assert without_wall_clock(answer) == without_wall_clock(first)
 
 
+def test_a_budget_exhausted_while_polishing_gets_the_same_answer_every_time():
+    # 14 tight tasks on 3 robots: z3 proves the most tasks on time, then the budget runs out
+    # in the least-tardiness search, whose answers local search polishes.
+    problem = tight_problem(1, 14, 3)
+    other = tight_problem(2, 14, 3)
+    allocator = SmtAllocator(SmtAllocatorParams(budget=1_000_000))
+    first, *again = solve_again_and_again(allocator, problem, other)
+    assert first.note == "budget ran out before the fallback was proven best"
+    assert first.rank(problem) <= best_heuristic(problem).rank(problem)
+    for answer in again:
+        assert without_wall_clock(answer) == without_wall_clock(first)
+
+
 @pytest.mark.parametrize("objective", ["none", "makespan"])
 def test_a_problem_solved_within_the_budget_gets_the_same_answer_every_time(objective):
     problem = random_problem(2, 10, 3, latest=400.0)
@@ -86,7 +100,8 @@ def test_the_budget_bounds_the_search_for_a_proof():
     cut = SmtAllocator(SmtAllocatorParams(budget=1000)).allocate(problem)
     assert verify_allocation(problem, cut) == ()
     assert cut.note == "budget ran out while building the encoding" and not cut.optimal
-    assert not cut.conflict and len(cut.late_tasks) > len(proven.late_tasks)
+    # The heuristic answer (greedy, then local search) is as good here, but not proven.
+    assert not cut.conflict and len(cut.late_tasks) >= len(proven.late_tasks)
 
 
 @pytest.mark.parametrize("field, value, words", [

@@ -1,0 +1,58 @@
+"""Local search: never worse than its start, valid, deterministic, and it does improve."""
+
+import pytest
+
+from mrta_drake.allocation import GreedyAllocator, verify_allocation
+from mrta_drake.allocation.local_search import LocalSearchParams, improve
+from mrta_drake.errors import InputError
+from tests.allocation.brute_force import brute_force
+from tests.allocation.test_allocation_random import SEEDS, random_problem
+from tests.allocation.tight_instances import tight_problem
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_never_worse_than_its_start_and_valid(seed):
+    problem = random_problem(seed)
+    greedy = GreedyAllocator().allocate(problem)
+    improved = improve(problem, greedy)
+    assert verify_allocation(problem, improved) == ()
+    assert improved.rank(problem) <= greedy.rank(problem)
+    best = brute_force(problem)
+    assert len(problem.tasks) - len(improved.late_tasks) <= best.most_on_time
+
+
+def test_improves_greedy_on_tight_instances_deterministically():
+    gains = 0
+    for seed in range(6):
+        problem = tight_problem(seed, num_tasks=14, num_robots=3)
+        greedy = GreedyAllocator().allocate(problem)
+        improved = improve(problem, greedy)
+        assert verify_allocation(problem, improved) == ()
+        assert improve(problem, greedy) == improved
+        assert improved.rank(problem) <= greedy.rank(problem)
+        gains += improved.rank(problem) < greedy.rank(problem)
+    assert gains >= 3
+
+
+def test_a_small_evaluation_budget_stops_early_the_same_way_every_time():
+    problem = tight_problem(0, 14, 3)
+    greedy = GreedyAllocator().allocate(problem)
+    params = LocalSearchParams(max_evaluations=300)
+    cut = improve(problem, greedy, params)
+    assert verify_allocation(problem, cut) == ()
+    assert improve(problem, greedy, params) == cut
+    assert greedy.rank(problem) >= cut.rank(problem) > improve(problem, greedy).rank(problem)
+
+
+@pytest.mark.parametrize("field, value", [("max_rounds", -1), ("max_evaluations", 1.5),
+                                          ("max_evaluations", True)])
+def test_bad_params_are_one_line_naming_the_field(field, value):
+    with pytest.raises(InputError) as error:
+        LocalSearchParams(**{field: value})
+    assert str(error.value).startswith(f"{field}: ") and "\n" not in str(error.value)
+
+
+def test_no_rounds_keeps_the_start():
+    problem = tight_problem(0, num_tasks=14, num_robots=3)
+    greedy = GreedyAllocator().allocate(problem)
+    assert improve(problem, greedy, LocalSearchParams(max_rounds=0)) is greedy
