@@ -117,4 +117,4 @@ def test_two_robots_take_turns_in_the_lift_and_reach_the_other_level():
     _, _, positions, _ = world.log[-1]
     assert (positions[:, 0] > SHIFT - 10.0).all()
     status = world._eval(world.bank, "lift_state").lift("lift")
-    assert status.holder is None and status.level == "L2"
+    assert status.riders == () and status.level == "L2"
