@@ -223,7 +223,8 @@ class LiftStatus:
     (``idle``, ``called``: coming empty to the riders' level, ``open``: waiting for the
     riders to board, ``closing``, ``travel``, ``out``: the riders driving out at the target
     level) and ``berths``, where each rider stands in the cabin on the level it boards at
-    (or, ``out``, arrived at); world frame, m."""
+    (or, ``out``, arrived at); world frame, m. ``trip``: while the cabin moves (``called``,
+    ``travel``), (from level, to level, start s, end s), else None."""
 
     lift: str
     level: str
@@ -231,6 +232,7 @@ class LiftStatus:
     waiting: tuple[str, ...] = ()
     phase: str = "idle"
     berths: tuple[tuple[float, float], ...] = ()
+    trip: tuple[str, str, float, float] | None = None
 
     def berth(self, robot: str) -> tuple[float, float] | None:
         """Where rider ``robot`` stands in the cabin, or None if it is no rider."""

@@ -148,7 +148,7 @@ class LiftEvent:
 class _Cabin:
     """One lift's state: see ``LiftStatus``; ``berths`` each rider's berth index,
     ``boarded`` the riders aboard; ``origin`` and ``destination`` the trip's levels;
-    ``until`` when the current call or ride phase ends (s)."""
+    ``since`` and ``until`` when the current call or ride phase began and ends (s)."""
 
     level: str
     riders: tuple[str, ...] = ()
@@ -158,7 +158,16 @@ class _Cabin:
     phase: str = "idle"
     origin: str = ""
     destination: str = ""
+    since: float = 0.0
     until: float = 0.0
+
+    def trip(self) -> tuple[str, str, float, float] | None:
+        """While the cabin moves: (from level, to level, start s, end s)."""
+        if self.phase == "called":
+            return (self.level, self.origin, self.since, self.until)
+        if self.phase == "travel":
+            return (self.origin, self.destination, self.since, self.until)
+        return None
 
 
 def _berths_level(c: _Cabin) -> str:
@@ -248,7 +257,8 @@ class LiftBank(LeafSystem):
     def _calc_lift_state(self, context, output):
         output.set_value(LiftState(tuple(
             LiftStatus(lift.name, c.level, c.riders, c.waiting, c.phase,
-                       tuple(self._berths[k][_berths_level(c)][b] for b in c.berths))
+                       tuple(self._berths[k][_berths_level(c)][b] for b in c.berths),
+                       c.trip())
             for k, (lift, c) in enumerate(zip(self._lifts, self._bank(context).cabins,
                                               strict=True)))))
 
@@ -353,7 +363,7 @@ class LiftBank(LeafSystem):
             c = replace(c, origin=first.from_level, destination=first.to_level,
                         phase="open" if c.level == first.from_level else "called")
             if c.phase == "called":
-                c = replace(c, until=t + self._ride(k, c.level, c.origin))
+                c = replace(c, since=t, until=t + self._ride(k, c.level, c.origin))
         if c.phase in ("called", "open"):
             c = self._boarding(k, c, requests, robots, t, events)
         if c.phase == "called" and t >= c.until - 1e-9:
@@ -363,9 +373,8 @@ class LiftBank(LeafSystem):
         if c.phase == "closing" and t >= c.until - 1e-9:
             events += [LiftEvent(t, self._lifts[k].name, name, "depart", c.level)
                        for name in c.riders]
-            c = replace(c, phase="travel", until=c.until + self._ride(k, c.origin,
-                                                                      c.destination)
-                        - 0.5 * self._params.door_time)
+            c = replace(c, phase="travel", since=c.until, until=c.until + self._ride(
+                k, c.origin, c.destination) - 0.5 * self._params.door_time)
         if c.phase == "travel" and t >= c.until - 1e-9:
             c = self._arrive(k, c, robots, t, moves, events)
         if c.phase == "out":
