@@ -219,7 +219,7 @@ def _add_levels_view(builder: DiagramBuilder, ctx: BuildContext, meshcat: Meshca
     _, _, y0, y1 = layout.bounds
     middle = np.array([0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.5 * top])
     extent = max(x1 - x0, y1 - y0, top)
-    meshcat.SetCameraPose(middle + [0.3 * extent, -0.9 * extent, 0.6 * extent], middle)
+    meshcat.SetCameraPose(middle + [0.3 * extent, -0.8 * extent, 0.45 * extent], middle)
     return view
 
 

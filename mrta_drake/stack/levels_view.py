@@ -32,6 +32,7 @@ FLOOR_COLOR = Rgba(0.85, 0.85, 0.9, 0.35)
 CABIN_COLOR = Rgba(0.2, 0.7, 0.9, 0.45)
 CABIN_HEIGHT = 2.2  # m
 FLOOR_THICKNESS = 0.05  # m
+WALL_HEIGHT = 1.0  # m: walls and furniture drawn at most this high, the floor below seen
 
 
 @dataclass(frozen=True)
@@ -69,7 +70,7 @@ class StackedView:
 
 class LevelsView(LeafSystem):
     """Draws the levels of ``floor_plan`` stacked (``StackedView``) in ``meshcat``: once, each
-    level's floor, walls and furniture; at ``rate_hz`` (publish events only) the robots,
+    level's floor, walls and furniture (at most ``WALL_HEIGHT`` high); at ``rate_hz`` (publish events only) the robots,
     people and lift cabins, cabins moving between floors with their riders.
 
     .. pydrake_system::
@@ -123,16 +124,17 @@ class LevelsView(LeafSystem):
         for k, box in enumerate(floor_plan.obstacles.boxes):
             path = f"{prefix}/building/box_{k}"
             color = WALL_COLOR if box.height >= tall else FURNITURE_COLOR
-            mc.SetObject(path, Box(*box.size, box.height), Rgba(*color))
+            height = min(box.height, WALL_HEIGHT)
+            mc.SetObject(path, Box(*box.size, height), Rgba(*color))
             mc.SetTransform(path, RigidTransform(RollPitchYaw(0.0, 0.0, box.yaw), self._view
-                                                 .point(box.center, 0.5 * box.height,
+                                                 .point(box.center, 0.5 * height,
                                                         _level_of(box.name))))
         for k, cylinder in enumerate(floor_plan.obstacles.cylinders):
             path = f"{prefix}/building/cylinder_{k}"
-            mc.SetObject(path, Cylinder(cylinder.radius, cylinder.height),
-                         Rgba(*FURNITURE_COLOR))
+            height = min(cylinder.height, WALL_HEIGHT)
+            mc.SetObject(path, Cylinder(cylinder.radius, height), Rgba(*FURNITURE_COLOR))
             mc.SetTransform(path, RigidTransform(self._view.point(
-                cylinder.center, 0.5 * cylinder.height, _level_of(cylinder.name))))
+                cylinder.center, 0.5 * height, _level_of(cylinder.name))))
         for lift in self._lifts:
             size = (lift.width or 1.0, lift.depth or 1.0)
             mc.SetObject(f"{prefix}/cabins/{lift.name}", Box(*size, CABIN_HEIGHT), CABIN_COLOR)

@@ -63,7 +63,7 @@ def test_the_view_draws_robots_and_riders_on_their_floors():
     meshcat = FakeMeshcat()
     system = LevelsView(meshcat, plan, LAYOUT, [LIFT], [("a", 0.2), ("b", 0.2)],
                         rate_hz=10.0)
-    assert meshcat.poses["levels/building/box_0"] == pytest.approx((10.0, 9.0, 4.0 + 1.0))
+    assert meshcat.poses["levels/building/box_0"] == pytest.approx((10.0, 9.0, 4.0 + 0.5))
     simulator = Simulator(system)
     context = simulator.get_mutable_context()
     system.GetInputPort("robot_state").FixValue(context, [5.0, 5.0, 0.0, 0.0,
