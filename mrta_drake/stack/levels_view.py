@@ -70,8 +70,9 @@ class StackedView:
 
 class LevelsView(LeafSystem):
     """Draws the levels of ``floor_plan`` stacked (``StackedView``) in ``meshcat``: once, each
-    level's floor, walls and furniture (at most ``WALL_HEIGHT`` high); at ``rate_hz`` (publish events only) the robots,
-    people and lift cabins, cabins moving between floors with their riders.
+    level's floor, walls and furniture (at most ``WALL_HEIGHT`` high); at ``rate_hz``
+    (publish events only) the robots, people and lift cabins, cabins moving between floors
+    with their riders.
 
     .. pydrake_system::
 
