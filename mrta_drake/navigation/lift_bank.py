@@ -25,7 +25,9 @@ class LiftParams:
     """How the lifts move and are shared. ``speed`` (m/s) and ``acceleration`` (m/s^2) are
     Open-RMF's Gazebo lift defaults; ``door_time`` (s) is the doors closing before and
     opening after a ride, half each; a rider within ``board_tolerance`` m of its berth is
-    aboard; a rider farther than ``leave_distance`` m from the cabin's point has left it.
+    aboard; once one is, the doors wait at most ``board_wait`` s for the other riders (those
+    not aboard then wait for the next trip, first in the queue); a rider farther than
+    ``leave_distance`` m from the cabin's point has left it.
     Riders stand ``berth_clearance`` m apart (and from the cabin's walls); lifts whose cabins
     on a level lie within ``bank_distance`` m of each other form a bank, and a robot asking
     for one of them is sent to the one with the shortest expected wait, counting the drive
@@ -36,13 +38,14 @@ class LiftParams:
     door_time: float = 4.0
     board_tolerance: float = 0.5
     leave_distance: float = 2.0
+    board_wait: float = 20.0
     berth_clearance: float = 0.5
     bank_distance: float = 15.0
     approach_speed: float = 0.5
 
     def __post_init__(self):
         require_positive(self, "speed", "acceleration", "board_tolerance", "leave_distance",
-                         "approach_speed")
+                         "approach_speed", "board_wait")
         require_non_negative(self, "door_time", unit=" s")
         require_non_negative(self, "berth_clearance", "bank_distance", unit=" m")
 
@@ -148,7 +151,8 @@ class LiftEvent:
 class _Cabin:
     """One lift's state: see ``LiftStatus``; ``berths`` each rider's berth index,
     ``boarded`` the riders aboard; ``origin`` and ``destination`` the trip's levels;
-    ``since`` and ``until`` when the current call or ride phase began and ends (s)."""
+    ``since`` and ``until`` when the current call or ride phase began and ends (s); while the
+    doors are open, ``since`` is when the first rider boarded."""
 
     level: str
     riders: tuple[str, ...] = ()
@@ -212,7 +216,8 @@ class LiftBank(LeafSystem):
     longer asking leave their queue. Per lift: a free cabin takes the first waiting robot's
     trip (first empty to its level if elsewhere, taking ``ride_time``) and, while its doors
     are open, every waiting robot with the same trip, up to its berths; each rider drives
-    to its berth (within ``board_tolerance``: ``board``); once all are aboard the doors
+    to its berth (within ``board_tolerance``: ``board``); once all are aboard (or
+    ``board_wait`` after the first, the others back to the head of the queue) the doors
     close (half of ``door_time``: ``depart``) and at the end of the ride (``arrive``) the
     riders are relocated by the offset between the two cabins, headings kept; each rider
     ``leave``s once ``leave_distance`` from both cabins' points, and the cabin is free when
@@ -387,7 +392,8 @@ class LiftBank(LeafSystem):
 
     def _boarding(self, k: int, c: _Cabin, requests, robots, t, events) -> _Cabin:
         """Riders who stopped asking drop out; waiting robots with the cabin's trip take
-        free berths; at the open doors, riders at their berths board."""
+        free berths; at the open doors, riders at their berths board, and ``board_wait``
+        after the first did, those not aboard go back to the head of the queue."""
         keep = [i for i, name in enumerate(c.riders)
                 if name in c.boarded or self._asks_for(requests.get(name), k)]
         riders = tuple(c.riders[i] for i in keep)
@@ -400,19 +406,25 @@ class LiftBank(LeafSystem):
                 riders, berths = riders + (name,), berths + (free.pop(0),)
             else:
                 waiting.append(name)
-        boarded = c.boarded
+        boarded, since = c.boarded, c.since
         if c.phase == "open":
             spots = self._berths[k][c.origin]
             for name, b in zip(riders, berths, strict=True):
                 xy = robots[self._names.index(name), :2]
                 if name not in boarded and math.dist(xy, spots[b]) <= \
                         self._params.board_tolerance:
+                    since = since if boarded else t
                     boarded += (name,)
                     events.append(LiftEvent(t, self._lifts[k].name, name, "board", c.level))
+            if boarded and t - since >= self._params.board_wait - 1e-9:
+                late = tuple(name for name in riders if name not in boarded)
+                keep = [i for i, name in enumerate(riders) if name in boarded]
+                riders, berths = tuple(riders[i] for i in keep), tuple(berths[i] for i in keep)
+                waiting = [*late, *waiting]
         if not riders:
             return replace(c, phase="idle" if c.phase == "open" else c.phase, riders=(),
                            berths=(), boarded=(), waiting=tuple(waiting))
-        return replace(c, riders=riders, berths=berths, boarded=boarded,
+        return replace(c, riders=riders, berths=berths, boarded=boarded, since=since,
                        waiting=tuple(waiting))
 
     def _arrive(self, k: int, c: _Cabin, robots, t, moves, events) -> _Cabin:

@@ -133,7 +133,7 @@ def test_a_holder_that_stops_asking_before_boarding_gives_the_cabin_up():
 
 
 @pytest.mark.parametrize("field", ["speed", "acceleration", "board_tolerance",
-                                   "leave_distance", "door_time", "berth_clearance",
+                                   "leave_distance", "door_time", "berth_clearance", "board_wait",
                                    "bank_distance", "approach_speed"])
 def test_bad_parameters_name_the_field(field):
     with pytest.raises(InputError, match=field):
@@ -225,3 +225,17 @@ def test_lifts_far_apart_are_no_bank():
     bench.ask("a", lift="wide")
     bench.run(0.2)
     assert bench.status("wide").riders == ("a",) and bench.status("far").riders == ()
+
+
+def test_the_doors_wait_board_wait_for_a_late_rider_then_leave_without_it():
+    bench = Bench(params=LiftParams(door_time=2.0, board_wait=5.0), lifts=[WIDE])
+    bench.ask("a", lift="wide")
+    bench.ask("b", lift="wide")
+    bench.run(0.2)
+    bench.put("a", bench.status("wide").berth("a"))  # b stays away
+    bench.run(4.5)
+    assert bench.status("wide").phase == "open" and bench.status("wide").riders == ("a", "b")
+    bench.run(1.0)
+    status = bench.status("wide")
+    assert status.phase in ("closing", "travel") and status.riders == ("a",)
+    assert status.waiting == ("b",)
