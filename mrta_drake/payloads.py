@@ -218,16 +218,25 @@ class LiftRequest:
 
 @dataclass(frozen=True)
 class LiftStatus:
-    """One lift: the cabin's ``level``, the ``holder`` robot (or ``None``), the robots
-    ``waiting`` in request order, and the cabin's ``phase`` (``idle``, ``called``: coming
-    empty to the holder's level, ``open``: waiting for the holder to board, ``travel``,
-    ``out``: the holder driving out at the target level)."""
+    """One lift: the cabin's ``level``, the ``riders`` of its current trip (boarding,
+    aboard or driving out), the robots ``waiting`` in request order, the cabin's ``phase``
+    (``idle``, ``called``: coming empty to the riders' level, ``open``: waiting for the
+    riders to board, ``closing``, ``travel``, ``out``: the riders driving out at the target
+    level) and ``berths``, where each rider stands in the cabin on the level it boards at
+    (or, ``out``, arrived at); world frame, m. ``trip``: while the cabin moves (``called``,
+    ``travel``), (from level, to level, start s, end s), else None."""
 
     lift: str
     level: str
-    holder: str | None = None
+    riders: tuple[str, ...] = ()
     waiting: tuple[str, ...] = ()
     phase: str = "idle"
+    berths: tuple[tuple[float, float], ...] = ()
+    trip: tuple[str, str, float, float] | None = None
+
+    def berth(self, robot: str) -> tuple[float, float] | None:
+        """Where rider ``robot`` stands in the cabin, or None if it is no rider."""
+        return self.berths[self.riders.index(robot)] if robot in self.riders else None
 
 
 @dataclass(frozen=True)
@@ -238,6 +247,11 @@ class LiftState:
 
     def lift(self, name: str) -> LiftStatus | None:
         return next((status for status in self.lifts if status.lift == name), None)
+
+    def serving(self, robot: str) -> LiftStatus | None:
+        """The lift ``robot`` waits for or rides, or None."""
+        return next((status for status in self.lifts
+                     if robot in status.riders or robot in status.waiting), None)
 
 
 @dataclass(frozen=True)

@@ -13,9 +13,13 @@ project's ``models/two_floor_clinic/two_floor_clinic.building.yaml``) is a world
    in one plane, 30 m apart (``LevelLayout``), so nothing on one floor sees the other.
 2. ``load_scenario`` and ``simulate`` run it like any scenario. A task whose pickup and
    drop-off are on different floors sends its robot through a lift: its waypoint generator
-   asks the ``lift_bank`` for the lift near the cabin, waits its turn, drives in, and the
-   bank moves it to the cabin on the other floor once the ride's time (doors, then 2 m/s
-   with 1.2 m/s^2 over the floors' height difference) has passed.
+   asks the ``lift_bank`` for the lift near the cabin; the bank sends it to the lift of
+   that bank it waits least for; it waits its turn, drives to its berth in the cabin (a
+   cabin carries as many robots as fit, robots with the same trip ride together), and the
+   bank moves the riders to the cabin on the other floor once the ride's time (doors, then
+   2 m/s with 1.2 m/s^2 over the floors' height difference) has passed. With ``--meshcat``
+   the floors are shown stacked at their elevations (``world.levels_view``), the cabins
+   moving between them.
 3. The run's events (type ``lift``: request, board, depart, arrive, leave) and the summary's
    ``lifts`` section (rides, waits) say what the lifts did; ``LevelLayout.level_of`` tells on
    which floor each task's pickup and drop-off were.

@@ -59,7 +59,7 @@ class _Drive:
     serve at a point whose room another robot still holds (e.g. parked in that room), so
     standing still rather than driving onto the holder; ``began`` when the robot set off
     for its stop (s). ``lift_slot``: waiting for a lift, the robot's place in its queue; -1
-    once it holds the cabin."""
+    once it rides, standing at ``berth`` in the cabin (world frame, m)."""
 
     phase: RobotMode = RobotMode.IDLE
     stop: Stop | None = None
@@ -74,6 +74,7 @@ class _Drive:
     waiting: bool = False
     began: float | None = None
     lift_slot: int = -1
+    berth: tuple[float, float] | None = None
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the state can share it
@@ -203,9 +204,10 @@ class WaypointGenerator(LeafSystem):
     - lift: a route through a lift (``Roadways.lift_edge``: its cabin's node on this level,
       then on the next) is cut there. Within ``lift_request_distance`` of the cabin's point
       the robot requests the lift and waits ``lift_wait_distance`` back along its route
-      (one metre more per robot ahead of it in the lift's queue); holding the cabin it
-      drives to the cabin's point and stands until the lift bank relocates it to the
-      cabin on the next level, then drives on (taking the lanes from there again).
+      (one metre more per robot ahead of it in the queue of the lift of the bank the lift
+      bank chose); a rider drives to its berth in that lift's cabin and stands until the
+      lift bank relocates it to the cabin on the next level, then takes the lanes from
+      there to its stop.
     - enter: once holding the room, drive through the remaining slots and the entry path;
       but while another robot moves within ``door_clearance`` of the entry path or the point
       (e.g. one that had parked in the room, leaving), wait at the slot: two robots in a
@@ -336,7 +338,8 @@ class WaypointGenerator(LeafSystem):
             return WaypointTarget(self._robot)
         if s.phase == RobotMode.LIFT:
             if s.lift_slot < 0:
-                return WaypointTarget(self._robot, True, s.route[s.index], None, True)
+                berth = s.route[s.index] if s.berth is None else s.berth
+                return WaypointTarget(self._robot, True, berth, None, True)
             wait = _back_along(s.route[:s.index + 1],
                                self._params.lift_wait_distance + s.lift_slot)
             return WaypointTarget(self._robot, True, wait, None, True)
@@ -593,19 +596,19 @@ class WaypointGenerator(LeafSystem):
         return s
 
     def _ride(self, s: _Drive, xy, lanes: Roadways, lifts: LiftState) -> _Drive:
-        """Wait for the lift, board it, and drive on once relocated to the next level."""
-        if _distance(xy, s.route[s.index + 1]) <= self._params.waypoint_tolerance:
-            ahead = s.route[s.index + 1:]
-            route = self._splice(ahead, xy, None, s.stop.location, lanes)
+        """Wait for a lift of the bank, drive to the berth the bank gives, and drive on
+        from the cabin once relocated to the next level."""
+        status = lifts.serving(self._robot)
+        if status is None or self._robot not in status.riders:
+            slot = (status.waiting.index(self._robot) if status is not None else 0)
+            return _changed(s, lift_slot=slot, berth=None)
+        berth = status.berth(self._robot)
+        if status.phase == "out" and _distance(xy, berth) <= \
+                self._params.lift_request_distance:
+            route = _points_or_none(lanes.route_from_point(xy, s.stop.location))
             return replace(s, phase=RobotMode.DRIVE if route else RobotMode.WAIT,
-                           route=route or (), index=0, lift_slot=-1)
-        ride = self._roadways.lift_edge(s.route[s.index], s.route[s.index + 1])
-        status = lifts.lift(ride.lift)
-        if status is not None and status.holder == self._robot:
-            return _changed(s, lift_slot=-1)
-        slot = (status.waiting.index(self._robot) if status is not None
-                and self._robot in status.waiting else 0)
-        return _changed(s, lift_slot=slot)
+                           route=route or (), index=0, lift_slot=-1, berth=None)
+        return _changed(s, lift_slot=-1, berth=berth)
 
     def _door_busy(self, place, states: np.ndarray) -> bool:
         """Whether another robot is moving (faster than ``ROBOT_STOPPED_SPEED``) within

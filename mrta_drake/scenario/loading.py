@@ -201,6 +201,9 @@ def check_scenario(scenario: Scenario, file: str) -> None:
     if scenario.world.kind not in ("floor_plan", "ros_map", "rmf_building"):
         raise InputError(path, "world.kind", f"must be floor_plan, ros_map or rmf_building, "
                          f"got {scenario.world.kind!r}")
+    if scenario.world.levels_view not in ("stacked", "side_by_side"):
+        raise InputError(path, "world.levels_view", f"must be stacked or side_by_side, "
+                         f"got {scenario.world.levels_view!r}")
     check_disturbances(scenario.disturbances, [r.name for r in scenario.robots], path)
 
 

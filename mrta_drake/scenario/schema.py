@@ -15,7 +15,9 @@ class WorldConfig:
     (``kind: rmf_building``: its ``level``, or, left out with several levels, all of them
     side by side joined by the lifts (docs/worlds.md); and navigation ``graph``; locations
     and roadways left out are derived from it, see ``world/rmf_scenario.py``); paths are
-    relative to the scenario file.
+    relative to the scenario file. ``levels_view``: how Meshcat shows a building run across
+    levels: ``stacked`` (each level at its elevation) or ``side_by_side`` (as simulated, in
+    one plane).
     ``scenic``: a Scenic 3 program placing objects (beds, carts...) for the scenario's seed,
     with ``scenic_params`` overriding its ``param`` values (see ``scenic_objects.py``)."""
 
@@ -23,6 +25,7 @@ class WorldConfig:
     kind: str = "floor_plan"  # floor_plan | ros_map | rmf_building
     level: str = ""
     graph: int = 0
+    levels_view: str = "stacked"  # stacked | side_by_side
     scenic: str = ""
     scenic_params: dict = field(default_factory=dict)
 

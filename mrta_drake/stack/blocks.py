@@ -281,7 +281,8 @@ def _fifo_lifts() -> BlockType:
     from mrta_drake.navigation.lift_bank import LiftBank, LiftParams
 
     return BlockType(LiftParams, lambda ctx, params: LiftBank(
-        ctx.robot_names, ctx.lifts, params, rate_hz=ctx.rates.lifts))
+        ctx.robot_names, ctx.lifts, params, rate_hz=ctx.rates.lifts,
+        robot_radius=max((r.radius for r in ctx.scenario.robots), default=0.22)))
 
 
 def _grid_astar_planner() -> BlockType:

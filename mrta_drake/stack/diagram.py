@@ -20,6 +20,7 @@ from mrta_drake.scenario.schema import Scenario
 from mrta_drake.stack.blocks import BuildContext, resolve_block
 from mrta_drake.stack.contact_recorder import ContactRecorder
 from mrta_drake.stack.disturbance_schedule import DisturbanceSchedule
+from mrta_drake.stack.levels_view import LevelsView
 from mrta_drake.stack.meshcat_overlay import MeshcatOverlay
 from mrta_drake.stack.run_recorder import RunRecorder
 from mrta_drake.world.plant import Body, World, add_plant_posing, build_world
@@ -143,13 +144,18 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
 
     visualizer = None
     if meshcat is not None:
-        _look_at_floor_plan(meshcat, floor_plan.bounds)
-        visualizer = MeshcatVisualizer.AddToBuilder(
-            builder, world.scene_graph, meshcat,
-            MeshcatVisualizerParams(publish_period=1.0 / scenario.rates.meshcat,
-                                    role=Role.kIllustration, prefix="hospital"))
+        view = None
+        if lifts is not None and scenario.world.levels_view == "stacked":
+            view = _add_levels_view(builder, ctx, meshcat, state, humans, lifts).view
+        else:
+            _look_at_floor_plan(meshcat, floor_plan.bounds)
+            visualizer = MeshcatVisualizer.AddToBuilder(
+                builder, world.scene_graph, meshcat,
+                MeshcatVisualizerParams(publish_period=1.0 / scenario.rates.meshcat,
+                                        role=Role.kIllustration, prefix="hospital"))
         overlay = builder.AddNamedSystem("meshcat_overlay", MeshcatOverlay(
-            meshcat, scenario, rate_hz=scenario.rates.meshcat))
+            meshcat, scenario, rate_hz=scenario.rates.meshcat,
+            view=None if view is None else view.points))
         builder.Connect(planner.GetOutputPort("paths"), overlay.GetInputPort("paths"))
         builder.Connect(queues.GetOutputPort("queue_state"), overlay.GetInputPort("queue_state"))
 
@@ -186,6 +192,35 @@ def _add_lifts(builder: DiagramBuilder, ctx: BuildContext, make, robots: LeafSys
                         bank.GetInputPort(f"request_{name}"))
         builder.Connect(bank.GetOutputPort("lift_state"), generator.GetInputPort("lift_state"))
     return bank
+
+
+def _add_levels_view(builder: DiagramBuilder, ctx: BuildContext, meshcat: Meshcat, state,
+                     humans: LeafSystem | None, lifts: LeafSystem) -> LevelsView:
+    """The stacked levels' drawing (``world.levels_view: stacked``), camera on it."""
+    from mrta_drake.world.rmf_scenario import imported_levels
+
+    world = ctx.scenario.world
+    layout = imported_levels(world.floor_plan, world.graph).layout
+    people = ()
+    if humans is not None:
+        states = humans.GetOutputPort("human_states").Eval(humans.CreateDefaultContext())
+        people = tuple(zip(states.names, map(float, states.radii), strict=True))
+    view = builder.AddNamedSystem("levels_view", LevelsView(
+        meshcat, ctx.floor_plan, layout, ctx.lifts,
+        [(r.name, r.radius) for r in ctx.scenario.robots], people,
+        rate_hz=ctx.scenario.rates.meshcat))
+    builder.Connect(state, view.GetInputPort("robot_state"))
+    builder.Connect(lifts.GetOutputPort("lift_state"), view.GetInputPort("lift_state"))
+    if humans is not None:
+        builder.Connect(humans.GetOutputPort("human_states"), view.GetInputPort("human_states"))
+    x0 = min(p.bounds[0] - p.offset for p in layout.levels)
+    x1 = max(p.bounds[1] - p.offset for p in layout.levels)
+    top = max(p.elevation for p in layout.levels)
+    _, _, y0, y1 = layout.bounds
+    middle = np.array([0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.5 * top])
+    extent = max(x1 - x0, y1 - y0, top)
+    meshcat.SetCameraPose(middle + [0.3 * extent, -0.8 * extent, 0.45 * extent], middle)
+    return view
 
 
 def _look_at_floor_plan(meshcat: Meshcat, bounds) -> None:

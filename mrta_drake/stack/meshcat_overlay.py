@@ -34,12 +34,14 @@ class MeshcatOverlay(LeafSystem):
 
     Inputs: ``paths`` (FleetPaths), ``queue_state`` (QueueState), ``disturbances``
     (Disturbances): each of the scenario's blockages is a red translucent box, shown only
-    while it is in force."""
+    while it is in force. ``view``, if given, maps the (3, K) points drawn (world frame, m)
+    to where they are shown (the stacked levels' ``StackedView.points``)."""
 
     def __init__(self, meshcat: Meshcat, scenario: Scenario, *, rate_hz: float,
-                 prefix: str = "traffic"):
+                 prefix: str = "traffic", view=None):
         super().__init__()
         self._meshcat = meshcat
+        self._at = view or (lambda xyz: np.asarray(xyz, float))
         self._prefix = prefix
         self._robots = [r.name for r in scenario.robots]
         self._blockages = [b.name for b in scenario.disturbances.blockages]
@@ -68,33 +70,37 @@ class MeshcatOverlay(LeafSystem):
                     for s in (1.0, -1.0):
                         starts.append(tip)
                         ends.append(tip - 0.35 * d + s * 0.2 * side)
-            start = np.array([[x, y, Z] for x, y in starts]).T
-            end = np.array([[x, y, Z] for x, y in ends]).T
+            start = self._at(np.array([[x, y, Z] for x, y in starts]).T)
+            end = self._at(np.array([[x, y, Z] for x, y in ends]).T)
             self._meshcat.SetLineSegments(f"{self._prefix}/lanes", start, end, 2.0, LANE_COLOR)
         for location in scenario.locations:
             if location.point:
                 path = f"{self._prefix}/locations/{location.id}"
                 self._meshcat.SetObject(path, Cylinder(0.3, 0.01), LOCATION_COLOR)
-                self._meshcat.SetTransform(path, RigidTransform([*location.point, Z]))
+                self._meshcat.SetTransform(path, self._pose(*location.point, Z))
             for k, slot in enumerate(location.queue):
                 path = f"{self._prefix}/queues/{location.id}/{k}"
                 self._meshcat.SetObject(path, Cylinder(0.2, 0.01), SLOT_COLOR)
-                self._meshcat.SetTransform(path, RigidTransform([*slot, Z]))
+                self._meshcat.SetTransform(path, self._pose(*slot, Z))
         for blockage in scenario.disturbances.blockages:
             x_min, x_max, y_min, y_max = blockage.box
             path = f"{self._prefix}/blockages/{blockage.name}"
             self._meshcat.SetObject(path, Box(x_max - x_min, y_max - y_min, BLOCKAGE_HEIGHT),
                                     BLOCKAGE_COLOR)
-            self._meshcat.SetTransform(path, RigidTransform(
-                [0.5 * (x_min + x_max), 0.5 * (y_min + y_max), 0.5 * BLOCKAGE_HEIGHT]))
+            self._meshcat.SetTransform(path, self._pose(
+                0.5 * (x_min + x_max), 0.5 * (y_min + y_max), 0.5 * BLOCKAGE_HEIGHT))
             self._meshcat.SetProperty(path, "visible", False)
+
+    def _pose(self, x: float, y: float, z: float) -> RigidTransform:
+        return RigidTransform(self._at(np.array([[x], [y], [z]]))[:, 0])
 
     def _draw(self, context) -> None:
         paths: FleetPaths = self.get_input_port(0).Eval(context)
         for k, path in enumerate(paths.paths):
             name = f"{self._prefix}/paths/{path.robot}"
             if path.status == PATH_OK and len(path.points) >= 2:
-                vertices = np.column_stack([path.points, np.full(len(path.points), Z)]).T
+                vertices = self._at(np.column_stack([path.points,
+                                                     np.full(len(path.points), Z)]).T)
                 r, g, b = ROBOT_COLORS[k % len(ROBOT_COLORS)]
                 self._meshcat.SetLine(name, np.asfortranarray(vertices), 3.0, Rgba(r, g, b, 1))
                 self._meshcat.SetProperty(name, "visible", True)

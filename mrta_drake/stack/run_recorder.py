@@ -201,8 +201,8 @@ class RunRecorder(LeafSystem):
         if self._ports["lift_state"].HasValue(context):
             for lift in self._ports["lift_state"].Eval(context).lifts:
                 waiting.update(lift.waiting)
-                if lift.holder is not None and lift.phase != "out":
-                    waiting.add(lift.holder)
+                if lift.phase != "out":
+                    waiting.update(lift.riders)
         holders = {queue.room: queue.holder for queue in queues.rooms}
         modes = np.full(self._n, RobotMode.IDLE, dtype=np.int8)
         for k, name in enumerate(self.robot_names):

@@ -5,9 +5,9 @@ navigations (``rmf_navigation``, lanes into lift cabins kept) are shifted alike,
 nodes and task locations named ``<level>/<name>``, location ids numbered on across levels.
 Each lift stops on each level it serves where a lane of the graph reaches its cabin (the
 cabin's node); between every two stops of a lift there is a ride each way
-(``LiftEdgeConfig``), costing the ride's time (``navigation.lift_bank.ride_time``) at the
-nominal speed ``speed`` as metres, so routes and the allocator's travel-time estimate count
-it.
+(``LiftEdgeConfig``), costing the ride's expected time
+(``navigation.lift_bank.expected_ride_time``) at the nominal speed ``speed`` as metres, so
+routes and the allocator's travel-time estimate count it.
 
 Metres, world frame (x east, y north).
 """
@@ -16,7 +16,12 @@ import dataclasses
 from dataclasses import dataclass
 
 from mrta_drake.errors import InputError
-from mrta_drake.navigation.lift_bank import LiftParams, LiftSpec, LiftStop, ride_time
+from mrta_drake.navigation.lift_bank import (
+    LiftParams,
+    LiftSpec,
+    LiftStop,
+    expected_ride_time,
+)
 from mrta_drake.scenario.schema import LiftEdgeConfig, LocationConfig, RoadwaysConfig
 from mrta_drake.world.floor_plan import FloorPlan
 from mrta_drake.world.levels import MIN_LEVEL_GAP, LevelLayout, combined_floor_plan
@@ -46,9 +51,10 @@ class BuildingLevels:
 
     def roadways_with_lifts(self, params: LiftParams, speed: float) -> RoadwaysConfig:
         """The roadways plus a ride each way between every two stops of every lift,
-        ``length`` = the ride's time (``params``) times ``speed`` (m/s)."""
+        ``length`` = the ride's expected time (``expected_ride_time``: waiting, boarding,
+        riding; ``params``) times ``speed`` (m/s)."""
         rides = [LiftEdgeConfig(lift.name, a.node, b.node, a.level, b.level,
-                                ride_time(params, a.elevation, b.elevation) * speed)
+                                expected_ride_time(params, a.elevation, b.elevation) * speed)
                  for lift in self.lifts for a in lift.stops for b in lift.stops if a is not b]
         return dataclasses.replace(self.roadways, lift_edges=rides)
 
@@ -80,8 +86,8 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
                 cabin_nodes[lift.name, name] = f"{name}/{cabin}"
     lifts = []
     for lift in building.lifts.values():
-        stops = tuple(LiftStop(name, tuple(nodes[cabin_nodes[lift.name, name]]),
-                               building.levels[name].elevation, cabin_nodes[lift.name, name])
+        stops = tuple(_stop(lift, name, building.levels[name].elevation,
+                            cabin_nodes[lift.name, name], nodes, layout)
                       for name in building.levels if (lift.name, name) in cabin_nodes)
         if len(stops) < 2:
             notes.append(f"lift {lift.name}: left out, its cabin is on lanes of graph {graph} "
@@ -89,13 +95,24 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
             continue
         initial = lift.initial_floor if any(s.level == lift.initial_floor for s in stops) \
             else stops[0].level
-        lifts.append(LiftSpec(lift.name, stops, initial))
+        lifts.append(LiftSpec(lift.name, stops, initial, lift.width, lift.depth, lift.yaw))
     if len(building.levels) > 1 and not lifts:
         raise InputError(building.source, "lifts", f"no lift joins two levels on lanes of "
                          f"graph {graph}: robots could not leave their level")
     return BuildingLevels(layout, floor_plan, locations, RoadwaysConfig(nodes=nodes,
                                                                          edges=edges),
                           tuple(lifts), notes)
+
+
+def _stop(lift, level: str, elevation: float, node: str, nodes, layout: LevelLayout
+          ) -> LiftStop:
+    """``lift``'s stop on ``level``: its cabin ``node``, centre and (first) door there, in
+    the combined plane."""
+    doors = lift.level_doors.get(level, ())
+    door = (layout.to_world(level, lift.to_world(lift.doors[doors[0]].xy)) if doors
+            else None)
+    return LiftStop(level, tuple(nodes[node]), elevation, node,
+                    layout.to_world(level, lift.xy), door)
 
 
 def _cabin_node(navigation: BuildingNavigation, level, lift) -> str | None:

@@ -64,7 +64,7 @@ class RelocatedRobots(FakeRobots):
 class LiftWorld(World):
     """World's set-up with the two-level roadways and a lift bank."""
 
-    def __init__(self, starts, plan_source):
+    def __init__(self, starts, plan_source, cabin_size=0.0):
         self.roadways = roadways = two_level_world()
         self.robots = [f"r{i}" for i in range(len(starts))]
         builder = DiagramBuilder()
@@ -73,7 +73,7 @@ class LiftWorld(World):
         fake = builder.AddSystem(RelocatedRobots([roadways.place(s).point for s in starts]))
         lift = LiftSpec("lift", (LiftStop("L1", CABIN, 0.0, "L1/cab"),
                                  LiftStop("L2", (CABIN[0] + SHIFT, CABIN[1]), 4.0, "L2/cab")),
-                        "L1")
+                        "L1", cabin_size, cabin_size)
         self.bank = builder.AddSystem(LiftBank(self.robots, [lift], LiftParams(door_time=2.0),
                                                rate_hz=10.0))
         builder.Connect(fake.GetOutputPort("state"), self.bank.GetInputPort("robot_state"))
@@ -117,4 +117,19 @@ def test_two_robots_take_turns_in_the_lift_and_reach_the_other_level():
     _, _, positions, _ = world.log[-1]
     assert (positions[:, 0] > SHIFT - 10.0).all()
     status = world._eval(world.bank, "lift_state").lift("lift")
-    assert status.holder is None and status.level == "L2"
+    assert status.riders == () and status.level == "L2"
+
+
+def test_two_robots_with_the_same_trip_ride_one_cabin_together():
+    world = LiftWorld([0, 0], fixed([1], [1]), cabin_size=2.5)
+    world.run(until=150)
+    for i in (0, 1):
+        (visit,) = world.progress(i).visits
+        assert visit.location == 1
+    events = [(e.kind, e.robot, e.time) for e in world._eval(world.bank, "events")]
+    boards = [e for e in events if e[0] == "board"]
+    arrivals = [e for e in events if e[0] == "arrive"]
+    assert sorted(robot for _, robot, _ in boards) == ["r0", "r1"]
+    assert len(arrivals) == 2 and arrivals[0][2] == arrivals[1][2]  # one ride
+    _, _, positions, _ = world.log[-1]
+    assert (positions[:, 0] > SHIFT - 10.0).all()

@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 
 from mrta_drake.errors import InputError
-from mrta_drake.navigation.lift_bank import LiftParams, ride_time
+from mrta_drake.navigation.lift_bank import LiftParams, expected_ride_time, ride_time
 from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.world.levels import MIN_LEVEL_GAP, LevelLayout
 from mrta_drake.world.rmf_building import load_building
@@ -47,7 +47,10 @@ def test_a_buildings_levels_are_joined_by_rides_costing_their_time():
     (up, down) = roadways_config.lift_edges
     assert (up.from_level, up.to_level, down.from_level, down.to_level) == ("L1", "L2",
                                                                           "L2", "L1")
-    assert up.length == pytest.approx(ride_time(params, 0.0, 4.0) * 0.5)
+    # The ride's expected time: the ride, half a ride calling the cabin, boarding.
+    assert up.length == pytest.approx((1.5 * ride_time(params, 0.0, 4.0) + params.door_time)
+                                      * 0.5)
+    assert up.length == pytest.approx(expected_ride_time(params, 0.0, 4.0) * 0.5)
     # The allocator's estimate counts the ride's time, not the jump across the plane.
     roadways = Roadways(roadways_config, levels.locations)
     ids = {loc.name: loc.id for loc in levels.locations}
