@@ -74,6 +74,14 @@ def segment_crosses_box(a, b, box) -> bool:
     return True
 
 
+def _on_segment(p, a, b, tolerance: float = 1e-3) -> bool:
+    """Whether point ``p`` lies on the segment from ``a`` to ``b`` (within ``tolerance``,
+    m)."""
+    d = np.subtract(b, a)
+    t = float(np.clip(np.dot(np.subtract(p, a), d) / max(float(d @ d), 1e-18), 0.0, 1.0))
+    return float(np.linalg.norm(np.subtract(p, a) - t * d)) <= tolerance
+
+
 def _without_repeats(points: list[np.ndarray]) -> np.ndarray:
     kept = [points[0]]
     for point in points[1:]:
@@ -124,6 +132,11 @@ class Roadways:
                                LiftEdgeConfig] = {}
         for k, hop in enumerate(config.lift_edges):
             self._add_lift_edge(hop, f"roadways.lift_edges[{k}]")
+        self._segment_of: dict[tuple[tuple[float, float], tuple[float, float]],
+                               tuple[int, bool]] = {}
+        for k, names in enumerate(config.single_file):
+            self._add_single_file(k, names)
+        self.segment_count = len(config.single_file)
 
         self._places: dict[int, Place] = {}
         for i, location in enumerate(locations):
@@ -144,6 +157,20 @@ class Roadways:
         ends = tuple(tuple(float(v) for v in self.node_position(n))
                      for n in (hop.from_node, hop.to_node))
         self._lift_edges[ends] = hop
+
+    def _add_single_file(self, k: int, names: Sequence[str]) -> None:
+        """Segment ``k``: every lane between two of its nodes ``names``."""
+        field = f"roadways.single_file[{k}]"
+        if not isinstance(names, list | tuple) or len(names) < 2:
+            raise InputError(self._file, field,
+                             f"expected a list of 2 or more roadway nodes, got {names!r}")
+        for name in names:
+            if not isinstance(name, str | int) or name not in self.graph:
+                raise InputError(self._file, field, f"unknown node {name!r}")
+        order = {name: i for i, name in enumerate(names)}
+        for a, b in self.graph.subgraph(order).edges:
+            ends = tuple(tuple(float(v) for v in self.node_position(n)) for n in (a, b))
+            self._segment_of.setdefault(ends, (k, order[a] < order[b]))
 
     def _place(self, location: LocationConfig, field: str) -> Place:
         file = self._file
@@ -233,6 +260,22 @@ class Roadways:
         if not self._lift_edges:
             return None
         return self._lift_edges.get(((float(a[0]), float(a[1])), (float(b[0]), float(b[1]))))
+
+    def segment_of(self, a, b) -> tuple[int, bool] | None:
+        """The single-file segment the lane from the roadway node at point ``a`` to the one
+        at ``b`` belongs to, as (index into ``single_file``, whether it runs along the
+        segment's node order), or None."""
+        if not self._segment_of:
+            return None
+        ends = ((float(a[0]), float(a[1])), (float(b[0]), float(b[1])))
+        if ends in self._segment_of or self.node_at(b) is not None:
+            return self._segment_of.get(ends)
+        start = self.node_at(a)  # ``b`` a queue slot on a lane from ``a``?
+        for n in () if start is None else self.graph.successors(start):
+            end = self.node_position(n)
+            if _on_segment(b, self.node_position(start), end):
+                return self._segment_of.get((ends[0], (float(end[0]), float(end[1]))))
+        return None
 
     def route_length(self, points) -> float:
         """Length (m) of the route ``points`` (k, 2), a lift ride counted as its edge's

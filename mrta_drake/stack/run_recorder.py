@@ -209,6 +209,9 @@ class RunRecorder(LeafSystem):
             stop = progress[k].current_stop
             if stop is None:
                 continue
+            if name in queues.segment_waiting:  # holding back for a single-file stretch
+                modes[k] = RobotMode.QUEUE
+                continue
             target = self._targets[k].Eval(context)
             if not target.active:
                 continue

@@ -110,7 +110,8 @@ class BuildingNavigation:
                  "approach_node": loc.approach_node, "parking": loc.parking}
                 for loc in self.locations],
             "roadways": {"nodes": dict(self.roadways.nodes),
-                         "edges": [list(e) for e in self.roadways.edges]},
+                         "edges": [list(e) for e in self.roadways.edges],
+                         "single_file": [list(seg.nodes) for seg in self.single_file]},
         }
 
 
@@ -209,8 +210,8 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
     notes = []
     if lanes.single_file:
         notes.append(f"{len(lanes.single_file)} single-file segment(s), where two lanes do not "
-                     "fit or a task location is not a dead end (robots are not yet queued "
-                     "for them)")
+                     "fit or a task location is not a dead end (driven by one robot at a "
+                     "time)")
     if lanes.tight:
         notes.append(f"{len(lanes.tight)} lane(s) nearer walls than "
                      f"{LaneParams().clearance:g} m")
@@ -231,10 +232,12 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
         (v, w), ends, strict=True) if vertex in held}  # the lane ends beside each
     segments = np.array([[roadways.nodes[a], roadways.nodes[b]] for a, b in roadways.edges],
                         dtype=float)
+    single = {(a, b) for segment in lanes.single_file
+              for a in segment.nodes for b in segment.nodes if graph.has_edge(a, b)}
     locations = []
     for location_id, i in enumerate(candidates):
         node = lines.vertex_node[i]
-        queue, entry, approach = _queue(graph, node, holding, floor_plan, params)
+        queue, entry, approach = _queue(graph, node, holding, single, floor_plan, params)
         point = np.asarray(roadways.nodes[node], dtype=float)
         locations.append(LocationConfig(
             id=location_id, name=node, point=_listed(point), queue=queue, entry=entry,
@@ -273,15 +276,20 @@ def _mutually_reachable(nodes: list[str], graph: nx.DiGraph) -> set[str]:
     return best
 
 
-def _queue(graph: nx.DiGraph, node: str, holding: set[str], floor_plan: FloorPlan,
-           params: BuildingNavigationParams):
+def _queue(graph: nx.DiGraph, node: str, holding: set[str], single: set[tuple[str, str]],
+           floor_plan: FloorPlan, params: BuildingNavigationParams):
     """Queue slots (head first), entry points and approach node of the location at
-    ``node``: slots laid back along the lanes that lead to it."""
+    ``node``: slots laid back along the lanes that lead to it, stopping where those lanes
+    are single file (``single``: their (from, to) nodes), where a waiting robot would block
+    both ways, unless that leaves no room for the head slot."""
     path = _approach_path(graph, node)
     positions = [graph.nodes[n]["pos"] for n in path]
     along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(positions, axis=0),
                                                             axis=1))])
     head = params.head_gap
+    cut = next((k for k in range(len(path) - 1) if (path[k + 1], path[k]) in single), None)
+    if cut is not None and along[cut] >= head:
+        path, positions, along = path[:cut + 1], positions[:cut + 1], along[:cut + 1]
     span = head + (params.queue_slots - 1) * params.slot_spacing
     for k, name in enumerate(path[1:], start=1):
         if name in holding and along[k] <= span:
