@@ -123,3 +123,22 @@ def test_hospital_navigation_has_every_leg():
                 leg = roadways.leg(a, b)
                 assert len(leg) >= 2 and roadways.leg_length(a, b) > 0
                 np.testing.assert_array_equal(leg[-1], roadways.place(b).tail)
+
+
+def test_single_file_segments_map_their_lanes_both_ways():
+    config, locations = loop_world()
+    roadways = Roadways(replace(config, single_file=[["N20", "N10"]]), locations)
+    assert roadways.segment_count == 1
+    assert roadways.segment_of([20, 1.5], [10, 1.5]) == (0, True)  # along the node order
+    assert roadways.segment_of([0, 0], [10, 0]) is None
+    # A queue slot lying on the segment's lane counts as on the segment.
+    assert roadways.segment_of([20, 1.5], [16.0, 1.5]) == (0, True)
+    assert roadways.segment_of([30, 1.5], [22.0, 1.5]) is None
+
+
+def test_bad_single_file_segment_is_one_line():
+    config, locations = loop_world()
+    message = _error(replace(config, single_file=[["N20", "Q"]]), locations)
+    assert message.startswith("nav.yaml: roadways.single_file[0]: ") and "'Q'" in message
+    assert "roadways.single_file[0]" in _error(replace(config, single_file=[["N20"]]),
+                                               locations)
