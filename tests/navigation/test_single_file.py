@@ -17,7 +17,7 @@ def corridor():
     third, 10 m of ordinary lane (A30-A40) between."""
     xs = range(0, 60, 10)
     nodes = {f"A{x}": [float(x), 0.0] for x in xs}
-    edges = [[f"A{a}", f"A{b}"] for a, b in zip(xs, xs[1:])]
+    edges = [[f"A{a}", f"A{b}"] for a, b in zip(xs[:-1], xs[1:], strict=True)]
     edges += [[b, a] for a, b in edges]
     locations = [LocationConfig(id=i, name=f"L{i}", point=[x, 3.0], queue=[[x, 1.0]],
                                 exit_node=f"A{x}", approach_node=f"A{x}")
