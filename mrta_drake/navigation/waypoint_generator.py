@@ -210,11 +210,12 @@ class WaypointGenerator(LeafSystem):
       (one metre more per robot ahead of it in the lift's queue); holding the cabin it
       drives to the cabin's point and stands until the lift bank relocates it to the
       cabin on the next level, then drives on (taking the lanes from there again).
-    - single file: while driving, the robot asks the room queues for the single-file
-      segments of the stretch ahead (``single_file.need``) from
+    - single file: while driving or entering, the robot asks the room queues for the
+      single-file segments of the stretch ahead (``single_file.need``) from
       ``single_file.request_distance`` before it, and stands (target inactive) within
       ``single_file.hold_distance`` of it, or in it, until it holds them all; it gives
-      them up ``single_file.clear_distance`` past the stretch, or when it stops driving.
+      them up ``single_file.clear_distance`` past the stretch, or when it stops driving
+      (queueing, serving).
     - enter: once holding the room, drive through the remaining slots and the entry path;
       but while another robot moves within ``door_clearance`` of the entry path or the point
       (e.g. one that had parked in the room, leaving), wait at the slot: two robots in a
@@ -589,9 +590,9 @@ class WaypointGenerator(LeafSystem):
         return s
 
     def _lanes(self, s: _Drive, robots: _Robots, queues: QueueState) -> Need:
-        """The single-file segments the robot needs on its route (only while driving it),
-        holding back until the room queues grant them all."""
-        if s.phase != RobotMode.DRIVE or self._roadways.segment_count == 0:
+        """The single-file segments the robot needs on its route (only while driving it or
+        entering a room), holding back until the room queues grant them all."""
+        if s.phase not in (RobotMode.DRIVE, RobotMode.ENTER) or not self._roadways.segment_count:
             return NOTHING
         wanted = need(self._roadways, s.route, s.index, robots.xy, self._params.single_file)
         if wanted.hold and queues.holds_segments(self._robot, wanted.segments):
