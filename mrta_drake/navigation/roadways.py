@@ -82,6 +82,13 @@ def _on_segment(p, a, b, tolerance: float = 1e-3) -> bool:
     return float(np.linalg.norm(np.subtract(p, a) - t * d)) <= tolerance
 
 
+def _shortest(graph, source: str, target: str) -> list[str] | None:
+    try:
+        return nx.shortest_path(graph, source, target, weight="length")
+    except nx.NetworkXNoPath:
+        return None
+
+
 def _without_repeats(points: list[np.ndarray]) -> np.ndarray:
     kept = [points[0]]
     for point in points[1:]:
@@ -296,7 +303,7 @@ class Roadways:
             if from_location == to_location:
                 raise ValueError(f"a leg joins two different locations, got {from_location} twice")
             start = self.place(from_location)
-            route = self.route_from_node(start.exit_node, to_location)
+            route = self.route_from_node(start.exit_node, to_location, self._past_queue(start))
             self._legs[key] = None if route is None else _without_repeats(
                 [start.point, *start.entry[::-1], *route])
         return self._legs[key]
@@ -307,15 +314,33 @@ class Roadways:
             return 0.0
         return self.route_length(self.leg(from_location, to_location))
 
-    def route_from_node(self, node: str, to_location: int) -> np.ndarray | None:
+    def route_from_node(self, node: str, to_location: int,
+                        avoid: tuple[str, str] | None = None) -> np.ndarray | None:
         """The polyline (k, 2) from roadway node ``node`` along the lanes to the tail slot of
-        ``to_location``'s queue, or None if the lanes do not lead there."""
+        ``to_location``'s queue, or None if the lanes do not lead there; not along the lane
+        ``avoid`` (from, to nodes) where another way leads there."""
         target = self.place(to_location)
-        try:
-            names = nx.shortest_path(self.graph, node, target.approach_node, weight="length")
-        except nx.NetworkXNoPath:
+        names = None
+        if avoid is not None:
+            names = _shortest(nx.restricted_view(self.graph, [], [avoid]), node,
+                              target.approach_node)
+        names = names or _shortest(self.graph, node, target.approach_node)
+        if names is None:
             return None
         return _without_repeats([self.node_position(n) for n in names] + [target.tail])
+
+    def _past_queue(self, place: Place) -> tuple[str, str] | None:
+        """The single-file lane from ``place``'s point (its exit node) on which its own
+        queue waits, which a robot leaving it could not pass: legs leave the other way where
+        they can. None when the exit node is not on the point or the queue is elsewhere."""
+        if not self._segment_of or not np.array_equal(
+                self.node_position(place.exit_node), place.point):
+            return None
+        for n in self.graph.successors(place.exit_node):
+            if (self.segment_of(place.point, self.node_position(n)) is not None
+                    and _on_segment(place.queue[0], place.point, self.node_position(n))):
+                return (place.exit_node, n)
+        return None
 
     def route_from_point(self, xy, to_location: int) -> np.ndarray | None:
         """The polyline (k, 2) from the roadway node nearest ``xy`` that leads to
