@@ -84,7 +84,7 @@ class RoadwaysConfig:
     """A directed lane graph: ``nodes`` name -> [x, y]; ``edges`` [from, to] one-way;
     ``lift_edges``: rides between levels (a building with lifts); ``single_file``: segments
     driven both ways on one lane, each the roadway node names along it in order, which
-    robots drive through one at a time (reserved like a room)."""
+    robots drive one way at a time (reserved like a room)."""
 
     nodes: dict[str, list[float]] = field(default_factory=dict)
     edges: list[list[str]] = field(default_factory=list)
