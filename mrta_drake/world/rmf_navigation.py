@@ -239,12 +239,13 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
     locations = []
     for location_id, i in enumerate(candidates):
         node = lines.vertex_node[i]
-        queue, entry, approach = _queue(graph, node, holding, single, floor_plan, params)
+        queue, entry, approach, zone = _queue(graph, node, holding, single, floor_plan,
+                                              params)
         point = np.asarray(roadways.nodes[node], dtype=float)
         locations.append(LocationConfig(
             id=location_id, name=node, point=_listed(point), queue=queue, entry=entry,
             exit_node=node, approach_node=approach,
-            parking=_parking(point, segments, floor_plan, params)))
+            parking=[] if zone else _parking(point, segments, floor_plan, params)))
     return BuildingNavigation(roadways, locations, lines, lanes.single_file, notes)
 
 
@@ -286,7 +287,7 @@ def _queue(graph: nx.DiGraph, node: str, holding: set[str], single: set[tuple[st
     both ways, unless that leaves no room for the head slot. The head slot is the
     unnamed holding point (``holding``) within the queue's length, else, where the lanes
     into the point are single file for at most ``zone_length``, it lies beyond them and
-    they are the entry (only the room's holder drives them)."""
+    they are the entry (only the room's holder drives them): then ``zone`` is True."""
     path = _approach_path(graph, node, single)
     positions = [graph.nodes[n]["pos"] for n in path]
     along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(positions, axis=0),
@@ -295,9 +296,10 @@ def _queue(graph: nx.DiGraph, node: str, holding: set[str], single: set[tuple[st
     held = next((along[k] for k, name in enumerate(path[1:], start=1)
                  if name in holding and along[k] <= span), None)
     lead = _single_file_lead(path, single)
+    zone = held is None and 0 < lead < len(path) - 1 and along[lead] <= params.zone_length
     if held is not None:
         head = held
-    elif 0 < lead < len(path) - 1 and along[lead] <= params.zone_length:
+    elif zone:
         head = along[lead] + params.head_gap
     else:
         head = params.head_gap
@@ -324,7 +326,7 @@ def _queue(graph: nx.DiGraph, node: str, holding: set[str], single: set[tuple[st
     approach = path[min(beyond, len(path) - 1)]
     entry = [_listed(positions[k]) for k in range(1, len(path))
              if along[k] < distances[0]][::-1]
-    return [_listed(s) for s in slots], entry, approach
+    return [_listed(s) for s in slots], entry, approach, zone
 
 
 def _approach_path(graph: nx.DiGraph, node: str, single: set[tuple[str, str]]
