@@ -239,8 +239,9 @@ class WaypointGenerator(LeafSystem):
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
     current stop is elsewhere and it is more than ``release_distance`` from the room's
     point, or, with no stop left, once it is more than ``reach_tolerance`` from the point
-    (at once where there is no parking spot). It keeps naming that room in ``release``
-    until the queues no longer show it as the holder.
+    (at once where there is no parking spot, or where another robot stands on the spot it
+    drives to: every spot was taken). It keeps naming that room in ``release`` until the
+    queues no longer show it as the holder.
 
     Optional input ``disturbances`` (abstract ``Disturbances``):
 
@@ -628,6 +629,14 @@ class WaypointGenerator(LeafSystem):
                 and self._robot in status.waiting else 0)
         return _changed(s, lift_slot=slot)
 
+    def _spot_taken(self, spot, states: np.ndarray) -> bool:
+        """Whether another robot stands within ``parking_clearance`` of parking ``spot``
+        (every spot taken: this robot waits beside the point, not holding its room)."""
+        others = np.delete(states[:, :2], self._index, axis=0)
+        return bool(len(others)) and bool(
+            (np.linalg.norm(others - np.asarray(spot), axis=1)
+             <= self._params.parking_clearance).any())
+
     def _door_busy(self, place, states: np.ndarray) -> bool:
         """Whether another robot is moving (faster than ``ROBOT_STOPPED_SPEED``) within
         ``door_clearance`` of ``place``'s entry path or point."""
@@ -654,9 +663,10 @@ class WaypointGenerator(LeafSystem):
             if queue.holder != self._robot:
                 continue
             if s.stop is None:
-                point = self._roadways.place(queue.room).point
+                place = self._roadways.place(queue.room)
                 if (s.phase != RobotMode.PARK
-                        or _distance(robots.xy, point) > self._params.reach_tolerance):
+                        or _distance(robots.xy, place.point) > self._params.reach_tolerance
+                        or self._spot_taken(place.parking[s.index], robots.states)):
                     return queue.room
                 continue
             point = self._roadways.place(queue.room).point
