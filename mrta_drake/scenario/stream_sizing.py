@@ -4,10 +4,11 @@
 building's estimated travel times between its task locations (``Roadways.travel_time_estimate``,
 s), the number of robots and the run's duration (s):
 
-1. **Where**: a task's loaded leg must take at most a quarter of the run
+1. **Where**: a task's loaded leg must take at most a fifth of the run
    (``LEG_SHARE``), so that the leg to its pickup and a wait for the task before it fit
-   too. The task locations used are the largest set whose legs both ways all fit
-   (a building whose locations are far apart, e.g. a campus, uses a neighbourhood of them);
+   too, and the last batch (2.) can still arrive after 0 s. The task locations used are
+   the largest set whose legs both ways all fit (a building whose locations are far
+   apart, e.g. a campus, uses a neighbourhood of them);
    fewer than two: the run is too short for this building (``InputError``).
 2. **When**: a task takes at most ``2 x longest leg + 2 x service time`` (to the pickup,
    then to the drop-off) among those locations; the last batch arrives two such task
@@ -29,7 +30,7 @@ import numpy as np
 
 from mrta_drake.errors import InputError
 
-LEG_SHARE = 0.25  # of the run: the longest loaded leg
+LEG_SHARE = 0.2  # of the run: the longest loaded leg
 UTILISATION = 0.5  # of the fleet's time spent on tasks
 BATCH_SIZE = (1, 2)  # tasks per batch, uniform
 
