@@ -86,6 +86,8 @@ def test_queue_lies_back_along_the_approach_with_its_head_on_a_holding_point():
     assert navigation.single_file[1].nodes == ("v18_0", "lab")
     assert lab.queue == [[11.6, -6.45], [10.6, -6.45], [9.6, -6.45]]
     assert lab.entry == [[12.0, -6.45], [12.0, -5.55]]
+    assert lab.parking == []  # a robot parked behind the door would block the holder
+    assert pantry.parking  # the pantry's queue heads on its holding point: no zone
     for location in navigation.locations:
         assert all(off_lanes(slot) < 2e-3 for slot in location.queue), location.name  # mm
         gaps = np.linalg.norm(np.diff(np.array(location.queue), axis=0), axis=1)
