@@ -164,11 +164,15 @@ class QueueRequest:
     ``room`` is the location the robot wants to be queued for (and later hold), or ``None``.
     ``release`` names a room the robot is done with; only the room's holder can release it.
     A robot that stops naming a room it is queued for (but does not hold) leaves that queue.
+    ``segments``: the single-file segments the robot wants to hold now, all together, each
+    with the way it drives through it (``Roadways.segment_of``: (index, forward)); it gives
+    up each one as soon as it stops naming it.
     """
 
     robot: str
     room: int | None = None
     release: int | None = None
+    segments: tuple[tuple[int, bool], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -185,10 +189,29 @@ class RoomQueue:
 
 
 @dataclass(frozen=True)
+class SegmentHold:
+    """Who drives through one single-file segment: ``holders`` (robots, all one way), and
+    that way, ``forward`` (along its nodes' order)."""
+
+    holders: tuple[str, ...] = ()
+    forward: bool = True
+
+
+FREE_SEGMENT = SegmentHold()
+
+
+@dataclass(frozen=True)
 class QueueState:
-    """All rooms' queues, keyed by room id."""
+    """All rooms' queues, keyed by room id; ``segments``: who holds each single-file
+    segment; ``segment_waiting``: the robots waiting for segments, first come first."""
 
     rooms: tuple[RoomQueue, ...] = ()
+    segments: tuple[SegmentHold, ...] = ()
+    segment_waiting: tuple[str, ...] = ()
+
+    def holds_segments(self, robot: str, segments: tuple[tuple[int, bool], ...]) -> bool:
+        """Whether ``robot`` holds every one of ``segments`` ((index, forward) pairs)."""
+        return all(robot in self.segments[k].holders for k, _ in segments)
 
     def room(self, room: int) -> RoomQueue | None:
         for queue in self.rooms:

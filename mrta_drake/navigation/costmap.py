@@ -23,6 +23,7 @@ INSCRIBED = 253
 LETHAL = 254
 
 DEFAULT_RESOLUTION = 0.05  # m per cell, as the original Nav2 costmap
+MAX_CELLS = 4_000_000  # cells of a costmap at most: 10,000 m^2 at the default resolution
 _FOOTPRINTS = 256  # obstacle footprints remembered per costmap (all dropped when full)
 
 
@@ -44,6 +45,17 @@ class CostmapParams:
             raise ValueError("need 0 <= robot_radius <= inflation_radius")
         if self.cost_scaling < 0.0:
             raise ValueError("cost_scaling must be non-negative")
+
+
+def resolution_for(bounds, max_cells: int = MAX_CELLS) -> float:
+    """The costmap resolution (m per cell) for a world of ``bounds`` = (x_min, x_max,
+    y_min, y_max), m: the default, or for a world so large that it would need more than
+    ``max_cells`` cells, the smallest whole multiple of it that needs at most that many
+    (a 320 x 250 m campus: 0.15 m), so that the costmap and the planner's per-cell arrays
+    (about 120 bytes a cell) stay within half a gigabyte."""
+    area = (bounds[1] - bounds[0]) * (bounds[3] - bounds[2])
+    factor = max(1, math.ceil(math.sqrt(area / max_cells) / DEFAULT_RESOLUTION - 1e-9))
+    return round(factor * DEFAULT_RESOLUTION, 6)
 
 
 def inflation_cost(distance, robot_radius: float, inflation_radius: float,

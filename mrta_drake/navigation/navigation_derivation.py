@@ -16,8 +16,8 @@ of a navigation file (``locations:`` and ``roadways:``, as ``models/hospital/nav
 6. each location's queue, entry, exit, approach and parking (``location_derivation``),
    checked by ``Roadways`` (every location reachable from every other along the lanes).
 
-The result also lists the single-file segments outside the access zones (``single_file``,
-roadway node ids along each), shared by both directions one robot at a time.
+The result also lists the single-file segments outside the access zones
+(``roadways.single_file``, roadway node ids along each), driven one way at a time.
 """
 
 import dataclasses
@@ -67,9 +67,9 @@ def derive_navigation(world: OccupancyGrid | FloorPlan | Obstacles, points: list
                       params: NavigationParams = NavigationParams(),
                       points_file: str | None = None) -> dict:
     """Locations (ids in ``points`` order) and lanes for ``world``, as a navigation file's
-    content: ``locations`` (``LocationConfig`` fields), ``roadways`` (``RoadwaysConfig``
-    fields) and ``single_file`` (lists of roadway node ids). ``points_file`` names the
-    points' file in errors."""
+    content: ``locations`` (``LocationConfig`` fields) and ``roadways`` (``RoadwaysConfig``
+    fields, ``single_file`` the lists of roadway node ids of the single-file segments
+    outside the access zones). ``points_file`` names the points' file in errors."""
     field = ClearanceField.from_grid(_grid(world, params.resolution))
     names = {point.name for point in points}
     graph = centreline_graph(field, params.lanes, params.skeleton,
@@ -89,8 +89,8 @@ def derive_navigation(world: OccupancyGrid | FloorPlan | Obstacles, points: list
     return {
         "locations": [dataclasses.asdict(location) for location in locations],
         "roadways": {"nodes": dict(lanes.roadways.nodes),
-                     "edges": [list(edge) for edge in lanes.roadways.edges]},
-        "single_file": _outside_zones(lanes, [path for path, _ in zones]),
+                     "edges": [list(edge) for edge in lanes.roadways.edges],
+                     "single_file": _outside_zones(lanes, [path for path, _ in zones])},
     }
 
 

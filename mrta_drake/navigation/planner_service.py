@@ -7,7 +7,12 @@ import numpy as np
 from pydrake.common.value import Value
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
-from mrta_drake.navigation.costmap import MAX_NON_OBSTACLE, Costmap, CostmapParams
+from mrta_drake.navigation.costmap import (
+    MAX_NON_OBSTACLE,
+    Costmap,
+    CostmapParams,
+    resolution_for,
+)
 from mrta_drake.navigation.grid_planner import GridPlanner, PlannerParams
 from mrta_drake.payloads import (
     NO_DISTURBANCES,
@@ -141,8 +146,10 @@ class PlannerService(LeafSystem):
                        replan_rate_hz: float, target_check_rate_hz: float
                        ) -> "PlannerService":
         """A block planning over ``obstacles`` rasterized on ``bounds`` = (x_min, x_max,
-        y_min, y_max) (m) at the costmap's default resolution."""
-        costmap = Costmap.from_obstacles(obstacles, bounds, params.costmap)
+        y_min, y_max) (m) at the costmap's default resolution, coarser for very large
+        worlds (``costmap.resolution_for``)."""
+        costmap = Costmap.from_obstacles(obstacles, bounds, params.costmap,
+                                         resolution_for(bounds))
         return cls(GridPlanner(costmap, params.planner), robot_names,
                    replan_rate_hz=replan_rate_hz, target_check_rate_hz=target_check_rate_hz,
                    cost_resting_robots=params.cost_resting_robots)

@@ -74,6 +74,21 @@ def segment_crosses_box(a, b, box) -> bool:
     return True
 
 
+def _on_segment(p, a, b, tolerance: float = 1e-3) -> bool:
+    """Whether point ``p`` lies on the segment from ``a`` to ``b`` (within ``tolerance``,
+    m)."""
+    d = np.subtract(b, a)
+    t = float(np.clip(np.dot(np.subtract(p, a), d) / max(float(d @ d), 1e-18), 0.0, 1.0))
+    return float(np.linalg.norm(np.subtract(p, a) - t * d)) <= tolerance
+
+
+def _shortest(graph, source: str, target: str) -> list[str] | None:
+    try:
+        return nx.shortest_path(graph, source, target, weight="length")
+    except nx.NetworkXNoPath:
+        return None
+
+
 def _without_repeats(points: list[np.ndarray]) -> np.ndarray:
     kept = [points[0]]
     for point in points[1:]:
@@ -124,6 +139,11 @@ class Roadways:
                                LiftEdgeConfig] = {}
         for k, hop in enumerate(config.lift_edges):
             self._add_lift_edge(hop, f"roadways.lift_edges[{k}]")
+        self._segment_of: dict[tuple[tuple[float, float], tuple[float, float]],
+                               tuple[int, bool]] = {}
+        for k, names in enumerate(config.single_file):
+            self._add_single_file(k, names)
+        self.segment_count = len(config.single_file)
 
         self._places: dict[int, Place] = {}
         for i, location in enumerate(locations):
@@ -144,6 +164,20 @@ class Roadways:
         ends = tuple(tuple(float(v) for v in self.node_position(n))
                      for n in (hop.from_node, hop.to_node))
         self._lift_edges[ends] = hop
+
+    def _add_single_file(self, k: int, names: Sequence[str]) -> None:
+        """Segment ``k``: every lane between two of its nodes ``names``."""
+        field = f"roadways.single_file[{k}]"
+        if not isinstance(names, list | tuple) or len(names) < 2:
+            raise InputError(self._file, field,
+                             f"expected a list of 2 or more roadway nodes, got {names!r}")
+        for name in names:
+            if not isinstance(name, str | int) or name not in self.graph:
+                raise InputError(self._file, field, f"unknown node {name!r}")
+        order = {name: i for i, name in enumerate(names)}
+        for a, b in self.graph.subgraph(order).edges:
+            ends = tuple(tuple(float(v) for v in self.node_position(n)) for n in (a, b))
+            self._segment_of.setdefault(ends, (k, order[a] < order[b]))
 
     def _place(self, location: LocationConfig, field: str) -> Place:
         file = self._file
@@ -234,6 +268,22 @@ class Roadways:
             return None
         return self._lift_edges.get(((float(a[0]), float(a[1])), (float(b[0]), float(b[1]))))
 
+    def segment_of(self, a, b) -> tuple[int, bool] | None:
+        """The single-file segment the lane from the roadway node at point ``a`` to the one
+        at ``b`` belongs to, as (index into ``single_file``, whether it runs along the
+        segment's node order), or None."""
+        if not self._segment_of:
+            return None
+        ends = ((float(a[0]), float(a[1])), (float(b[0]), float(b[1])))
+        if ends in self._segment_of or self.node_at(b) is not None:
+            return self._segment_of.get(ends)
+        start = self.node_at(a)  # ``b`` a queue slot on a lane from ``a``?
+        for n in () if start is None else self.graph.successors(start):
+            end = self.node_position(n)
+            if _on_segment(b, self.node_position(start), end):
+                return self._segment_of.get((ends[0], (float(end[0]), float(end[1]))))
+        return None
+
     def route_length(self, points) -> float:
         """Length (m) of the route ``points`` (k, 2), a lift ride counted as its edge's
         ``length``."""
@@ -253,7 +303,7 @@ class Roadways:
             if from_location == to_location:
                 raise ValueError(f"a leg joins two different locations, got {from_location} twice")
             start = self.place(from_location)
-            route = self.route_from_node(start.exit_node, to_location)
+            route = self.route_from_node(start.exit_node, to_location, self._past_queue(start))
             self._legs[key] = None if route is None else _without_repeats(
                 [start.point, *start.entry[::-1], *route])
         return self._legs[key]
@@ -264,15 +314,33 @@ class Roadways:
             return 0.0
         return self.route_length(self.leg(from_location, to_location))
 
-    def route_from_node(self, node: str, to_location: int) -> np.ndarray | None:
+    def route_from_node(self, node: str, to_location: int,
+                        avoid: tuple[str, str] | None = None) -> np.ndarray | None:
         """The polyline (k, 2) from roadway node ``node`` along the lanes to the tail slot of
-        ``to_location``'s queue, or None if the lanes do not lead there."""
+        ``to_location``'s queue, or None if the lanes do not lead there; not along the lane
+        ``avoid`` (from, to nodes) where another way leads there."""
         target = self.place(to_location)
-        try:
-            names = nx.shortest_path(self.graph, node, target.approach_node, weight="length")
-        except nx.NetworkXNoPath:
+        names = None
+        if avoid is not None:
+            names = _shortest(nx.restricted_view(self.graph, [], [avoid]), node,
+                              target.approach_node)
+        names = names or _shortest(self.graph, node, target.approach_node)
+        if names is None:
             return None
         return _without_repeats([self.node_position(n) for n in names] + [target.tail])
+
+    def _past_queue(self, place: Place) -> tuple[str, str] | None:
+        """The single-file lane from ``place``'s point (its exit node) on which its own
+        queue waits, which a robot leaving it could not pass: legs leave the other way where
+        they can. None when the exit node is not on the point or the queue is elsewhere."""
+        if not self._segment_of or not np.array_equal(
+                self.node_position(place.exit_node), place.point):
+            return None
+        for n in self.graph.successors(place.exit_node):
+            if (self.segment_of(place.point, self.node_position(n)) is not None
+                    and _on_segment(place.queue[0], place.point, self.node_position(n))):
+                return (place.exit_node, n)
+        return None
 
     def route_from_point(self, xy, to_location: int) -> np.ndarray | None:
         """The polyline (k, 2) from the roadway node nearest ``xy`` that leads to

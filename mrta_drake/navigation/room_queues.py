@@ -1,11 +1,19 @@
-"""First-come first-served queues for all rooms: one holder per room at a time."""
+"""First-come first-served queues for all rooms and single-file segments: one holder per
+room, or segment, at a time."""
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 
 from pydrake.common.value import Value
 from pydrake.systems.framework import LeafSystem
 
-from mrta_drake.payloads import QueueRequest, QueueState, RoomQueue
+from mrta_drake.payloads import (
+    FREE_SEGMENT,
+    QueueRequest,
+    QueueState,
+    RoomQueue,
+    SegmentHold,
+)
 
 
 class RoomQueues(LeafSystem):
@@ -38,6 +46,20 @@ class RoomQueues(LeafSystem):
     Queues are unbounded: which physical slot a waiting robot uses is the waypoint
     generator's business (robots beyond the last slot wait behind it). ``holders`` optionally
     names robots that hold rooms at the start (e.g. robots that start inside them).
+
+    The ``segments`` single-file segments (0 .. segments - 1) are granted in the same update,
+    after the rooms, from each request's ``segments`` (the set the robot wants now):
+
+    1. Release: a holder that no longer names a segment gives it up.
+    2. Wait: a robot naming a segment it does not hold waits (in the order it first did so;
+       new ones in robot order); one that no longer does stops waiting.
+    3. Grant: in waiting order, a robot gets all the segments it names at once when each
+       is free or held by robots driving it the same way, and none is named by a robot
+       before it still waiting; else it gets none.
+
+    All or nothing, so a robot that asks for every segment of a single-file stretch at its
+    start never holds one part of it while waiting for another part; robots driving one way
+    may follow each other in, never meet one driving the other way.
     """
 
     def __init__(
@@ -47,6 +69,7 @@ class RoomQueues(LeafSystem):
         *,
         rate_hz: float,
         holders: Mapping[int, str] | None = None,
+        segments: int = 0,
     ):
         super().__init__()
         holders = dict(holders or {})
@@ -55,7 +78,9 @@ class RoomQueues(LeafSystem):
                 raise ValueError(f"initial holder {robot!r} of room {room}: unknown robot or room")
         self._robots = tuple(robot_names)
         self._rooms = tuple(rooms)
-        initial = QueueState(tuple(RoomQueue(room, holders.get(room)) for room in self._rooms))
+        self._segments = segments
+        initial = QueueState(tuple(RoomQueue(room, holders.get(room)) for room in self._rooms),
+                             segments=(FREE_SEGMENT,) * segments)
         self._state_index = self.DeclareAbstractState(Value[object](initial))
         self._requests = [
             self.DeclareAbstractInputPort(f"request_{robot}", Value[object](QueueRequest(robot)))
@@ -70,9 +95,41 @@ class RoomQueues(LeafSystem):
     def _update(self, context, state):
         old = context.get_abstract_state(self._state_index).get_value()
         requests = [port.Eval(context) for port in self._requests]
-        if self._changes_anything(old, requests):  # else ``state`` already holds ``old``
-            state.get_mutable_abstract_state(self._state_index).set_value(
-                self._applied(old, requests))
+        new = self._applied(old, requests) if self._changes_anything(old, requests) else old
+        if self._segments:
+            holds, waiting = self._segments_applied(old, requests)
+            if holds != old.segments or waiting != old.segment_waiting:
+                new = dataclasses.replace(new, segments=holds, segment_waiting=waiting)
+        if new is not old:  # else ``state`` already holds ``old``
+            state.get_mutable_abstract_state(self._state_index).set_value(new)
+
+    def _segments_applied(self, old: QueueState, requests: list[QueueRequest]
+                          ) -> tuple[tuple[SegmentHold, ...], tuple[str, ...]]:
+        """The segments' holders and waiting robots after ``requests`` (class docstring)."""
+        wanted = {robot: dict(request.segments)
+                  for robot, request in zip(self._robots, requests, strict=True)}
+        holds = [SegmentHold(tuple(r for r in hold.holders if k in wanted[r]), hold.forward)
+                 for k, hold in enumerate(old.segments)]
+
+        def needs(robot):
+            return any(robot not in holds[k].holders for k in wanted[robot])
+
+        def open_to(robot):
+            return all(not holds[k].holders or holds[k].forward == way
+                       for k, way in wanted[robot].items())
+
+        order = [r for r in old.segment_waiting if needs(r)]
+        order += [r for r in self._robots if r not in order and needs(r)]
+        waiting, named = [], set()
+        for robot in order:
+            if open_to(robot) and named.isdisjoint(wanted[robot]):
+                for k, way in wanted[robot].items():
+                    if robot not in holds[k].holders:
+                        holds[k] = SegmentHold((*holds[k].holders, robot), way)
+            else:
+                waiting.append(robot)
+                named.update(wanted[robot])
+        return tuple(holds), tuple(waiting)
 
     def _changes_anything(self, old: QueueState, requests: list[QueueRequest]) -> bool:
         """False if applying ``requests`` to ``old`` gives ``old`` itself (the hot path: most
@@ -109,5 +166,5 @@ class RoomQueues(LeafSystem):
         for room, queue in waiting.items():
             if holder[room] is None and queue:
                 holder[room] = queue.pop(0)
-        return QueueState(
-            tuple(RoomQueue(room, holder[room], tuple(waiting[room])) for room in self._rooms))
+        return dataclasses.replace(old, rooms=tuple(
+            RoomQueue(room, holder[room], tuple(waiting[room])) for room in self._rooms))

@@ -9,6 +9,7 @@ from pydrake.common.value import Value
 from pydrake.systems.framework import BasicVector, LeafSystem
 
 from mrta_drake.navigation.roadways import Roadways
+from mrta_drake.navigation.single_file import NOTHING, Need, SingleFileParams, need
 from mrta_drake.payloads import (
     NO_DISTURBANCES,
     ROBOT_STATE_SIZE,
@@ -48,6 +49,7 @@ class WaypointParams:
     lift_request_distance: float = 4.0  # ask for a lift this close to its cabin's point
     lift_wait_distance: float = 3.0  # wait for it this far back along the route from the
     # cabin's point, one more metre per robot ahead in its queue
+    single_file: SingleFileParams = SingleFileParams()  # holding single-file segments
 
 
 @dataclass(frozen=True)
@@ -59,7 +61,8 @@ class _Drive:
     serve at a point whose room another robot still holds (e.g. parked in that room), so
     standing still rather than driving onto the holder; ``began`` when the robot set off
     for its stop (s). ``lift_slot``: waiting for a lift, the robot's place in its queue; -1
-    once it rides, standing at ``berth`` in the cabin (world frame, m)."""
+    once it rides, standing at ``berth`` in the cabin (world frame, m). ``lanes``: the
+    single-file segments it needs now, and whether it stands until it holds them."""
 
     phase: RobotMode = RobotMode.IDLE
     stop: Stop | None = None
@@ -75,6 +78,7 @@ class _Drive:
     began: float | None = None
     lift_slot: int = -1
     berth: tuple[float, float] | None = None
+    lanes: Need = NOTHING
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the state can share it
@@ -208,6 +212,12 @@ class WaypointGenerator(LeafSystem):
       bank chose); a rider drives to its berth in that lift's cabin and stands until the
       lift bank relocates it to the cabin on the next level, then takes the lanes from
       there to its stop.
+    - single file: while driving or entering, the robot asks the room queues for the
+      single-file segments of the stretch ahead (``single_file.need``) from
+      ``single_file.request_distance`` before it, and stands (target inactive) within
+      ``single_file.hold_distance`` of it, or in it, until it holds them all; it gives
+      them up ``single_file.clear_distance`` past the stretch, or when it stops driving
+      (queueing, serving).
     - enter: once holding the room, drive through the remaining slots and the entry path;
       but while another robot moves within ``door_clearance`` of the entry path or the point
       (e.g. one that had parked in the room, leaving), wait at the slot: two robots in a
@@ -231,8 +241,9 @@ class WaypointGenerator(LeafSystem):
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
     current stop is elsewhere and it is more than ``release_distance`` from the room's
     point, or, with no stop left, once it is more than ``reach_tolerance`` from the point
-    (at once where there is no parking spot). It keeps naming that room in ``release``
-    until the queues no longer show it as the holder.
+    (at once where there is no parking spot, or where another robot stands on the spot it
+    drives to: every spot was taken). It keeps naming that room in ``release`` until the
+    queues no longer show it as the holder.
 
     Optional input ``disturbances`` (abstract ``Disturbances``):
 
@@ -319,7 +330,7 @@ class WaypointGenerator(LeafSystem):
             outputs = self._last_outputs = _Outputs(
                 s, self._target(s),
                 QueueRequest(self._robot, s.stop.location if s.phase in _ASKING_PHASES
-                             else None, s.release),
+                             else None, s.release, s.lanes.segments),
                 RobotProgress(self._robot, s.visits, s.last_location, s.stop, s.detours),
                 self._lift_request(s))
         return outputs
@@ -334,7 +345,7 @@ class WaypointGenerator(LeafSystem):
         if s.phase == RobotMode.PARK:
             parking = _point(self._roadways.place(s.last_location).parking[s.index])
             return WaypointTarget(self._robot, True, parking, None, True)
-        if s.stop is None or s.phase == RobotMode.WAIT or s.waiting:
+        if s.stop is None or s.phase == RobotMode.WAIT or s.waiting or s.lanes.hold:
             return WaypointTarget(self._robot)
         if s.phase == RobotMode.LIFT:
             if s.lift_slot < 0:
@@ -380,6 +391,7 @@ class WaypointGenerator(LeafSystem):
             s = self._follow_plan(s, _first_to_do(stops, s.visits), robots, lanes, t)
             s = self._advance(s, robots, t, queues, stops, lanes, lifts)
         s = _changed(s, release=self._release(s, robots, queues))
+        s = _changed(s, lanes=self._lanes(s, robots, queues))
         if s.stop is not None and (old.stop is None or old.stop.key != s.stop.key):
             s = replace(s, began=t)
         if s is not old:  # ``state`` comes holding the current state
@@ -581,6 +593,16 @@ class WaypointGenerator(LeafSystem):
                 s = self._start(s, following, xy, lanes, t)
         return s
 
+    def _lanes(self, s: _Drive, robots: _Robots, queues: QueueState) -> Need:
+        """The single-file segments the robot needs on its route (only while driving it or
+        entering a room), holding back until the room queues grant them all."""
+        if s.phase not in (RobotMode.DRIVE, RobotMode.ENTER) or not self._roadways.segment_count:
+            return NOTHING
+        wanted = need(self._roadways, s.route, s.index, robots.xy, self._params.single_file)
+        if wanted.hold and queues.holds_segments(self._robot, wanted.segments):
+            return Need(wanted.segments)
+        return wanted
+
     def _to_lift(self, s: _Drive, xy) -> _Drive:
         """Into the lift phase within ``lift_request_distance`` of the cabin where the
         route ahead next takes a lift."""
@@ -610,6 +632,14 @@ class WaypointGenerator(LeafSystem):
                            route=route or (), index=0, lift_slot=-1, berth=None)
         return _changed(s, lift_slot=-1, berth=berth)
 
+    def _spot_taken(self, spot, states: np.ndarray) -> bool:
+        """Whether another robot stands within ``parking_clearance`` of parking ``spot``
+        (every spot taken: this robot waits beside the point, not holding its room)."""
+        others = np.delete(states[:, :2], self._index, axis=0)
+        return bool(len(others)) and bool(
+            (np.linalg.norm(others - np.asarray(spot), axis=1)
+             <= self._params.parking_clearance).any())
+
     def _door_busy(self, place, states: np.ndarray) -> bool:
         """Whether another robot is moving (faster than ``ROBOT_STOPPED_SPEED``) within
         ``door_clearance`` of ``place``'s entry path or point."""
@@ -636,9 +666,10 @@ class WaypointGenerator(LeafSystem):
             if queue.holder != self._robot:
                 continue
             if s.stop is None:
-                point = self._roadways.place(queue.room).point
+                place = self._roadways.place(queue.room)
                 if (s.phase != RobotMode.PARK
-                        or _distance(robots.xy, point) > self._params.reach_tolerance):
+                        or _distance(robots.xy, place.point) > self._params.reach_tolerance
+                        or self._spot_taken(place.parking[s.index], robots.states)):
                     return queue.room
                 continue
             point = self._roadways.place(queue.room).point

@@ -272,7 +272,7 @@ def _fifo_queues() -> BlockType:
             if location is not None:
                 holders.setdefault(location, name)
         return RoomQueues(ctx.robot_names, ctx.roadways.location_ids, rate_hz=ctx.rates.queues,
-                          holders=holders)
+                          holders=holders, segments=ctx.roadways.segment_count)
 
     return BlockType(NoParams, make)
 

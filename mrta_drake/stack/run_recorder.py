@@ -136,6 +136,7 @@ class RunRecorder(LeafSystem):
         self._current_keys: list[str | None] = [None] * self._n
         self._last_revision = None
         self._last_rooms: dict[int, tuple] = {}
+        self._last_segments: tuple = ((), ())
         self._last_failures = 0
         self._allocator_events = ()
         self._timeline = None
@@ -209,6 +210,9 @@ class RunRecorder(LeafSystem):
             stop = progress[k].current_stop
             if stop is None:
                 continue
+            if name in queues.segment_waiting:  # holding back for a single-file stretch
+                modes[k] = RobotMode.QUEUE
+                continue
             target = self._targets[k].Eval(context)
             if not target.active:
                 continue
@@ -267,6 +271,11 @@ class RunRecorder(LeafSystem):
                 self._last_rooms[queue.room] = now
                 self._event({"time": t, "type": "room", "room": queue.room,
                              "holder": queue.holder, "waiting": list(queue.waiting)})
+        if queues.segments and (queues.segments, queues.segment_waiting) != self._last_segments:
+            self._last_segments = (queues.segments, queues.segment_waiting)
+            self._event({"time": t, "type": "segments", "waiting": list(queues.segment_waiting),
+                         "held": {str(k): list(hold.holders)
+                                  for k, hold in enumerate(queues.segments) if hold.holders}})
 
     def _note_failures(self, context, t: float, telemetry: ControllerTelemetry) -> None:
         paths = self._ports["paths"].Eval(context)

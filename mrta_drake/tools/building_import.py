@@ -18,6 +18,7 @@ A building with several levels and no ``level`` gets one folder running them all
 joined by the lifts (``levels_import``).
 """
 
+import dataclasses
 import math
 import os
 import shutil
@@ -28,7 +29,9 @@ import yaml
 
 from mrta_drake.control.barriers import SafetyDistances
 from mrta_drake.errors import InputError
-from mrta_drake.scenario.schema import RoadwaysConfig
+from mrta_drake.navigation.roadways import Roadways
+from mrta_drake.scenario.schema import RoadwaysConfig, TasksConfig
+from mrta_drake.scenario.stream_sizing import BATCH_SIZE, StreamSize, size_stream
 from mrta_drake.world.floor_plan import FloorPlan
 from mrta_drake.world.rmf_building import Building, Level
 from mrta_drake.world.rmf_navigation import BuildingNavigation
@@ -118,8 +121,9 @@ def _write_level(building: Building, level_name: str, out_dir: str, options: Imp
     _write_navigation(os.path.join(out_dir, "navigation.yaml"), building, level_name,
                       options.graph, navigation)
     scenario = os.path.join(out_dir, "scenario.yaml")
+    stream = servable_stream(navigation, options, len(starts), building.source)
     write_scenario(scenario, os.path.basename(building.source), level_name, options, starts,
-                    humans, wall_safety(navigation.roadways, world.floor_plan))
+                    humans, wall_safety(navigation.roadways, world.floor_plan), stream)
     report.scenarios.append(scenario)
     roadways = navigation.roadways
     report.lines.append(
@@ -127,6 +131,11 @@ def _write_level(building: Building, level_name: str, out_dir: str, options: Imp
         f"{len(roadways.nodes)} roadway nodes, {len(roadways.edges)} one-way lanes, "
         f"{len(world.floor_plan.obstacles)} obstacles; wrote {scenario}")
     report.lines += [f"{level_name}: {note}" for note in navigation.notes]
+    used = (f"the {len(stream.names)} task locations near each other" if stream.names
+            else "every task location")
+    report.lines.append(f"{level_name}: {len(stream.times)} task batches arriving until "
+                        f"{stream.end:g} s, between {used} (docs/worlds.md, \"The task "
+                        "stream\")")
     if world.left_out:
         report.lines.append(f"{level_name}: {len(world.left_out)} model(s) left out, too near "
                             f"a lane: {'; '.join(world.left_out)}")
@@ -161,6 +170,23 @@ def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: Floor
             return chosen
     raise InputError(None, "--robots", f"{count} robots do not fit: the level's lane nodes "
                      f"give {len(chosen)} free start spots")
+
+
+def servable_stream(navigation: BuildingNavigation, options: ImportOptions, robots: int,
+                    source: str) -> StreamSize:
+    """The task stream ``robots`` robots can serve in ``options.duration`` on
+    ``navigation`` (``scenario.stream_sizing``), from the allocator's default estimate of
+    the travel times."""
+    tasks = TasksConfig()
+    roadways = Roadways(RoadwaysConfig(nodes=dict(navigation.roadways.nodes),
+                                       edges=list(navigation.roadways.edges)),
+                        navigation.locations, source)
+    stream = size_stream(roadways.travel_time_estimate(tasks.estimate_speed), robots,
+                         options.duration, tasks.service_time, source)
+    if len(stream.locations) == len(navigation.locations):
+        return stream
+    return dataclasses.replace(stream, names=tuple(navigation.locations[i].name
+                                                   for i in stream.locations))
 
 
 def wall_safety(roadways: RoadwaysConfig, floor_plan: FloorPlan) -> float:
@@ -239,18 +265,19 @@ def _write_navigation(path: str, building: Building, level: str, graph: int,
 
 
 def write_scenario(path: str, building_file: str, level: str, options: ImportOptions,
-                   starts, humans: dict, safety: float) -> None:
+                   starts, humans: dict, safety: float, stream: StreamSize | None = None,
+                   ) -> None:
     """Writes the imported scenario to ``path``: the building's ``level`` ("" for every
-    level), robots at ``starts``, the ``humans`` section, a generated task stream, and the
-    controller's wall safety distance when ``safety`` (m) is below the default."""
+    level), robots at ``starts``, the ``humans`` section, a generated task stream (sized
+    by ``stream`` when given, else ``options.tasks_per_robot``), and the controller's wall
+    safety distance when ``safety`` (m) is below the default."""
     content = {
         "world": {"kind": "rmf_building", "floor_plan": building_file, "level": level,
                   "graph": options.graph},
         "locations": "navigation.yaml",
         "roadways": "navigation.yaml",
         "robots": [{"name": f"robot{k + 1}", "start": start} for k, start in enumerate(starts)],
-        "tasks": {"generate": {"rate": round(options.tasks_per_robot * len(starts), 6),
-                               "batch_size": [1, 2], "slack": [2.0, 4.0]}},
+        "tasks": {"generate": _generate(options, len(starts), stream)},
         "seed": options.seed,
         "duration": float(options.duration),
     }
@@ -263,6 +290,19 @@ def write_scenario(path: str, building_file: str, level: str, options: ImportOpt
     header = (f"# {building_file}, {where}: imported by `mrta-sim import` (seed "
               f"{options.seed}).\n# Run: mrta-sim run {os.path.basename(path)}\n")
     write_yaml(path, header, content)
+
+
+def _generate(options: ImportOptions, robots: int, stream: StreamSize | None) -> dict:
+    """The ``tasks.generate`` block."""
+    if stream is None:
+        return {"rate": round(options.tasks_per_robot * robots, 6),
+                "batch_size": [1, 2], "slack": [2.0, 4.0]}
+    block = {"times": list(stream.times), "batch_size": list(BATCH_SIZE),
+             "slack": [2.0, 4.0]}
+    if stream.names:  # a neighbourhood of the task locations
+        block["pickup_weights"] = dict.fromkeys(stream.names, 1.0)
+        block["dropoff_weights"] = dict.fromkeys(stream.names, 1.0)
+    return block
 
 
 def write_yaml(path: str, header: str, content: dict) -> None:

@@ -60,7 +60,8 @@ def import_ros_map(map_path: str, points_path: str, out_dir: str,
     locations, lanes = navigation["locations"], navigation["roadways"]["edges"]
     return ImportReport([scenario], [
         f"{len(locations)} locations, {len(navigation['roadways']['nodes'])} roadway nodes, "
-        f"{len(lanes)} one-way lanes, {len(navigation['single_file'])} single-file segments; "
+        f"{len(lanes)} one-way lanes, "
+        f"{len(navigation['roadways']['single_file'])} single-file segments; "
         f"wrote {scenario}"])
 
 

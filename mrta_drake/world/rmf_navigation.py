@@ -66,6 +66,8 @@ class BuildingNavigationParams:
     parking_distance: float = 1.4
     parking_lane_gap: float = 0.7
     through_lifts: bool = False  # keep the lanes into lift cabins (several levels)
+    zone_length: float = 12.0  # m: single-file lanes into a point up to this long are its
+    # entry, the queue waiting before them
 
     def __post_init__(self):
         if self.graph < 0:
@@ -75,7 +77,7 @@ class BuildingNavigationParams:
         if self.parking_spots < 0:
             raise InputError(None, "parking_spots", f"must be >= 0, got {self.parking_spots}")
         require_positive(self, "slot_spacing", "head_gap", "slot_clearance", "parking_distance",
-                         "parking_lane_gap", unit=" m")
+                         "parking_lane_gap", "zone_length", unit=" m")
 
 
 @dataclass(frozen=True)
@@ -110,7 +112,8 @@ class BuildingNavigation:
                  "approach_node": loc.approach_node, "parking": loc.parking}
                 for loc in self.locations],
             "roadways": {"nodes": dict(self.roadways.nodes),
-                         "edges": [list(e) for e in self.roadways.edges]},
+                         "edges": [list(e) for e in self.roadways.edges],
+                         "single_file": [list(seg.nodes) for seg in self.single_file]},
         }
 
 
@@ -209,8 +212,8 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
     notes = []
     if lanes.single_file:
         notes.append(f"{len(lanes.single_file)} single-file segment(s), where two lanes do not "
-                     "fit or a task location is not a dead end (robots are not yet queued "
-                     "for them)")
+                     "fit or a task location is not a dead end (driven by one robot at a "
+                     "time)")
     if lanes.tight:
         notes.append(f"{len(lanes.tight)} lane(s) nearer walls than "
                      f"{LaneParams().clearance:g} m")
@@ -231,15 +234,18 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
         (v, w), ends, strict=True) if vertex in held}  # the lane ends beside each
     segments = np.array([[roadways.nodes[a], roadways.nodes[b]] for a, b in roadways.edges],
                         dtype=float)
+    single = {(a, b) for segment in lanes.single_file
+              for a in segment.nodes for b in segment.nodes if graph.has_edge(a, b)}
     locations = []
     for location_id, i in enumerate(candidates):
         node = lines.vertex_node[i]
-        queue, entry, approach = _queue(graph, node, holding, floor_plan, params)
+        queue, entry, approach, zone = _queue(graph, node, holding, single, floor_plan,
+                                              params)
         point = np.asarray(roadways.nodes[node], dtype=float)
         locations.append(LocationConfig(
             id=location_id, name=node, point=_listed(point), queue=queue, entry=entry,
             exit_node=node, approach_node=approach,
-            parking=_parking(point, segments, floor_plan, params)))
+            parking=[] if zone else _parking(point, segments, floor_plan, params)))
     return BuildingNavigation(roadways, locations, lines, lanes.single_file, notes)
 
 
@@ -273,20 +279,34 @@ def _mutually_reachable(nodes: list[str], graph: nx.DiGraph) -> set[str]:
     return best
 
 
-def _queue(graph: nx.DiGraph, node: str, holding: set[str], floor_plan: FloorPlan,
-           params: BuildingNavigationParams):
+def _queue(graph: nx.DiGraph, node: str, holding: set[str], single: set[tuple[str, str]],
+           floor_plan: FloorPlan, params: BuildingNavigationParams):
     """Queue slots (head first), entry points and approach node of the location at
-    ``node``: slots laid back along the lanes that lead to it."""
-    path = _approach_path(graph, node)
+    ``node``: slots laid back along the lanes that lead to it, stopping where those lanes
+    are single file (``single``: their (from, to) nodes), where a waiting robot would block
+    both ways, unless that leaves no room for the head slot. The head slot is the
+    unnamed holding point (``holding``) within the queue's length, else, where the lanes
+    into the point are single file for at most ``zone_length``, it lies beyond them and
+    they are the entry (only the room's holder drives them): then ``zone`` is True."""
+    path = _approach_path(graph, node, single)
     positions = [graph.nodes[n]["pos"] for n in path]
     along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(positions, axis=0),
                                                             axis=1))])
-    head = params.head_gap
-    span = head + (params.queue_slots - 1) * params.slot_spacing
-    for k, name in enumerate(path[1:], start=1):
-        if name in holding and along[k] <= span:
-            head = along[k]
-            break
+    span = params.head_gap + (params.queue_slots - 1) * params.slot_spacing
+    held = next((along[k] for k, name in enumerate(path[1:], start=1)
+                 if name in holding and along[k] <= span), None)
+    lead = _single_file_lead(path, single)
+    zone = held is None and 0 < lead < len(path) - 1 and along[lead] <= params.zone_length
+    if held is not None:
+        head = held
+    elif zone:
+        head = along[lead] + params.head_gap
+    else:
+        head = params.head_gap
+    cut = next((k for k in range(lead, len(path) - 1) if (path[k + 1], path[k]) in single),
+               None)
+    if cut is not None and along[cut] >= head:
+        path, positions, along = path[:cut + 1], positions[:cut + 1], along[:cut + 1]
     wanted = [head + k * params.slot_spacing for k in range(params.queue_slots)]
     slots, distances = [], []
     for distance in wanted:
@@ -306,23 +326,36 @@ def _queue(graph: nx.DiGraph, node: str, holding: set[str], floor_plan: FloorPla
     approach = path[min(beyond, len(path) - 1)]
     entry = [_listed(positions[k]) for k in range(1, len(path))
              if along[k] < distances[0]][::-1]
-    return [_listed(s) for s in slots], entry, approach
+    return [_listed(s) for s in slots], entry, approach, zone
 
 
-def _approach_path(graph: nx.DiGraph, node: str) -> list[str]:
+def _approach_path(graph: nx.DiGraph, node: str, single: set[tuple[str, str]]
+                   ) -> list[str]:
     """Nodes from ``node`` back against the lanes that reach it: each step to the
     predecessor whose lane is most in line with the last (the longest lane first), never
-    revisiting, and not into a dead end while another way is left; at least 8 m long when
-    the lanes allow."""
-    path = [node]
+    revisiting, and not into a dead end while another way is left; at least 8 m long
+    beyond the single-file lanes (``single``) it starts with, when the lanes allow."""
+    path, length, lead = [node], 0.0, 0.0
     while True:
         options = [p for p in graph.predecessors(path[-1]) if p not in path]
         if not options:
             return path
         path.append(max(options, key=lambda p: _back_step_rank(graph, path, p)))
-        lengths = [graph.edges[b, a]["length"] for a, b in zip(path, path[1:], strict=False)]
-        if sum(lengths) >= 8.0:
+        step = graph.edges[path[-1], path[-2]]["length"]
+        length += step
+        if lead == length - step and (path[-1], path[-2]) in single:
+            lead = length
+        if length - lead >= 8.0:
             return path
+
+
+def _single_file_lead(path: list[str], single: set[tuple[str, str]]) -> int:
+    """How many lanes from the start of ``path`` (a path back against the lanes) are
+    single file."""
+    lead = 0
+    while lead < len(path) - 1 and (path[lead + 1], path[lead]) in single:
+        lead += 1
+    return lead
 
 
 def _back_step_rank(graph: nx.DiGraph, path: list[str], option: str):

@@ -118,7 +118,8 @@ def with_building_navigation(scenario: Scenario) -> Scenario:
         locations=scenario.locations or [dataclasses.replace(loc) for loc in
                                          navigation.locations],
         roadways=scenario.roadways if scenario.roadways.nodes else RoadwaysConfig(
-            nodes=dict(navigation.roadways.nodes), edges=list(navigation.roadways.edges)))
+            nodes=dict(navigation.roadways.nodes), edges=list(navigation.roadways.edges),
+            single_file=[list(segment.nodes) for segment in navigation.single_file]))
 
 
 def _version(path: str) -> tuple[float, int]:

@@ -6,13 +6,16 @@ import numpy as np
 import pytest
 
 from mrta_drake.navigation.costmap import (
+    DEFAULT_RESOLUTION,
     FREE,
     INSCRIBED,
     LETHAL,
+    MAX_CELLS,
     MAX_NON_OBSTACLE,
     Costmap,
     CostmapParams,
     inflation_cost,
+    resolution_for,
 )
 from mrta_drake.world.obstacles import Box, Cylinder, Obstacles
 from mrta_drake.world.occupancy_grid import OccupancyGrid
@@ -120,3 +123,12 @@ def test_bad_params_are_refused():
         CostmapParams(robot_radius=0.6, inflation_radius=0.5)
     with pytest.raises(ValueError):
         CostmapParams(cost_scaling=-1.0)
+
+
+def test_resolution_coarsens_only_for_very_large_worlds():
+    assert resolution_for((-20.0, 20.0, -35.0, 5.0)) == DEFAULT_RESOLUTION  # a hospital floor
+    assert resolution_for((0.0, 100.0, 0.0, 100.0)) == DEFAULT_RESOLUTION  # just fits
+    campus = (0.0, 321.0, 0.0, 248.0)
+    resolution = resolution_for(campus)
+    assert resolution == 0.15
+    assert 321.0 * 248.0 / resolution**2 <= MAX_CELLS < 321.0 * 248.0 / 0.1**2

@@ -114,7 +114,7 @@ def test_points_are_dead_ends_with_both_lanes_meeting_on_them(world):
 def test_single_file_segments_where_two_lanes_do_not_fit(world):
     name, obstacles, _, navigation = world
     roadways, _ = configs(navigation)
-    segments = navigation["single_file"]
+    segments = navigation["roadways"]["single_file"]
     if name != "narrow":
         assert segments == []
         return

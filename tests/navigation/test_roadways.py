@@ -123,3 +123,43 @@ def test_hospital_navigation_has_every_leg():
                 leg = roadways.leg(a, b)
                 assert len(leg) >= 2 and roadways.leg_length(a, b) > 0
                 np.testing.assert_array_equal(leg[-1], roadways.place(b).tail)
+
+
+def test_single_file_segments_map_their_lanes_both_ways():
+    config, locations = loop_world()
+    roadways = Roadways(replace(config, single_file=[["N20", "N10"]]), locations)
+    assert roadways.segment_count == 1
+    assert roadways.segment_of([20, 1.5], [10, 1.5]) == (0, True)  # along the node order
+    assert roadways.segment_of([0, 0], [10, 0]) is None
+    # A queue slot lying on the segment's lane counts as on the segment.
+    assert roadways.segment_of([20, 1.5], [16.0, 1.5]) == (0, True)
+    assert roadways.segment_of([30, 1.5], [22.0, 1.5]) is None
+
+
+def test_bad_single_file_segment_is_one_line():
+    config, locations = loop_world()
+    message = _error(replace(config, single_file=[["N20", "Q"]]), locations)
+    assert message.startswith("nav.yaml: roadways.single_file[0]: ") and "'Q'" in message
+    assert "roadways.single_file[0]" in _error(replace(config, single_file=[["N20"]]),
+                                               locations)
+
+
+def test_a_robot_leaving_a_point_on_a_single_file_lane_does_not_drive_into_its_queue():
+    """A 20 x 10 m ring of two-way lanes; location P on its south side, in a single-file
+    segment, with its queue on the lane west of it; location W at the north-west corner."""
+    nodes = {"R0": [0, 0], "P": [10, 0], "R2": [20, 0], "R3": [20, 10], "R4": [0, 10]}
+    ring = ["R0", "P", "R2", "R3", "R4", "R0"]
+    edges = [[a, b] for a, b in zip(ring[:-1], ring[1:], strict=True)]
+    edges += [[b, a] for a, b in edges]
+    locations = [
+        LocationConfig(id=0, name="P", point=[10, 0], queue=[[8.7, 0]], exit_node="P",
+                       approach_node="R0"),
+        LocationConfig(id=1, name="W", point=[0, 10], queue=[[0, 8.7]], exit_node="R4",
+                       approach_node="R0"),
+    ]
+    config = RoadwaysConfig(nodes=nodes, edges=edges)
+    assert Roadways(config, locations).leg(0, 1)[1].tolist() == [0.0, 0.0]  # west: shortest
+    single = Roadways(replace(config, single_file=[["R0", "P", "R2"]]), locations)
+    leg = single.leg(0, 1)
+    assert leg[1].tolist() == [20.0, 0.0]  # east, round the ring, not through its queue
+    assert single.leg_length(0, 1) == pytest.approx(10 + 10 + 20 + 10 + 8.7)

@@ -136,3 +136,60 @@ def test_an_update_keeps_the_state_when_no_rule_applies():
             assert queues.GetOutputPort("queue_state").Eval(bench.context) is old
             kept += 1
     assert 30 < kept < 270
+
+
+class SegmentBench(Bench):
+    """A RoomQueues with three single-file segments; ``want`` sets a robot's segments as
+    (index, forward) pairs."""
+
+    def __init__(self, robots):
+        self.queues = RoomQueues(robots, rooms=[ROOM], rate_hz=10.0, segments=3)
+        self.simulator = Simulator(self.queues)
+        self.context = self.simulator.get_mutable_context()
+        for robot in robots:
+            self.want(robot)
+        self.simulator.AdvanceTo(0.05)
+
+    def want(self, robot, *segments):
+        port = self.queues.get_request_input_port(robot)
+        port.FixValue(self.context, Value[object](QueueRequest(robot, segments=segments)))
+
+    def state(self):
+        return self.queues.GetOutputPort("queue_state").Eval(self.context)
+
+
+def test_segments_are_granted_all_or_nothing_one_way_at_a_time():
+    bench = SegmentBench(["a", "b", "c"])
+    bench.want("a", (0, True), (1, True))
+    bench.step()
+    assert bench.state().holds_segments("a", ((0, True), (1, True)))
+    bench.want("b", (1, False), (2, True))  # 1 the other way: waits, and gets not even 2
+    bench.want("c", (0, True))  # same way as a: follows it in
+    bench.step()
+    state = bench.state()
+    assert state.segment_waiting == ("b",)
+    assert state.segments[2].holders == () and state.segments[0].holders == ("a", "c")
+    bench.want("a", (1, True))  # a is out of segment 0
+    bench.want("c")  # c is through
+    bench.step()
+    assert bench.state().segment_waiting == ("b",)
+    bench.want("a")  # a is out: b gets both
+    bench.step()
+    state = bench.state()
+    assert state.segment_waiting == ()
+    assert state.holds_segments("b", ((1, False), (2, True))) and not state.segments[1].forward
+
+
+def test_a_robot_waiting_first_keeps_its_turn():
+    bench = SegmentBench(["a", "b", "c"])
+    bench.want("a", (0, True))
+    bench.step()
+    bench.want("b", (0, False))
+    bench.step()
+    bench.want("c", (0, True))  # could follow a in, but b waits for 0 first
+    bench.step()
+    assert bench.state().segment_waiting == ("b", "c")
+    bench.want("a")
+    bench.step()
+    state = bench.state()
+    assert state.segments[0].holders == ("b",) and state.segment_waiting == ("c",)

@@ -40,6 +40,22 @@ def test_import_writes_a_scenario_that_loads(tmp_path):
     assert scenario.blocks.controller.params == {"safety_distances": {"wall": 0.54}}
 
 
+def test_the_task_stream_is_sized_to_be_served_in_the_run(tmp_path):
+    building = BUILDINGS / "narrow_corridor.building.yaml"
+    report = import_building(str(building), str(tmp_path), ImportOptions(robots=2))
+    raw = yaml.safe_load((tmp_path / "scenario.yaml").read_text())
+    generate = raw["tasks"]["generate"]
+    assert "rate" not in generate and "pickup_weights" not in generate  # every location
+    scenario = load_scenario(tmp_path / "scenario.yaml")
+    arrivals = [batch.arrival for batch in scenario.tasks.stream]
+    assert arrivals == generate["times"] and arrivals[0] == 0.0
+    assert any(f"{len(arrivals)} task batches arriving until" in line for line in report.lines)
+    # The last batch leaves two of the longest tasks' time before the end of the run.
+    written = yaml.safe_load((tmp_path / "navigation.yaml").read_text())
+    assert written["roadways"]["single_file"]  # the corridor
+    assert max(arrivals) < scenario.duration - 2 * (2 * 16.0 / 0.6)
+
+
 def test_navigation_file_is_the_derived_navigation(tmp_path):
     import_building(str(ONE_LEVEL), str(tmp_path), ImportOptions(robots=2))
     written = yaml.safe_load((tmp_path / "navigation.yaml").read_text())

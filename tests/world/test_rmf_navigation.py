@@ -80,8 +80,14 @@ def test_queue_lies_back_along_the_approach_with_its_head_on_a_holding_point():
     # The lane to the pantry runs north along x = 4 through an unnamed holding point at
     # y = -4.8, 2.8 m from the point: the head slot; the others follow back along the lanes.
     assert pantry.queue[0] == [4.0, -4.8] and pantry.entry == []
-    # The lab has none: its head slot is 1.3 m back down its lane, then 1 m apart.
-    assert lab.queue == [[12.0, -3.3], [12.0, -4.3], [12.0, -5.3]]
+    # The lab has none, and its lane through the door is single file (3.55 m, from
+    # [12, -5.55]): the robots waiting stand in the corridor, the head slot 1.3 m back
+    # along the lanes from that lane's start, then 1 m apart; the lane is the lab's entry.
+    assert navigation.single_file[1].nodes == ("v18_0", "lab")
+    assert lab.queue == [[11.6, -6.45], [10.6, -6.45], [9.6, -6.45]]
+    assert lab.entry == [[12.0, -6.45], [12.0, -5.55]]
+    assert lab.parking == []  # a robot parked behind the door would block the holder
+    assert pantry.parking  # the pantry's queue heads on its holding point: no zone
     for location in navigation.locations:
         assert all(off_lanes(slot) < 2e-3 for slot in location.queue), location.name  # mm
         gaps = np.linalg.norm(np.diff(np.array(location.queue), axis=0), axis=1)

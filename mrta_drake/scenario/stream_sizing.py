@@ -1,0 +1,92 @@
+"""How many tasks a generated stream may hold so that a fleet can serve all of them in a run.
+
+``size_stream`` sizes the ``tasks.generate`` block that ``mrta-sim import`` writes, from the
+building's estimated travel times between its task locations (``Roadways.travel_time_estimate``,
+s), the number of robots and the run's duration (s):
+
+1. **Where**: a task's loaded leg must take at most a fifth of the run
+   (``LEG_SHARE``), so that the leg to its pickup and a wait for the task before it fit
+   too, and the last batch (2.) can still arrive after 0 s. The task locations used are
+   the largest set whose legs both ways all fit (a building whose locations are far
+   apart, e.g. a campus, uses a neighbourhood of them);
+   fewer than two: the run is too short for this building (``InputError``).
+2. **When**: a task takes at most ``2 x longest leg + 2 x service time`` (to the pickup,
+   then to the drop-off) among those locations; the last batch arrives two such task
+   times before the end, time for a robot to finish the task in hand and then this one.
+3. **How many**: a task takes ``2 x mean leg + 2 x service time`` on average; batches
+   (``BATCH_SIZE``, 1.5 tasks on average) come as many as keep the fleet busy
+   ``UTILISATION`` (half) of the time until the last arrival, leaving the rest for
+   queues, single-file stretches and robots passing each other; at least one. They arrive
+   evenly spaced from 0 s (no bursts beyond what the fleet was sized for).
+
+The tasks themselves stay a seeded draw (``tasks.generate`` with the scenario's seed).
+"""
+
+import math
+from dataclasses import dataclass
+
+import networkx as nx
+import numpy as np
+
+from mrta_drake.errors import InputError
+
+LEG_SHARE = 0.2  # of the run: the longest loaded leg
+UTILISATION = 0.5  # of the fleet's time spent on tasks
+BATCH_SIZE = (1, 2)  # tasks per batch, uniform
+
+
+@dataclass(frozen=True)
+class StreamSize:
+    """A servable stream: batches arriving at ``times`` (s), before ``end`` (s), between
+    the task locations ``locations`` (indices into the travel-time matrix); ``names``:
+    theirs, given by the caller when they are not all of them."""
+
+    times: tuple[float, ...]
+    end: float
+    locations: tuple[int, ...]
+    names: tuple[str, ...] = ()
+
+
+def size_stream(times: np.ndarray, robots: int, duration: float, service_time: float,
+                source: str | None = None) -> StreamSize:
+    """The stream for ``robots`` robots over ``duration`` s given the travel times
+    ``times`` (n, n) s between task locations (module docstring); ``source`` names the
+    building in errors."""
+    times = np.asarray(times, dtype=float)
+    limit = LEG_SHARE * duration
+    chosen = _largest_neighbourhood(times, limit)
+    if len(chosen) < 2:
+        raise InputError(source, "--duration", f"{duration:g} s is too short for tasks in "
+                         f"this building: no two task locations are within {limit:g} s of "
+                         f"each other both ways (longest leg: {times.max():g} s)")
+    legs = times[np.ix_(chosen, chosen)][~np.eye(len(chosen), dtype=bool)]
+    longest_task = 2.0 * legs.max() + 2.0 * service_time
+    mean_task = 2.0 * legs.mean() + 2.0 * service_time
+    end = duration - 2.0 * longest_task
+    if end <= 0:
+        raise InputError(source, "--duration", f"{duration:g} s is too short for tasks in "
+                         f"this building: a task may take {longest_task:g} s, and the last "
+                         f"needs twice that before the end")
+    batches = max(1, math.floor(UTILISATION * robots * end
+                                / (mean_task * 0.5 * sum(BATCH_SIZE))))
+    times = tuple(float(math.floor(end * k / batches)) for k in range(batches))
+    return StreamSize(times=times, end=float(end), locations=tuple(chosen))
+
+
+def _largest_neighbourhood(times: np.ndarray, limit: float) -> list[int]:
+    """The largest set of locations whose legs both ways take at most ``limit`` s (ties:
+    the one with the shortest legs, then the lowest indices)."""
+    n = len(times)
+    near = nx.Graph()
+    near.add_nodes_from(range(n))
+    near.add_edges_from((i, j) for i in range(n) for j in range(i + 1, n)
+                        if max(times[i, j], times[j, i]) <= limit)
+    best: list[int] = []
+    best_key = (0, -math.inf)
+    for clique in nx.find_cliques(near):
+        clique = sorted(clique)
+        total = sum(times[i, j] for i in clique for j in clique)
+        key = (len(clique), -total)
+        if key > best_key or (key == best_key and clique < best):
+            best, best_key = clique, key
+    return best

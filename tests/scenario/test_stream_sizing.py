@@ -1,0 +1,43 @@
+"""The servable task stream of an imported building: where, when and how many."""
+
+import numpy as np
+import pytest
+
+from mrta_drake.errors import InputError
+from mrta_drake.scenario.stream_sizing import BATCH_SIZE, UTILISATION, size_stream
+
+
+def uniform(n: int, leg: float) -> np.ndarray:
+    return np.full((n, n), leg) - leg * np.eye(n)
+
+
+def test_stream_fits_the_fleet_and_ends_in_time():
+    times = uniform(5, 20.0)
+    stream = size_stream(times, robots=6, duration=600.0, service_time=1.0)
+    assert stream.locations == (0, 1, 2, 3, 4)
+    longest_task = 2 * 20.0 + 2 * 1.0
+    assert stream.end == 600.0 - 2 * longest_task
+    assert stream.times[0] == 0.0 and max(stream.times) < stream.end
+    assert list(stream.times) == sorted(stream.times)
+    work = len(stream.times) * np.mean(BATCH_SIZE) * longest_task  # every leg here is 20 s
+    assert work <= UTILISATION * 6 * stream.end < work + np.mean(BATCH_SIZE) * longest_task
+    # Half the robots: about half the batches.
+    fewer = size_stream(times, robots=3, duration=600.0, service_time=1.0)
+    assert len(fewer.times) == len(stream.times) // 2
+
+
+def test_far_apart_locations_use_the_largest_neighbourhood():
+    points = np.array([[0, 0], [1000, 0], [1010, 0], [1000, 20], [2000, 500]], dtype=float)
+    times = np.linalg.norm(points[:, None] - points[None], axis=-1) / 0.6
+    stream = size_stream(times, robots=6, duration=600.0, service_time=1.0)
+    assert stream.locations == (1, 2, 3)
+    assert len(stream.times) >= 1
+
+
+def test_too_short_a_run_is_one_line():
+    with pytest.raises(InputError, match="--duration") as error:
+        size_stream(uniform(3, 400.0), robots=2, duration=600.0, service_time=1.0,
+                    source="far.building.yaml")
+    assert str(error.value).startswith("far.building.yaml: --duration: ")
+    with pytest.raises(InputError, match="twice that"):  # long services
+        size_stream(uniform(3, 12.0), robots=2, duration=60.0, service_time=10.0)
