@@ -11,13 +11,14 @@ s), the number of robots and the run's duration (s):
    apart, e.g. a campus, uses a neighbourhood of them);
    fewer than two: the run is too short for this building (``InputError``).
 2. **When**: a task takes at most ``2 x longest leg + 2 x service time`` (to the pickup,
-   then to the drop-off) among those locations; the last batch arrives two such task
-   times before the end, time for a robot to finish the task in hand and then this one.
-3. **How many**: a task takes ``2 x mean leg + 2 x service time`` on average; batches
-   (``BATCH_SIZE``, 1.5 tasks on average) come as many as keep the fleet busy
-   ``UTILISATION`` (half) of the time until the last arrival, leaving the rest for
-   queues, single-file stretches and robots passing each other; at least one. They arrive
-   evenly spaced from 0 s (no bursts beyond what the fleet was sized for).
+   then to the drop-off) among those locations, ``2 x mean leg + 2 x service time`` on
+   average; the last batch arrives a longest and a mean task time before the end, time
+   for a robot to finish the task in hand (on average) and then this one (at worst).
+3. **How many**: batches (``BATCH_SIZE``, 1.5 tasks on average) come as many as keep the
+   fleet busy ``UTILISATION`` (half) of the run but its last longest task time, leaving
+   the rest for queues, lifts, single-file stretches and robots passing each other; at
+   least one. They arrive evenly spaced from 0 s to the last arrival (no bursts beyond
+   what the fleet was sized for).
 
 The tasks themselves stay a seeded draw (``tasks.generate`` with the scenario's seed).
 """
@@ -62,14 +63,14 @@ def size_stream(times: np.ndarray, robots: int, duration: float, service_time: f
     legs = times[np.ix_(chosen, chosen)][~np.eye(len(chosen), dtype=bool)]
     longest_task = 2.0 * legs.max() + 2.0 * service_time
     mean_task = 2.0 * legs.mean() + 2.0 * service_time
-    end = duration - 2.0 * longest_task
+    end = duration - longest_task - mean_task
     if end <= 0:
         raise InputError(source, "--duration", f"{duration:g} s is too short for tasks in "
                          f"this building: a task may take {longest_task:g} s, and the last "
-                         f"needs twice that before the end")
-    batches = max(1, math.floor(UTILISATION * robots * end
+                         f"needs that and a mean task ({mean_task:g} s) before the end")
+    batches = max(1, math.floor(UTILISATION * robots * (duration - longest_task)
                                 / (mean_task * 0.5 * sum(BATCH_SIZE))))
-    times = tuple(float(math.floor(end * k / batches)) for k in range(batches))
+    times = tuple(float(math.floor(end * k / max(1, batches - 1))) for k in range(batches))
     return StreamSize(times=times, end=float(end), locations=tuple(chosen))
 
 

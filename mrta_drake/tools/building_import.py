@@ -30,7 +30,7 @@ import yaml
 from mrta_drake.control.barriers import SafetyDistances
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.roadways import Roadways
-from mrta_drake.scenario.schema import RoadwaysConfig, TasksConfig
+from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig, TasksConfig
 from mrta_drake.scenario.stream_sizing import BATCH_SIZE, StreamSize, size_stream
 from mrta_drake.world.floor_plan import FloorPlan
 from mrta_drake.world.rmf_building import Building, Level
@@ -121,7 +121,8 @@ def _write_level(building: Building, level_name: str, out_dir: str, options: Imp
     _write_navigation(os.path.join(out_dir, "navigation.yaml"), building, level_name,
                       options.graph, navigation)
     scenario = os.path.join(out_dir, "scenario.yaml")
-    stream = servable_stream(navigation, options, len(starts), building.source)
+    stream = servable_stream(navigation.roadways, navigation.locations, options, len(starts),
+                             building.source)
     write_scenario(scenario, os.path.basename(building.source), level_name, options, starts,
                     humans, wall_safety(navigation.roadways, world.floor_plan), stream)
     report.scenarios.append(scenario)
@@ -131,11 +132,7 @@ def _write_level(building: Building, level_name: str, out_dir: str, options: Imp
         f"{len(roadways.nodes)} roadway nodes, {len(roadways.edges)} one-way lanes, "
         f"{len(world.floor_plan.obstacles)} obstacles; wrote {scenario}")
     report.lines += [f"{level_name}: {note}" for note in navigation.notes]
-    used = (f"the {len(stream.names)} task locations near each other" if stream.names
-            else "every task location")
-    report.lines.append(f"{level_name}: {len(stream.times)} task batches arriving until "
-                        f"{stream.end:g} s, between {used} (docs/worlds.md, \"The task "
-                        "stream\")")
+    report.lines.append(f"{level_name}: {stream_line(stream)}")
     if world.left_out:
         report.lines.append(f"{level_name}: {len(world.left_out)} model(s) left out, too near "
                             f"a lane: {'; '.join(world.left_out)}")
@@ -172,21 +169,26 @@ def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: Floor
                      f"give {len(chosen)} free start spots")
 
 
-def servable_stream(navigation: BuildingNavigation, options: ImportOptions, robots: int,
-                    source: str) -> StreamSize:
-    """The task stream ``robots`` robots can serve in ``options.duration`` on
-    ``navigation`` (``scenario.stream_sizing``), from the allocator's default estimate of
-    the travel times."""
+def servable_stream(roadways: RoadwaysConfig, locations: list[LocationConfig],
+                    options: ImportOptions, robots: int, source: str) -> StreamSize:
+    """The task stream ``robots`` robots can serve in ``options.duration`` between
+    ``locations`` on ``roadways`` (``scenario.stream_sizing``), from the allocator's default
+    estimate of the travel times (lift rides included)."""
     tasks = TasksConfig()
-    roadways = Roadways(RoadwaysConfig(nodes=dict(navigation.roadways.nodes),
-                                       edges=list(navigation.roadways.edges)),
-                        navigation.locations, source)
-    stream = size_stream(roadways.travel_time_estimate(tasks.estimate_speed), robots,
-                         options.duration, tasks.service_time, source)
-    if len(stream.locations) == len(navigation.locations):
+    estimate = Roadways(roadways, locations, source).travel_time_estimate(tasks.estimate_speed)
+    stream = size_stream(estimate, robots, options.duration, tasks.service_time, source)
+    if len(stream.locations) == len(locations):
         return stream
-    return dataclasses.replace(stream, names=tuple(navigation.locations[i].name
+    return dataclasses.replace(stream, names=tuple(locations[i].name
                                                    for i in stream.locations))
+
+
+def stream_line(stream: StreamSize) -> str:
+    """The import report's line on the generated task stream."""
+    used = (f"the {len(stream.names)} task locations near each other" if stream.names
+            else "every task location")
+    return (f"{len(stream.times)} task batches arriving until {stream.end:g} s, between "
+            f"{used} (docs/worlds.md, \"The task stream\")")
 
 
 def wall_safety(roadways: RoadwaysConfig, floor_plan: FloorPlan) -> float:

@@ -7,7 +7,8 @@ side in one plane, with the lift rides (``roadways.lift_edges``, their ``length`
 time at the default ``tasks.estimate_speed`` and lift parameters); and ``scenario.yaml``,
 with the robots shared out over the levels in turn (each level's starts as in a single
 level's import), the people likewise, and a generated task stream between all locations,
-so that many tasks change levels.
+so that many tasks change levels, sized like a single level's (``scenario.stream_sizing``)
+with the lift rides in its travel times.
 """
 
 import dataclasses
@@ -18,12 +19,14 @@ import numpy as np
 
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.lift_bank import LiftParams
-from mrta_drake.scenario.schema import TasksConfig
+from mrta_drake.scenario.schema import RoadwaysConfig, TasksConfig
 from mrta_drake.tools.building_import import (
     ImportOptions,
     ImportReport,
     people_section,
     robot_starts,
+    servable_stream,
+    stream_line,
     wall_safety,
     write_scenario,
     write_yaml,
@@ -58,16 +61,18 @@ def write_all_levels(building: Building, out_dir: str, options: ImportOptions,
     copy = os.path.join(out_dir, os.path.basename(building.source))
     if os.path.abspath(copy) != os.path.abspath(building.source):
         shutil.copyfile(building.source, copy)
-    _write_navigation(os.path.join(out_dir, "navigation.yaml"), building, options.graph,
-                      levels)
+    roadways = _write_navigation(os.path.join(out_dir, "navigation.yaml"), building,
+                                 options.graph, levels)
     scenario = os.path.join(out_dir, "scenario.yaml")
+    stream = servable_stream(roadways, levels.locations, options, len(starts), building.source)
     write_scenario(scenario, os.path.basename(building.source), "", options,
                     [[round(float(v), 3) for v in s] for s in starts], humans,
-                    wall_safety(levels.roadways, levels.floor_plan))
+                    wall_safety(levels.roadways, levels.floor_plan), stream)
     report.scenarios.append(scenario)
     report.lines.append(
         f"all levels ({', '.join(names)}) side by side: {len(levels.locations)} task "
         f"locations, lifts {', '.join(lift.name for lift in levels.lifts)}; wrote {scenario}")
+    report.lines.append(f"all levels: {stream_line(stream)}")
     report.lines += levels.notes
 
 
@@ -88,7 +93,8 @@ def _shifted_people(entries: list[dict], levels: BuildingLevels, level: str, tak
 
 
 def _write_navigation(path: str, building: Building, graph: int, levels: BuildingLevels
-                      ) -> None:
+                      ) -> RoadwaysConfig:
+    """Write the navigation of every level to ``path``; returns its roadways."""
     if not levels.lifts:
         raise InputError(building.source, "lifts", "no lift joins two levels")
     roadways = levels.roadways_with_lifts(LiftParams(), TasksConfig().estimate_speed)
@@ -103,6 +109,8 @@ def _write_navigation(path: str, building: Building, graph: int, levels: Buildin
     content = {
         "locations": [dataclasses.asdict(loc) for loc in levels.locations],
         "roadways": {"nodes": roadways.nodes, "edges": roadways.edges,
-                     "lift_edges": [dataclasses.asdict(e) for e in roadways.lift_edges]},
+                     "lift_edges": [dataclasses.asdict(e) for e in roadways.lift_edges],
+                     "single_file": roadways.single_file},
     }
     write_yaml(path, header, content)
+    return roadways

@@ -39,8 +39,9 @@ from mrta_drake.world.rmf_world import level_world
 class BuildingLevels:
     """A building's levels in one plane: their ``layout``, the combined ``floor_plan``, the
     per-level navigations shifted and renamed, joined into ``locations`` and ``roadways``
-    (without lift rides: ``roadways_with_lifts`` adds them), the ``lifts`` with a stop on
-    at least two levels, and ``notes`` on what was left out."""
+    (without lift rides: ``roadways_with_lifts`` adds them; with the levels' single-file
+    segments but those through a lift cabin, whose doors the lift bank rules), the ``lifts``
+    with a stop on at least two levels, and ``notes`` on what was left out."""
 
     layout: LevelLayout
     floor_plan: FloorPlan
@@ -67,7 +68,7 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
         [(name, level.elevation, worlds[name].bounds) for name, level in
          building.levels.items()], gap)
     floor_plan = combined_floor_plan(building.name, worlds, layout, building.source)
-    nodes, edges, locations, notes = {}, [], [], []
+    nodes, edges, locations, notes, single_file = {}, [], [], [], []
     cabin_nodes: dict[tuple[str, str], str] = {}
     for name, level in building.levels.items():
         navigation = level_navigation(building, name, worlds[name],
@@ -78,12 +79,17 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
         edges += [[f"{name}/{a}", f"{name}/{b}"] for a, b in navigation.roadways.edges]
         locations += [_shifted(loc, len(locations) + k, name, layout)
                       for k, loc in enumerate(navigation.locations)]
+        level_cabins = set()
         for lift in building.lifts_through(name):
             if name not in lift.level_doors:
                 continue
             cabin = _cabin_node(navigation, level, lift)
             if cabin is not None:
                 cabin_nodes[lift.name, name] = f"{name}/{cabin}"
+                level_cabins.add(cabin)
+        single_file += [[f"{name}/{node}" for node in segment.nodes]
+                        for segment in navigation.single_file
+                        if not level_cabins.intersection(segment.nodes)]
     lifts = []
     for lift in building.lifts.values():
         stops = tuple(_stop(lift, name, building.levels[name].elevation,
@@ -99,9 +105,8 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
     if len(building.levels) > 1 and not lifts:
         raise InputError(building.source, "lifts", f"no lift joins two levels on lanes of "
                          f"graph {graph}: robots could not leave their level")
-    return BuildingLevels(layout, floor_plan, locations, RoadwaysConfig(nodes=nodes,
-                                                                         edges=edges),
-                          tuple(lifts), notes)
+    roadways = RoadwaysConfig(nodes=nodes, edges=edges, single_file=single_file)
+    return BuildingLevels(layout, floor_plan, locations, roadways, tuple(lifts), notes)
 
 
 def _stop(lift, level: str, elevation: float, node: str, nodes, layout: LevelLayout

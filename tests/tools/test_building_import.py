@@ -50,10 +50,11 @@ def test_the_task_stream_is_sized_to_be_served_in_the_run(tmp_path):
     arrivals = [batch.arrival for batch in scenario.tasks.stream]
     assert arrivals == generate["times"] and arrivals[0] == 0.0
     assert any(f"{len(arrivals)} task batches arriving until" in line for line in report.lines)
-    # The last batch leaves two of the longest tasks' time before the end of the run.
+    # The last batch leaves a longest and a mean task's time before the end of the run.
     written = yaml.safe_load((tmp_path / "navigation.yaml").read_text())
     assert written["roadways"]["single_file"]  # the corridor
     assert max(arrivals) < scenario.duration - 2 * (2 * 16.0 / 0.6)
+    assert len(arrivals) > 1
 
 
 def test_navigation_file_is_the_derived_navigation(tmp_path):
@@ -94,6 +95,10 @@ def test_several_levels_give_one_folder_running_them_all(tmp_path):
     assert [round(r.start[0]) < 30 for r in scenario.robots] == [True, False]
     tasks = [task for batch in scenario.tasks.stream for task in batch.tasks]
     assert any(names[t.pickup][:2] != names[t.dropoff][:2] for t in tasks)
+    # Sized like one level's stream, the lift rides in its travel times.
+    generate = yaml.safe_load((tmp_path / "scenario.yaml").read_text())["tasks"]["generate"]
+    assert "rate" not in generate and generate["times"][0] == 0.0
+    assert any("task batches arriving until" in line for line in report.lines)
     # The 1 m lift door sets the wall safety distance.
     assert scenario.blocks.controller.params["safety_distances"]["wall"] < 0.5
 

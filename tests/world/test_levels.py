@@ -63,3 +63,19 @@ def test_a_buildings_levels_are_joined_by_rides_costing_their_time():
     # A closure never closes a ride.
     closed = roadways.closed([(11.0, offset - 1.0, -10.0, 10.0)])
     assert closed.leg(ids["L1/l1_desk"], ids["L2/l2_lab"]) is not None
+
+
+def test_every_levels_single_file_segments_but_those_through_a_cabin():
+    building = load_building(str(Path(__file__).parents[2] / "models" / "two_floor_clinic"
+                                 / "two_floor_clinic.building.yaml"))
+    levels = building_levels(building)
+    segments = levels.roadways.single_file
+    assert {segment[0].split("/")[0] for segment in segments} == {"L1", "L2"}
+    cabins = {stop.node for lift in levels.lifts for stop in lift.stops}
+    for segment in segments:
+        level = segment[0].split("/")[0]
+        assert all(node.startswith(f"{level}/") and node in levels.roadways.nodes
+                   for node in segment)
+        assert not cabins.intersection(segment)
+    roadways = levels.roadways_with_lifts(LiftParams(), 0.6)
+    assert Roadways(roadways, levels.locations, building.source).segment_count == len(segments)
