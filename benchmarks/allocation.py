@@ -7,17 +7,19 @@ range, executed exactly as planned between batches. Then the hard regime: single
 with deadlines at most 250 s, and a stream overloaded with a batch every 10 s. First of all
 the tight regime: the single batches of the 20 sizes (capacity 2, seed 0) with every deadline
 scaled by 0.5 and by 0.35, for the SMT allocator (default budget), the greedy allocator and
-OR-Tools routing (``routing_peer.py``, 10 s, if installed).
+OR-Tools routing (``routing_peer.py``, 10 s, if installed), on SMrTa's recipe (travel times
+over a corridor graph, ``room_graph.py``) or, with ``--tight-recipe points``, on ours.
 
-Locations are random points on a floor of the hospital map's size (25 x 56 m); travel
-times are the Manhattan distance at 0.7 m/s, rounded up (longest ~110 s).
+Our recipe ("points"): locations are random points on a floor of the hospital map's size
+(25 x 56 m); travel times are the Manhattan distance at 0.7 m/s, rounded up (longest ~110 s).
 
     python benchmarks/allocation.py            # full run (takes long on 2 cores)
     python benchmarks/allocation.py --quick    # a few small instances
     python benchmarks/allocation.py --tight-only   # the tight regime alone (~15 min)
 
 Prints tables and writes benchmarks/results/allocation.json (``--tight-only``:
-benchmarks/results/allocation_tight.json).
+benchmarks/results/allocation_tight.json, or ``allocation_tight_points.json`` with
+``--tight-recipe points``).
 """
 
 import argparse
@@ -52,6 +54,7 @@ from mrta_drake.payloads import DROPOFF, PICKUP  # noqa: E402
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import routing_peer  # noqa: E402
+from room_graph import room_graph_travel  # noqa: E402
 
 NUM_LOCATIONS = 65
 FLOOR = (25.0, 56.0)  # m
@@ -59,7 +62,9 @@ SPEED = 0.7  # m/s
 LATEST_DEADLINE = 1000.0  # s after the batch arrival
 TIME_LIMIT = 60.0  # s per allocation
 RESULTS = pathlib.Path(__file__).parent / "results" / "allocation.json"
-TIGHT_RESULTS = pathlib.Path(__file__).parent / "results" / "allocation_tight.json"
+TIGHT_RESULTS = {"smrta": pathlib.Path(__file__).parent / "results" / "allocation_tight.json",
+                 "points": pathlib.Path(__file__).parent / "results" /
+                 "allocation_tight_points.json"}
 TIGHT_SCALES = (0.5, 0.35)  # deadlines scaled: the tight regime
 ROUTING_SECONDS = 10.0  # OR-Tools' guided local search per instance
 
@@ -86,9 +91,14 @@ def random_tasks(rng, travel, count, first_id=0, arrival=0.0, latest=LATEST_DEAD
     return tasks
 
 
-def single_batch(seed, num_tasks, num_robots, capacity, latest=LATEST_DEADLINE):
+TRAVEL_RECIPES = {"smrta": room_graph_travel, "points": hospital_travel}
+
+
+def single_batch(seed, num_tasks, num_robots, capacity, latest=LATEST_DEADLINE, recipe="points"):
+    """All tasks at t = 0 on the travel times of ``TRAVEL_RECIPES[recipe]``; deadlines uniform
+    in whole seconds in [1.5 x the longest travel time, ``latest``]."""
     rng = np.random.default_rng(seed)
-    travel = hospital_travel(rng)
+    travel = TRAVEL_RECIPES[recipe](rng)
     robots = tuple(RobotStart(f"robot{r}", int(rng.integers(NUM_LOCATIONS)), 0.0, capacity)
                    for r in range(num_robots))
     tasks = random_tasks(rng, travel, num_tasks, latest=latest)
@@ -102,11 +112,11 @@ def scaled_deadlines(problem: AllocationProblem, scale: float) -> AllocationProb
     return dataclasses.replace(problem, tasks=tasks)
 
 
-def tight_batch(num_tasks, num_robots, scale, seed=0):
-    """The single batch of ``run_single_batches`` (capacity 2) with its deadlines scaled by
-    ``scale``: the tight regime."""
+def tight_batch(num_tasks, num_robots, scale, seed=0, recipe="smrta"):
+    """A single batch (capacity 2) of ``recipe`` with its deadlines scaled by ``scale``: the
+    tight regime."""
     problem = single_batch(seed * 1000 + num_tasks * 31 + num_robots * 7 + 2, num_tasks,
-                           num_robots, 2)
+                           num_robots, 2, recipe=recipe)
     return scaled_deadlines(problem, scale)
 
 
@@ -251,9 +261,9 @@ def run_tight(sizes, latest, time_limit):
     return rows
 
 
-def run_tight_regime(sizes, scales, routing_seconds):
-    """The single batches of ``run_single_batches`` (capacity 2, seed 0) with every deadline
-    scaled by each of ``scales``: the SMT allocator with its default budget, the greedy
+def run_tight_regime(sizes, scales, routing_seconds, recipe):
+    """The single batches of ``recipe`` (capacity 2, seed 0) with every deadline scaled by each
+    of ``scales``: the SMT allocator with its default budget, the greedy
     allocator and OR-Tools routing (``routing_seconds`` of guided local search), if
     installed. Per instance and allocator: late tasks, total tardiness (s), proven optimal
     (most tasks on time, then least tardiness; an answer with every task on time is), CPU
@@ -264,7 +274,7 @@ def run_tight_regime(sizes, scales, routing_seconds):
     rows = []
     for scale in scales:
         for num_tasks, num_robots in sizes:
-            problem = tight_batch(num_tasks, num_robots, scale)
+            problem = tight_batch(num_tasks, num_robots, scale, recipe=recipe)
             row = {"scale": scale, "tasks": num_tasks, "robots": num_robots}
             for name, allocator in allocators.items():
                 cpu = time.process_time()
@@ -282,8 +292,9 @@ def run_tight_regime(sizes, scales, routing_seconds):
                 f" s CPU" for name in allocators), flush=True)
     if not routing_peer.available():
         print("  ortools: not installed (pip install 'mrta-drake[benchmarks]')")
-    return {"allocators": list(allocators), "ortools_installed": routing_peer.available(),
-            "routing_seconds": routing_seconds, "rows": rows,
+    return {"recipe": recipe, "allocators": list(allocators),
+            "ortools_installed": routing_peer.available(), "routing_seconds": routing_seconds,
+            "rows": rows,
             "totals": _tight_totals(rows, scales, list(allocators))}
 
 
@@ -353,14 +364,17 @@ def main():
     parser.add_argument("--quick", action="store_true", help="a few small instances")
     parser.add_argument("--tight-only", action="store_true",
                         help="only the tight regime (deadlines scaled by 0.5 and 0.35)")
+    parser.add_argument("--tight-recipe", choices=sorted(TRAVEL_RECIPES), default="smrta",
+                        help="the tight regime's instances: SMrTa's recipe or ours (points)")
     args = parser.parse_args()
     single_sizes = [(t, r) for t in (10, 15, 20, 25, 30) for r in (5, 10, 15, 20)]
-    print(f"tight regime: deadlines scaled by {TIGHT_SCALES}, capacity 2, seed 0; smt default "
-          f"budget, greedy, ortools {ROUTING_SECONDS:g} s")
+    print(f"tight regime ({args.tight_recipe}): deadlines scaled by {TIGHT_SCALES}, capacity 2, "
+          f"seed 0; smt default budget, greedy, ortools {ROUTING_SECONDS:g} s")
     tight_regime = run_tight_regime(single_sizes[:2] if args.quick else single_sizes,
-                                    TIGHT_SCALES, 1.0 if args.quick else ROUTING_SECONDS)
+                                    TIGHT_SCALES, 1.0 if args.quick else ROUTING_SECONDS,
+                                    args.tight_recipe)
     if args.tight_only:
-        write_results(TIGHT_RESULTS, args.quick, tight_regime=tight_regime)
+        write_results(TIGHT_RESULTS[args.tight_recipe], args.quick, tight_regime=tight_regime)
         return
     if args.quick:
         sizes = [(10, 5), (20, 20)]
