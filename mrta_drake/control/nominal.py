@@ -135,10 +135,10 @@ def nominal_inputs(states, paths, clustered, bodies, gains, u):
     for i in range(len(states)):
         x, y, theta, v = states[i, 0], states[i, 1], states[i, 2], states[i, 3]
         if ok[i]:
-            u[i] = _nominal(x, y, theta, v, points[start[i]:start[i + 1]], stop_at_end[i],
-                            clustered[i], bodies, i, gains)
+            u[i, 0], u[i, 1] = _nominal(x, y, theta, v, points[start[i]:start[i + 1]],
+                                        stop_at_end[i], clustered[i], bodies, i, gains)
         else:
-            u[i] = slow_down_input(v, gains)
+            u[i, 0], u[i, 1] = slow_down_input(v, gains)
 
 
 @numba.njit(cache=True)
@@ -162,7 +162,7 @@ def _slow_down(speed, k_slow, slow_accel):
 @numba.njit(cache=True)
 def _slow_downs(speeds, k_slow, slow_accel, u):
     for i in range(len(speeds)):
-        u[i] = _slow_down(speeds[i], k_slow, slow_accel)
+        u[i, 0], u[i, 1] = _slow_down(speeds[i], k_slow, slow_accel)
 
 
 @numba.njit(cache=True)

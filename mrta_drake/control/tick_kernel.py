@@ -110,7 +110,7 @@ def plan_tick(robots, world, paths, settings, out):
             follower = in_the_way(i, order[first:k], states, paths, active, yield_clearance,
                                   yield_horizon)
         if slowed[i] or (follower_rule != NO_FOLLOWERS and follower):
-            u_nominal[i] = slow_down_input(states[i, 3], gains)
+            u_nominal[i, 0], u_nominal[i, 1] = slow_down_input(states[i, 3], gains)
     fill_input_bounds(states, limits, lower, upper)
     minima[0], minima[1], minima[2] = min_squared_distances(states[:, :2].copy(), hits,
                                                             hit_mask, human_positions)

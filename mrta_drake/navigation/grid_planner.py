@@ -474,7 +474,7 @@ def _shortcut(factor, rows, cols, uv):
         a = good
     out = np.empty((len(keep), 2))
     for m in range(len(keep)):
-        out[m] = uv[keep[m]]
+        out[m, 0], out[m, 1] = uv[keep[m], 0], uv[keep[m], 1]
     return out
 
 
@@ -498,15 +498,19 @@ def _path_points(factor, rows, cols, cells, start, goal, origin, resolution, spa
         uv[end, 0] = goal_u
         uv[end, 1] = goal_v
         end += 1
-    if math.floor(uv[0, 1]) == cells[0, 0] and math.floor(uv[0, 0]) == cells[0, 1]:
-        kept = _shortcut(factor, rows, cols, uv[:end])
-    else:
-        # The first leg leaves the inscribed zone; only what follows it is shortcut.
-        rest = _shortcut(factor, rows, cols, uv[1:end])
-        kept = np.empty((rest.shape[0] + 1, 2))
-        kept[0] = uv[0]
-        kept[1:] = rest
-    return _resample(kept * resolution, spacing, origin)
+    # The first leg leaves the inscribed zone when the start is outside the first cell; then
+    # only what follows it is shortcut. Element by element: numba's slice assignment and
+    # array expressions take seconds to compile.
+    first = 0 if math.floor(uv[0, 1]) == cells[0, 0] and math.floor(uv[0, 0]) == cells[0, 1] \
+        else 1
+    kept = _shortcut(factor, rows, cols, uv[first:end])
+    points = np.empty((first + len(kept), 2))
+    if first:
+        points[0, 0], points[0, 1] = uv[0, 0] * resolution, uv[0, 1] * resolution
+    for m in range(len(kept)):
+        points[first + m, 0] = kept[m, 0] * resolution
+        points[first + m, 1] = kept[m, 1] * resolution
+    return _resample(points, spacing, origin)
 
 
 @numba.njit(cache=True)

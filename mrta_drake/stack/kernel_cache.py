@@ -21,7 +21,7 @@ ENTRY_KERNELS = {
     ("mrta_drake.navigation.grid_planner", "_path_points"): 3.3,
     ("mrta_drake.navigation.grid_planner", "_search"): 1.0,
     ("mrta_drake.robots.unicycle_robots", "_step"): 0.2,
-    ("mrta_drake.humans.social_force_humans", "_update_people"): 25.5,
+    ("mrta_drake.humans.social_force_humans", "_step_people"): 25.5,
 }
 
 
