@@ -13,6 +13,7 @@ from mrta_drake.control.clusters import cluster_labels, cluster_order
 from mrta_drake.control.followers import FOLLOWERS_IN_THE_WAY, NO_FOLLOWERS, in_the_way
 from mrta_drake.control.input_limits import fill_input_bounds
 from mrta_drake.control.nominal import nominal_inputs, slow_down_input
+from mrta_drake.stack.compiled_helper import compiled_helper
 
 
 class TickSettings(NamedTuple):
@@ -116,7 +117,7 @@ def plan_tick(robots, world, paths, settings, out):
                                                             hit_mask, human_positions)
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _bodies(shared, human_positions, human_velocities):
     """The robots (as the others know them) and the humans as ``[x, y, speed]`` (N + M, 3),
     for passing."""
@@ -130,7 +131,7 @@ def _bodies(shared, human_positions, human_velocities):
     return bodies
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _copy_into(target, source):
     """``target[:] = source`` for 1-D arrays of equal length, without numba's slice assignment
     (broadcasting and its error messages take seconds to compile)."""

@@ -16,6 +16,7 @@ from mrta_drake.payloads import (
     HumanStates,
     frozen_array,
 )
+from mrta_drake.stack.compiled_helper import compiled_helper
 from mrta_drake.world.obstacles import Obstacles, cast_rays_into, closest_points_of
 
 ELLIPSE_TIME = 2.0  # s: the elliptical potential stretches along the other's next 2 s of walk
@@ -374,7 +375,7 @@ def _step_people(state, robots, cos, sin, robot_r, radii_all, speeds_all, counts
             state[5 * m + i] = np.arctan2(va_new[j, 1], va_new[j, 0])
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _add_into(target, values):
     """``target += values`` for (k, 2) arrays, element by element."""
     for j in range(len(target)):
@@ -382,7 +383,7 @@ def _add_into(target, values):
         target[j, 1] += values[j, 1]
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _yielding_velocities(p, direction, speeds, radii, robot_p, robot_v, robot_r, obstacles,
                          constants) -> np.ndarray:
     """Desired velocities (a, 2), m/s, of people at ``p`` (a, 2) walking in unit
@@ -428,7 +429,7 @@ def _yielding_velocities(p, direction, speeds, radii, robot_p, robot_v, robot_r,
     return desired
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _room(x, y, ux, uy, radius, width, obstacles) -> bool:
     """True when the obstacles leave at least ``width`` (m) beside a robot of ``radius`` at
     (``x``, ``y``), along the unit vector (``ux``, ``uy``)."""
@@ -440,7 +441,7 @@ def _room(x, y, ux, uy, radius, width, obstacles) -> bool:
     return hit[0, 0] >= reach
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _project(new, old, old_closest, old_clearance, radii, robot_p, robot_r, obstacles):
     """Hard constraints on the step ``old`` -> ``new`` (positions (a, 2); ``old_closest``
     and ``old_clearance``: ``closest_points_of`` at ``old``; robots: discs at ``robot_p``
@@ -490,7 +491,7 @@ def _project(new, old, old_closest, old_clearance, radii, robot_p, robot_r, obst
     return new, blocked
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _refresh_closest(p, known, closest, clearance, obstacles):
     """``closest_points_of`` points ``p`` (n, 2) into ``closest`` (n, 2) and ``clearance``
     (n,), which hold it for the points ``known`` (n, 2): only the points that moved (bit
@@ -513,13 +514,13 @@ def _refresh_closest(p, known, closest, clearance, obstacles):
         known[i, 0], known[i, 1] = p[i, 0], p[i, 1]
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _same(x, y) -> bool:
     """True when x and y are the same number, zeros of the same sign included."""
     return x == y and math.copysign(1.0, x) == math.copysign(1.0, y)
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _add_repulsion(p, direction, radii, q, q_velocity, q_radii, strength, reach, force):
     """Adds to ``force`` (a, 2) the elliptical-potential force (m/s^2) of every other (q) on
     each person (p) walking in ``direction`` (a, 2) (q may be the people themselves: nobody
@@ -559,7 +560,7 @@ def _add_repulsion(p, direction, radii, q, q_velocity, q_radii, strength, reach,
             force[i, 1] += fy - KEEP_RIGHT * against * dx
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _gaps(p, radii, q, q_radii) -> np.ndarray:
     """Surface distances (a, b) between circles at p (a, 2) and q (b, 2)."""
     gaps = np.empty((len(p), len(q)))
@@ -570,7 +571,7 @@ def _gaps(p, radii, q, q_radii) -> np.ndarray:
     return gaps
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _apart(p, radii) -> np.ndarray:
     """Shifts (a, 2) that move each overlapping pair of people half the overlap apart."""
     shift = np.zeros_like(p)
@@ -586,7 +587,7 @@ def _apart(p, radii) -> np.ndarray:
     return shift
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _away(p, radii, q, q_radii, floor) -> np.ndarray:
     """Shifts (a, 2) that move people straight away from robots q until each gap >= floor."""
     shift = np.zeros_like(p)
@@ -601,7 +602,7 @@ def _away(p, radii, q, q_radii, floor) -> np.ndarray:
     return shift
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _taken(goal, p, radii, robot_p, robot_r) -> np.ndarray:
     """True for people within ``TAKEN_REACH`` of a target that someone else's body (a
     robot's or another person's) covers, so they cannot get closer."""
@@ -621,7 +622,7 @@ def _taken(goal, p, radii, robot_p, robot_r) -> np.ndarray:
     return taken
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _outward(p, closest, clearance) -> np.ndarray:
     """Unit vectors (n, 2) pointing from the obstacle out to each point (zero if undefined)."""
     out = np.zeros_like(p)
@@ -634,7 +635,7 @@ def _outward(p, closest, clearance) -> np.ndarray:
     return out
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _cap_speed(v, max_speed: float) -> np.ndarray:
     out = np.empty_like(v)
     for i in range(len(v)):

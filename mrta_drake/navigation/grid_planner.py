@@ -25,6 +25,7 @@ from scipy import ndimage
 
 from mrta_drake.navigation.costmap import INSCRIBED, LETHAL, MAX_NON_OBSTACLE, Costmap
 from mrta_drake.payloads import frozen_array
+from mrta_drake.stack.compiled_helper import compiled_helper
 
 _SQRT2 = math.sqrt(2.0)
 # Favour cells nearer the goal among equal-cost candidates; bounds the excess path cost by
@@ -387,7 +388,7 @@ def _blocked(factor, rows, cols, i, j):
     return i < 0 or i >= rows or j < 0 or j >= cols or not factor[i * cols + j] < np.inf
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _segment_cost(factor, rows, cols, u0, v0, u1, v1):
     """Integral of ``factor`` along the straight segment between continuous cell
     coordinates (u0, v0) and (u1, v1) (u = column, v = row), in cells; inf if the segment
@@ -432,7 +433,7 @@ def _segment_cost(factor, rows, cols, u0, v0, u1, v1):
             t_next_i += t_delta_i
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _shortcut(factor, rows, cols, uv):
     """The vertices of polyline ``uv`` (k, 2) (continuous cell coordinates) kept by greedy
     line-of-sight shortcutting: from each kept vertex, jump to the farthest vertex found by
@@ -513,7 +514,7 @@ def _path_points(factor, rows, cols, cells, start, goal, origin, resolution, spa
     return _resample(points, spacing, origin)
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _resample(points, spacing, origin):
     """``points`` (k, 2) with evenly spaced points added on each segment so that no gap
     exceeds ``spacing``, the vertices kept, all shifted by ``origin``."""
