@@ -16,6 +16,8 @@ from collections.abc import Callable
 import numba
 import numpy as np
 
+from mrta_drake.stack.compiled_helper import compiled_helper
+
 LeaderRule = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
@@ -125,7 +127,7 @@ def cluster_order(labels, active, stalled, keys, priorities):
     return order
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _ranks_before(i, j, labels, active, stalled, keys, priorities):
     """Whether robot i comes strictly before robot j."""
     if labels[i] != labels[j]:

@@ -8,9 +8,8 @@ the other, and the barriers keep the gap); the others follow their paths, the cl
 joint QP still keeping them all apart.
 """
 
-import numba
-
 from mrta_drake.control.paths import path_ahead_near, travel_direction
+from mrta_drake.stack.compiled_helper import compiled_helper
 
 FOLLOWER_RULES = ("all", "in_the_way")
 NO_FOLLOWERS, ALL_FOLLOWERS, FOLLOWERS_IN_THE_WAY = 0, 1, 2  # the rules in compiled code
@@ -25,7 +24,7 @@ def follower_rule_code(coordination: str, followers: str) -> int:
     return ALL_FOLLOWERS if followers == "all" else FOLLOWERS_IN_THE_WAY
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def in_the_way(i, above, states, paths, active, clearance, horizon):
     """Whether robot i and an active robot j of ``above`` (those ranked above it in its
     cluster) are in each other's way (see the module docstring): robot states (N, 4),

@@ -43,6 +43,7 @@ import numpy as np
 from mrta_drake.control.paths import has_path, projection
 from mrta_drake.errors import InputError, require_non_negative, require_positive
 from mrta_drake.payloads import ROBOT_STOPPED_SPEED, RobotPath
+from mrta_drake.stack.compiled_helper import compiled_helper
 
 
 @dataclass(frozen=True)
@@ -97,7 +98,7 @@ def slow_down(speed, params: NominalParams) -> np.ndarray:
     return u
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def wrap_angle(angle):
     """Angle(s) wrapped to [-pi, pi)."""
     return (angle + np.pi) % (2.0 * np.pi) - np.pi
@@ -126,7 +127,7 @@ def _with_speeds(bodies) -> np.ndarray:
     return np.ascontiguousarray(bodies.reshape(-1, 3))
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def nominal_inputs(states, paths, clustered, bodies, gains, u):
     """``nominal_control`` of every robot ``states`` (N, 4) into ``u`` (N, 2), compiled:
     ``paths`` a ``PathArrays``, ``clustered`` (N,) bools, ``bodies`` (n, 3) whose first N
@@ -135,13 +136,13 @@ def nominal_inputs(states, paths, clustered, bodies, gains, u):
     for i in range(len(states)):
         x, y, theta, v = states[i, 0], states[i, 1], states[i, 2], states[i, 3]
         if ok[i]:
-            u[i] = _nominal(x, y, theta, v, points[start[i]:start[i + 1]], stop_at_end[i],
-                            clustered[i], bodies, i, gains)
+            u[i, 0], u[i, 1] = _nominal(x, y, theta, v, points[start[i]:start[i + 1]],
+                                        stop_at_end[i], clustered[i], bodies, i, gains)
         else:
-            u[i] = slow_down_input(v, gains)
+            u[i, 0], u[i, 1] = slow_down_input(v, gains)
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def slow_down_input(speed, gains):
     """The slow-down nominal (a, omega) at ``speed`` (m/s), compiled (``gains``:
     ``NominalParams.gains``)."""
@@ -154,7 +155,7 @@ def slow_down_input(speed, gains):
  _HEADING_SPEED_FACTOR) = range(15)
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _slow_down(speed, k_slow, slow_accel):
     return min(max(-k_slow * speed, -slow_accel), slow_accel), 0.0
 
@@ -162,7 +163,7 @@ def _slow_down(speed, k_slow, slow_accel):
 @numba.njit(cache=True)
 def _slow_downs(speeds, k_slow, slow_accel, u):
     for i in range(len(speeds)):
-        u[i] = _slow_down(speeds[i], k_slow, slow_accel)
+        u[i, 0], u[i, 1] = _slow_down(speeds[i], k_slow, slow_accel)
 
 
 @numba.njit(cache=True)
@@ -176,7 +177,7 @@ def _nominal(x, y, theta, v, points, stop_at_end, clustered, bodies, exclude, ga
     return _track(x, y, theta, v, gx, gy, is_end, stop_at_end, remaining, gate, gains)
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _local_goal(x, y, points, lookahead):
     """Where to drive along a path ``points`` (k, 2), k >= 1, from (x, y).
 
@@ -214,7 +215,7 @@ def _local_goal(x, y, points, lookahead):
     return points[k - 1, 0], points[k - 1, 1], True, remaining
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _passing_goal(x, y, gx, gy, bodies, exclude, reach, gains):
     """Whether a body (``[x, y, speed]`` (n, 3), but ``exclude``) stands in the lane from
     (x, y) towards the goal (gx, gy) no farther than ``reach`` (m), and then a point as far
@@ -247,7 +248,7 @@ def _passing_goal(x, y, gx, gy, bodies, exclude, reach, gains):
     return True, x + aim_x * scale, y + aim_y * scale
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _track(x, y, theta, v, gx, gy, is_end, has_stop, remaining, heading_gate, gains):
     """Nominal (a, omega) driving towards the goal (gx, gy). ``has_stop``: the robot must
     stop ``remaining`` m ahead along the path; ``is_end``: the goal is that stop."""

@@ -12,6 +12,7 @@ import numba
 import numpy as np
 
 from mrta_drake.payloads import PATH_OK, FleetPaths, RobotPath
+from mrta_drake.stack.compiled_helper import compiled_helper
 
 
 class PathArrays(NamedTuple):
@@ -88,7 +89,7 @@ def projection(x, y, points):
     return nearest, t_nearest
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def path_ahead_near(x, y, points, qx, qy, horizon, clearance):
     """Whether a robot at (x, y) following the path ``points`` (k, 2), k >= 1, comes within
     ``clearance`` (m) of the point (qx, qy) in its next ``horizon`` m: on the way from
@@ -115,7 +116,7 @@ def path_ahead_near(x, y, points, qx, qy, horizon, clearance):
     return near, ux, uy
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def travel_direction(x, y, points):
     """The unit direction (zero if none) a robot at (x, y) drives in along the path
     ``points`` (k, 2), k >= 1: that of the path where it projects onto it (towards the
@@ -127,7 +128,7 @@ def travel_direction(x, y, points):
                          0.0)[1:]
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _near_segment(qx, qy, ax, ay, bx, by, clearance):
     """Whether (qx, qy) is within ``clearance`` (m) of the segment from (ax, ay) to
     (bx, by), and the segment's unit direction (zero if it has no length)."""

@@ -23,6 +23,7 @@ import numpy as np
 from pydrake.solvers import ClarabelSolver, MathematicalProgram, OsqpSolver, SolverOptions
 
 from mrta_drake.errors import require_choice, require_positive
+from mrta_drake.stack.compiled_helper import compiled_helper
 
 SOLVERS = ("clarabel", "osqp")
 _PAD = 4  # row counts are padded to a multiple of this so that few programs are built
@@ -153,7 +154,7 @@ def _prepare(u_nominal, G, b, lower, upper):
     return clipped, finite, optimal, kept[:count]
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _pairwise_sum(a):
     """The sum of ``a`` exactly as numpy's ``sum`` adds it, so that decisions match numpy's
     to the bit: blocks of at most 128 with eight accumulators; a longer range is split in
@@ -218,7 +219,7 @@ def _load_program(u_nominal, G, b, kept, linear, A, lower):
         lower[row] = b[kept[row]] if keep else -1.0
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def check_nominal(G, b, u_nominal, clipped) -> tuple[bool, bool]:
     """Whether ``G``, ``b`` and ``u_nominal`` are all finite, and whether then ``clipped``
     (the nominal clipped to the input bounds) meets every row ``G u >= b``: it is then the

@@ -13,6 +13,7 @@ from mrta_drake.control.clusters import cluster_labels, cluster_order
 from mrta_drake.control.followers import FOLLOWERS_IN_THE_WAY, NO_FOLLOWERS, in_the_way
 from mrta_drake.control.input_limits import fill_input_bounds
 from mrta_drake.control.nominal import nominal_inputs, slow_down_input
+from mrta_drake.stack.compiled_helper import compiled_helper
 
 
 class TickSettings(NamedTuple):
@@ -110,13 +111,13 @@ def plan_tick(robots, world, paths, settings, out):
             follower = in_the_way(i, order[first:k], states, paths, active, yield_clearance,
                                   yield_horizon)
         if slowed[i] or (follower_rule != NO_FOLLOWERS and follower):
-            u_nominal[i] = slow_down_input(states[i, 3], gains)
+            u_nominal[i, 0], u_nominal[i, 1] = slow_down_input(states[i, 3], gains)
     fill_input_bounds(states, limits, lower, upper)
     minima[0], minima[1], minima[2] = min_squared_distances(states[:, :2].copy(), hits,
                                                             hit_mask, human_positions)
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _bodies(shared, human_positions, human_velocities):
     """The robots (as the others know them) and the humans as ``[x, y, speed]`` (N + M, 3),
     for passing."""
@@ -130,7 +131,7 @@ def _bodies(shared, human_positions, human_velocities):
     return bodies
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _copy_into(target, source):
     """``target[:] = source`` for 1-D arrays of equal length, without numba's slice assignment
     (broadcasting and its error messages take seconds to compile)."""

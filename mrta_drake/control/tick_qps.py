@@ -11,6 +11,7 @@ from mrta_drake.control.cbf_params import CbfParams
 from mrta_drake.control.qp_solver import check_nominal
 from mrta_drake.control.safety_rows import SafetyRows, count_rows, empty_rows, fill_rows
 from mrta_drake.control.steering import steer
+from mrta_drake.stack.compiled_helper import compiled_helper
 
 
 @dataclass(frozen=True)
@@ -153,7 +154,7 @@ def _group_rows(states, hits, humans, human_velocities, mask, members, group_sta
     return G, G_start, b, kind, h, member, other, normal, row_start, needs_qp
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _scatter_rows(target, index, rows):
     """``target[index] = rows`` for (k, 2) ``rows``, element by element: numba's fancy-index
     assignment (broadcasting and its error messages) takes seconds to compile."""

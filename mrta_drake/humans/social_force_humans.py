@@ -16,6 +16,7 @@ from mrta_drake.payloads import (
     HumanStates,
     frozen_array,
 )
+from mrta_drake.stack.compiled_helper import compiled_helper
 from mrta_drake.world.obstacles import Obstacles, cast_rays_into, closest_points_of
 
 ELLIPSE_TIME = 2.0  # s: the elliptical potential stretches along the other's next 2 s of walk
@@ -223,11 +224,14 @@ class SocialForceHumans(LeafSystem):
         return x, np.cos(x[:, 2]), np.sin(x[:, 2]), self._robot_radii
 
     def _update(self, context, discrete_state):
-        _update_people(context.get_discrete_state_vector().value(),
-                       discrete_state.get_mutable_value(), context.get_time(),
-                       *self._robots(context), self._radii, self._speeds, self._counts,
-                       self._waypoints, self._entry, self._starts, self._obstacles.compiled,
-                       self._constants)
+        x, out = self._state(context), discrete_state.get_mutable_value()
+        out[:] = x
+        robots, cos, sin, robot_r = self._robots(context)
+        time, m = context.get_time(), len(self._names)
+        if np.any((x[6 * m:] <= 0.5) & (self._entry <= time + 1e-9)):
+            _enter(time, out, robots, robot_r, self._radii, self._entry, self._starts)
+        _step_people(out, robots, cos, sin, robot_r, self._radii, self._speeds, self._counts,
+                     self._waypoints, self._obstacles.compiled, self._constants)
 
 
 @numba.njit(cache=True)
@@ -250,95 +254,89 @@ def _placed(x, parking):
  _ROBOT_GAIN, _YIELD_DISTANCE, _WAITING_GAP, _YIELD_TIME, _PASSING_GAP, _SIDESTEP,
  _YIELDS) = range(15)
 
-
-@numba.njit(cache=True)
-def _update_people(x, out, time, robots, cos, sin, robot_r, radii, speeds, counts, waypoints,
-                   entry, starts, obstacles, constants):
-    """One update of the state ``x`` (layout of the class docstring) into ``out``: entries
-    (``_enter``), then steps 1-4 for the people present (``_step_people``); ``robots``
-    (N, 4) robot states, ``cos`` and ``sin`` (N,) of their headings (numpy's, so that the
-    result does not depend on the compiled math library)."""
-    m = len(radii)
-    robot_p, robot_v = robots[:, :2], np.empty((len(robots), 2))
-    for j in range(len(robots)):
-        robot_v[j, 0], robot_v[j, 1] = robots[j, 3] * cos[j], robots[j, 3] * sin[j]
-    out[:] = x
-    p, v, heading = out[: 2 * m].reshape((m, 2)), out[2 * m: 4 * m].reshape((m, 2)), \
-        out[5 * m: 6 * m]
-    targets, present = np.empty(m, dtype=np.int64), np.empty(m, dtype=np.bool_)
-    for i in range(m):
-        targets[i], present[i] = int(x[4 * m + i]), x[6 * m + i] > 0.5
-    _enter(time, p, v, present, robot_p, robot_r, radii, entry, starts)
-    _step_people(p, v, heading, targets, np.flatnonzero(present), robot_p, robot_v, robot_r,
-                 radii, speeds, counts, waypoints, obstacles, constants)
-    for i in range(m):
-        out[4 * m + i], out[6 * m + i] = targets[i], 1.0 if present[i] else 0.0
+# The kernels below copy arrays element by element: numba's array expressions, slice and
+# fancy-index assignments (broadcasting, and error messages built from strings) take seconds
+# to compile, and a sliced argument ('A' layout) compiles a second copy of its callee.
 
 
 @numba.njit(cache=True)
-def _enter(time, p, v, present, robot_p, robot_r, radii, entry, starts):
+def _enter(time, state, robots, robot_r, radii, entry, starts):
     """Lets waiting people whose ``entry`` time has come enter, in people order, when their
     start is at least ``ENTRY_GAP`` (surface to surface) from everyone present and from the
-    robots (modifies ``p``, ``v`` and ``present``)."""
+    ``robots`` (N, 4) (modifies ``state``, laid out as in the class docstring)."""
     m = len(radii)
     for i in range(m):
-        if present[i] or not entry[i] <= time + 1e-9:
+        if state[6 * m + i] > 0.5 or not entry[i] <= time + 1e-9:
             continue
         clear = True
-        for j in range(m + len(robot_p)):
+        for j in range(m + len(robots)):
             if j < m:
-                if not present[j]:
+                if not state[6 * m + j] > 0.5:
                     continue
-                x, y, reach = p[j, 0], p[j, 1], radii[j]
+                x, y, reach = state[2 * j], state[2 * j + 1], radii[j]
             else:
-                x, y, reach = robot_p[j - m, 0], robot_p[j - m, 1], robot_r[j - m]
+                x, y, reach = robots[j - m, 0], robots[j - m, 1], robot_r[j - m]
             dx, dy = x - starts[i, 0], y - starts[i, 1]
             if not math.sqrt(dx * dx + dy * dy) - reach - radii[i] >= ENTRY_GAP:
                 clear = False
                 break
         if clear:
-            present[i] = True
-            p[i], v[i] = starts[i], 0.0
+            state[6 * m + i] = 1.0
+            state[2 * i], state[2 * i + 1] = starts[i, 0], starts[i, 1]
+            state[2 * m + 2 * i], state[2 * m + 2 * i + 1] = 0.0, 0.0
 
 
 @numba.njit(cache=True)
-def _step_people(p, v, heading, targets, a, robot_p, robot_v, robot_r, radii_all, speeds,
-                 counts, waypoints, obstacles, constants):
-    """Steps 1-4 of the class docstring for the people present (indices ``a``), in place on
-    positions ``p`` (M, 2), velocities ``v`` (M, 2), ``heading`` (M,) and ``targets`` (M,);
-    robots at ``robot_p`` (N, 2) moving at ``robot_v`` (N, 2); ``obstacles``:
-    ``Obstacles.compiled``."""
+def _step_people(state, robots, cos, sin, robot_r, radii_all, speeds_all, counts, waypoints,
+                 obstacles, constants):
+    """Steps 1-4 of the class docstring for the people present, in place on ``state`` (laid
+    out as in the class docstring); ``robots`` (N, 4) robot states, ``cos`` and ``sin`` (N,)
+    of their headings (numpy's, so that the result does not depend on the compiled math
+    library); ``obstacles``: ``Obstacles.compiled``."""
+    m, n = len(radii_all), len(robots)
     dt, tolerance = constants[_DT], constants[_TOLERANCE]
-    k = len(a)
-    pa, va, radii, goal = np.empty((k, 2)), np.empty((k, 2)), radii_all[a], np.empty((k, 2))
+    robot_p, robot_v = np.empty((n, 2)), np.empty((n, 2))
+    for j in range(n):
+        robot_p[j, 0], robot_p[j, 1] = robots[j, 0], robots[j, 1]
+        robot_v[j, 0], robot_v[j, 1] = robots[j, 3] * cos[j], robots[j, 3] * sin[j]
+    a = np.empty(m, dtype=np.int64)
+    k = 0
+    for i in range(m):
+        if state[6 * m + i] > 0.5:
+            a[k] = i
+            k += 1
+    pa, va, goal = np.empty((k, 2)), np.empty((k, 2)), np.empty((k, 2))
+    radii, speeds, targets = np.empty(k), np.empty(k), np.empty(k, dtype=np.int64)
     for j in range(k):
         i = a[j]
+        radii[j], speeds[j], targets[j] = radii_all[i], speeds_all[i], int(state[4 * m + i])
         for c in range(2):
-            pa[j, c], va[j, c], goal[j, c] = p[i, c], v[i, c], waypoints[i, targets[i], c]
+            pa[j, c], va[j, c] = state[2 * i + c], state[2 * m + 2 * i + c]
+            goal[j, c] = waypoints[i, targets[j], c]
     reached = _taken(goal, pa, radii, robot_p, robot_r)
     direction, accel = np.zeros((k, 2)), np.empty((k, 2))
     for j in range(k):
         i = a[j]
         gx, gy = goal[j, 0] - pa[j, 0], goal[j, 1] - pa[j, 1]
         if reached[j] or math.sqrt(gx * gx + gy * gy) < tolerance:
-            targets[i] = (targets[i] + 1) % counts[i]
-        tx, ty = waypoints[i, targets[i], 0] - pa[j, 0], waypoints[i, targets[i], 1] - pa[j, 1]
+            targets[j] = (targets[j] + 1) % counts[i]
+        tx, ty = waypoints[i, targets[j], 0] - pa[j, 0], waypoints[i, targets[j], 1] - pa[j, 1]
         distance = math.sqrt(tx * tx + ty * ty)
         if distance > 1e-9 and not (counts[i] == 1 and distance < tolerance):
             direction[j, 0], direction[j, 1] = tx / distance, ty / distance
-    desired = _yielding_velocities(pa, direction, speeds[a], radii, robot_p, robot_v, robot_r,
+    desired = _yielding_velocities(pa, direction, speeds, radii, robot_p, robot_v, robot_r,
                                    obstacles, constants)
     for j in range(k):
         for c in range(2):
             accel[j, c] = (desired[j, c] - va[j, c]) / constants[_RELAXATION]
     force = np.zeros((k, 2))
-    _add_repulsion(pa, direction, radii, pa, va, radii, True, constants[_STRENGTH],
+    _add_repulsion(pa, direction, radii, pa, va, radii, constants[_STRENGTH],
                    constants[_RANGE], force)
-    accel += force
+    _add_into(accel, force)
     force = np.zeros((k, 2))
-    _add_repulsion(pa, direction, radii, robot_p, robot_v, robot_r, False,
+    _add_repulsion(pa, direction, radii, robot_p, robot_v, robot_r,
                    constants[_STRENGTH] * constants[_ROBOT_GAIN], constants[_RANGE], force)
-    accel += force
+    _add_into(accel, force)
     closest, clearance = closest_points_of(pa, *obstacles)
     outward = _outward(pa, closest, clearance)
     for j in range(k):
@@ -346,25 +344,46 @@ def _step_people(p, v, heading, targets, a, robot_p, robot_v, robot_r, radii_all
             -max(clearance[j], 0.0) / constants[_WALL_RANGE])
         accel[j, 0] += wall * outward[j, 0]
         accel[j, 1] += wall * outward[j, 1]
-
-    va_new = _cap_speed(va + dt * accel, constants[_MAX_SPEED])
-    free_step = pa + dt * va_new
+    va_new, free_step = np.empty((k, 2)), np.empty((k, 2))
+    for j in range(k):
+        for c in range(2):
+            va_new[j, c] = va[j, c] + dt * accel[j, c]
+    va_new = _cap_speed(va_new, constants[_MAX_SPEED])
+    for j in range(k):
+        for c in range(2):
+            free_step[j, c] = pa[j, c] + dt * va_new[j, c]
     # Each robot where it is and where its velocity takes it by the end of the step.
-    bodies = np.concatenate((robot_p, robot_p + dt * robot_v))
-    body_r = np.concatenate((robot_r, robot_r))
+    bodies, body_r = np.empty((2 * n, 2)), np.empty(2 * n)
+    for j in range(n):
+        body_r[j], body_r[n + j] = robot_r[j], robot_r[j]
+        for c in range(2):
+            bodies[j, c], bodies[n + j, c] = robot_p[j, c], robot_p[j, c] + dt * robot_v[j, c]
     pa_new, blocked = _project(free_step, pa, closest, clearance, radii, bodies, body_r,
                                obstacles)
-    va_new = _cap_speed(va_new + (pa_new - free_step) / dt, constants[_MAX_SPEED])
+    for j in range(k):
+        for c in range(2):
+            va_new[j, c] = va_new[j, c] + (pa_new[j, c] - free_step[j, c]) / dt
+    va_new = _cap_speed(va_new, constants[_MAX_SPEED])
     for j in range(k):
         i = a[j]
         if blocked[j]:
-            va_new[j] = 0.0
-        p[i], v[i] = pa_new[j], va_new[j]
+            va_new[j, 0], va_new[j, 1] = 0.0, 0.0
+        for c in range(2):
+            state[2 * i + c], state[2 * m + 2 * i + c] = pa_new[j, c], va_new[j, c]
+        state[4 * m + i] = targets[j]
         if math.sqrt(va_new[j, 0] ** 2 + va_new[j, 1] ** 2) > STOPPED_SPEED:
-            heading[i] = np.arctan2(va_new[j, 1], va_new[j, 0])
+            state[5 * m + i] = np.arctan2(va_new[j, 1], va_new[j, 0])
 
 
-@numba.njit(cache=True)
+@compiled_helper
+def _add_into(target, values):
+    """``target += values`` for (k, 2) arrays, element by element."""
+    for j in range(len(target)):
+        target[j, 0] += values[j, 0]
+        target[j, 1] += values[j, 1]
+
+
+@compiled_helper
 def _yielding_velocities(p, direction, speeds, radii, robot_p, robot_v, robot_r, obstacles,
                          constants) -> np.ndarray:
     """Desired velocities (a, 2), m/s, of people at ``p`` (a, 2) walking in unit
@@ -410,7 +429,7 @@ def _yielding_velocities(p, direction, speeds, radii, robot_p, robot_v, robot_r,
     return desired
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _room(x, y, ux, uy, radius, width, obstacles) -> bool:
     """True when the obstacles leave at least ``width`` (m) beside a robot of ``radius`` at
     (``x``, ``y``), along the unit vector (``ux``, ``uy``)."""
@@ -422,7 +441,7 @@ def _room(x, y, ux, uy, radius, width, obstacles) -> bool:
     return hit[0, 0] >= reach
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _project(new, old, old_closest, old_clearance, radii, robot_p, robot_r, obstacles):
     """Hard constraints on the step ``old`` -> ``new`` (positions (a, 2); ``old_closest``
     and ``old_clearance``: ``closest_points_of`` at ``old``; robots: discs at ``robot_p``
@@ -432,35 +451,47 @@ def _project(new, old, old_closest, old_clearance, radii, robot_p, robot_r, obst
     cause contact; everyone ends at clearance >= radius from obstacles. Returns the new
     positions and the mask of people blocked, who would still break a robot floor or lose
     clearance below min(radius, old clearance), and so stay at ``old``."""
+    a, b = len(new), len(robot_p)
     new = new.copy()
-    floor = np.minimum(ROBOT_STANDOFF, _gaps(old, radii, robot_p, robot_r))
-    depth = np.zeros(len(new))
+    floor = _gaps(old, radii, robot_p, robot_r)
+    for i in range(a):
+        for j in range(b):
+            floor[i, j] = min(ROBOT_STANDOFF, floor[i, j])
     known, closest, clearance = old.copy(), old_closest.copy(), old_clearance.copy()
+    deep = False  # someone ends the iteration pushed out of an obstacle
     for _ in range(PROJECTION_ITERATIONS):
-        shift = _apart(new, radii) + _away(new, radii, robot_p, robot_r, floor)
-        new += shift
+        apart, away = _apart(new, radii), _away(new, radii, robot_p, robot_r, floor)
+        shifted = False
+        for i in range(a):
+            for c in range(2):
+                shift = apart[i, c] + away[i, c]
+                new[i, c] += shift
+                shifted = shifted or shift != 0.0
         _refresh_closest(new, known, closest, clearance, obstacles)
-        depth = np.maximum(radii - clearance, 0.0)
         outward = _outward(new, closest, clearance)
-        for i in range(len(new)):
-            new[i, 0] += depth[i] * outward[i, 0]
-            new[i, 1] += depth[i] * outward[i, 1]
-        if not shift.any() and not depth.any():
+        deep = False
+        for i in range(a):
+            depth = max(radii[i] - clearance[i], 0.0)
+            deep = deep or depth != 0.0
+            new[i, 0] += depth * outward[i, 0]
+            new[i, 1] += depth * outward[i, 1]
+        if not shifted and not deep:
             break
-    if depth.any():
+    if deep:
         _refresh_closest(new, known, closest, clearance, obstacles)
-    blocked = clearance < np.minimum(radii, old_clearance) - 1e-9
+    blocked = np.zeros(a, dtype=np.bool_)
     gaps = _gaps(new, radii, robot_p, robot_r)
-    for i in range(len(new)):
-        for j in range(len(robot_p)):
+    for i in range(a):
+        blocked[i] = clearance[i] < min(radii[i], old_clearance[i]) - 1e-9
+        for j in range(b):
             if gaps[i, j] < floor[i, j] - 1e-9:
                 blocked[i] = True
         if blocked[i]:
-            new[i] = old[i]
+            new[i, 0], new[i, 1] = old[i, 0], old[i, 1]
     return new, blocked
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _refresh_closest(p, known, closest, clearance, obstacles):
     """``closest_points_of`` points ``p`` (n, 2) into ``closest`` (n, 2) and ``clearance``
     (n,), which hold it for the points ``known`` (n, 2): only the points that moved (bit
@@ -473,25 +504,27 @@ def _refresh_closest(p, known, closest, clearance, obstacles):
             count += 1
     if count == 0:
         return
-    moved = moved[:count]
-    q, d = closest_points_of(p[moved], *obstacles)
+    queried = np.empty((count, 2))
+    for k in range(count):
+        queried[k, 0], queried[k, 1] = p[moved[k], 0], p[moved[k], 1]
+    q, d = closest_points_of(queried, *obstacles)
     for k in range(count):
         i = moved[k]
         closest[i, 0], closest[i, 1], clearance[i] = q[k, 0], q[k, 1], d[k]
         known[i, 0], known[i, 1] = p[i, 0], p[i, 1]
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _same(x, y) -> bool:
     """True when x and y are the same number, zeros of the same sign included."""
     return x == y and math.copysign(1.0, x) == math.copysign(1.0, y)
 
 
-@numba.njit(cache=True)
-def _add_repulsion(p, direction, radii, q, q_velocity, q_radii, same, strength, reach, force):
+@compiled_helper
+def _add_repulsion(p, direction, radii, q, q_velocity, q_radii, strength, reach, force):
     """Adds to ``force`` (a, 2) the elliptical-potential force (m/s^2) of every other (q) on
-    each person (p) walking in ``direction`` (a, 2) (``same``: q are the people themselves,
-    nobody repels itself); ``strength`` V0, ``reach`` sigma."""
+    each person (p) walking in ``direction`` (a, 2) (q may be the people themselves: nobody
+    repels a body at its own position); ``strength`` V0, ``reach`` sigma."""
     cos_view = math.cos(FIELD_OF_VIEW)
     # Each other's next ELLIPSE_TIME s of walk (m) and walking direction, once per other.
     walk, ux, uy = np.empty(len(q)), np.empty(len(q)), np.empty(len(q))
@@ -502,8 +535,6 @@ def _add_repulsion(p, direction, radii, q, q_velocity, q_radii, same, strength, 
     for i in range(len(p)):
         dx, dy = direction[i, 0], direction[i, 1]
         for j in range(len(q)):
-            if same and i == j:
-                continue
             r1x, r1y = p[i, 0] - q[j, 0], p[i, 1] - q[j, 1]  # from the other to the person
             n1 = math.sqrt(r1x * r1x + r1y * r1y)
             if n1 < 1e-9:
@@ -529,7 +560,7 @@ def _add_repulsion(p, direction, radii, q, q_velocity, q_radii, same, strength, 
             force[i, 1] += fy - KEEP_RIGHT * against * dx
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _gaps(p, radii, q, q_radii) -> np.ndarray:
     """Surface distances (a, b) between circles at p (a, 2) and q (b, 2)."""
     gaps = np.empty((len(p), len(q)))
@@ -540,7 +571,7 @@ def _gaps(p, radii, q, q_radii) -> np.ndarray:
     return gaps
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _apart(p, radii) -> np.ndarray:
     """Shifts (a, 2) that move each overlapping pair of people half the overlap apart."""
     shift = np.zeros_like(p)
@@ -556,7 +587,7 @@ def _apart(p, radii) -> np.ndarray:
     return shift
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _away(p, radii, q, q_radii, floor) -> np.ndarray:
     """Shifts (a, 2) that move people straight away from robots q until each gap >= floor."""
     shift = np.zeros_like(p)
@@ -571,7 +602,7 @@ def _away(p, radii, q, q_radii, floor) -> np.ndarray:
     return shift
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _taken(goal, p, radii, robot_p, robot_r) -> np.ndarray:
     """True for people within ``TAKEN_REACH`` of a target that someone else's body (a
     robot's or another person's) covers, so they cannot get closer."""
@@ -591,7 +622,7 @@ def _taken(goal, p, radii, robot_p, robot_r) -> np.ndarray:
     return taken
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _outward(p, closest, clearance) -> np.ndarray:
     """Unit vectors (n, 2) pointing from the obstacle out to each point (zero if undefined)."""
     out = np.zeros_like(p)
@@ -604,7 +635,7 @@ def _outward(p, closest, clearance) -> np.ndarray:
     return out
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _cap_speed(v, max_speed: float) -> np.ndarray:
     out = np.empty_like(v)
     for i in range(len(v)):

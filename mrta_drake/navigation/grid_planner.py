@@ -25,6 +25,7 @@ from scipy import ndimage
 
 from mrta_drake.navigation.costmap import INSCRIBED, LETHAL, MAX_NON_OBSTACLE, Costmap
 from mrta_drake.payloads import frozen_array
+from mrta_drake.stack.compiled_helper import compiled_helper
 
 _SQRT2 = math.sqrt(2.0)
 # Favour cells nearer the goal among equal-cost candidates; bounds the excess path cost by
@@ -387,7 +388,7 @@ def _blocked(factor, rows, cols, i, j):
     return i < 0 or i >= rows or j < 0 or j >= cols or not factor[i * cols + j] < np.inf
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _segment_cost(factor, rows, cols, u0, v0, u1, v1):
     """Integral of ``factor`` along the straight segment between continuous cell
     coordinates (u0, v0) and (u1, v1) (u = column, v = row), in cells; inf if the segment
@@ -432,7 +433,7 @@ def _segment_cost(factor, rows, cols, u0, v0, u1, v1):
             t_next_i += t_delta_i
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _shortcut(factor, rows, cols, uv):
     """The vertices of polyline ``uv`` (k, 2) (continuous cell coordinates) kept by greedy
     line-of-sight shortcutting: from each kept vertex, jump to the farthest vertex found by
@@ -474,7 +475,7 @@ def _shortcut(factor, rows, cols, uv):
         a = good
     out = np.empty((len(keep), 2))
     for m in range(len(keep)):
-        out[m] = uv[keep[m]]
+        out[m, 0], out[m, 1] = uv[keep[m], 0], uv[keep[m], 1]
     return out
 
 
@@ -498,18 +499,22 @@ def _path_points(factor, rows, cols, cells, start, goal, origin, resolution, spa
         uv[end, 0] = goal_u
         uv[end, 1] = goal_v
         end += 1
-    if math.floor(uv[0, 1]) == cells[0, 0] and math.floor(uv[0, 0]) == cells[0, 1]:
-        kept = _shortcut(factor, rows, cols, uv[:end])
-    else:
-        # The first leg leaves the inscribed zone; only what follows it is shortcut.
-        rest = _shortcut(factor, rows, cols, uv[1:end])
-        kept = np.empty((rest.shape[0] + 1, 2))
-        kept[0] = uv[0]
-        kept[1:] = rest
-    return _resample(kept * resolution, spacing, origin)
+    # The first leg leaves the inscribed zone when the start is outside the first cell; then
+    # only what follows it is shortcut. Element by element: numba's slice assignment and
+    # array expressions take seconds to compile.
+    first = 0 if math.floor(uv[0, 1]) == cells[0, 0] and math.floor(uv[0, 0]) == cells[0, 1] \
+        else 1
+    kept = _shortcut(factor, rows, cols, uv[first:end])
+    points = np.empty((first + len(kept), 2))
+    if first:
+        points[0, 0], points[0, 1] = uv[0, 0] * resolution, uv[0, 1] * resolution
+    for m in range(len(kept)):
+        points[first + m, 0] = kept[m, 0] * resolution
+        points[first + m, 1] = kept[m, 1] * resolution
+    return _resample(points, spacing, origin)
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _resample(points, spacing, origin):
     """``points`` (k, 2) with evenly spaced points added on each segment so that no gap
     exceeds ``spacing``, the vertices kept, all shifted by ``origin``."""

@@ -11,17 +11,18 @@ import importlib
 import pickle
 
 # Entry kernels of the default stack (module, function) and the CPU s of compiling each with
-# everything it calls: the quickstart's ~49 s of compiling (cold less warm CPU time) split as
-# numba's compile events shared it out, on the benchmark host (docs/benchmarks.md).
+# everything it calls: the quickstart's ~31 s of compiling split as numba's compile events
+# shared it out, on the benchmark host (docs/benchmarks.md).
 ENTRY_KERNELS = {
-    ("mrta_drake.control.tick_kernel", "plan_tick"): 8.5,
-    ("mrta_drake.control.tick_qps", "_group_rows"): 8.1,
-    ("mrta_drake.control.qp_solver", "_prepare"): 0.9,
-    ("mrta_drake.control.wall_rays", "_wall_hits"): 1.5,
-    ("mrta_drake.navigation.grid_planner", "_path_points"): 3.3,
-    ("mrta_drake.navigation.grid_planner", "_search"): 1.0,
-    ("mrta_drake.robots.unicycle_robots", "_step"): 0.2,
-    ("mrta_drake.humans.social_force_humans", "_update_people"): 25.5,
+    ("mrta_drake.control.tick_kernel", "plan_tick"): 6.7,
+    ("mrta_drake.control.tick_qps", "_group_rows"): 6.1,
+    ("mrta_drake.control.qp_solver", "_prepare"): 2.0,
+    ("mrta_drake.control.wall_rays", "_wall_hits"): 0.8,
+    ("mrta_drake.navigation.grid_planner", "_path_points"): 3.0,
+    ("mrta_drake.navigation.grid_planner", "_search"): 1.2,
+    ("mrta_drake.robots.unicycle_robots", "_step"): 0.3,
+    ("mrta_drake.world.obstacles", "closest_points_of"): 1.5,
+    ("mrta_drake.humans.social_force_humans", "_step_people"): 9.9,
 }
 
 

@@ -15,6 +15,7 @@ from functools import cached_property
 import numba
 import numpy as np
 
+from mrta_drake.stack.compiled_helper import compiled_helper
 from mrta_drake.world.occupancy_grid import OccupancyGrid
 
 _RAY_CELL = 1.0  # m, grid cell of the boxes' nearest-first order (``compiled``) ...
@@ -199,7 +200,7 @@ def closest_points_of(p, centers, half, cos, sin, cyl_centers, cyl_radii, reach,
     return best_q, best_d
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _box_order(x, y, grid, order, count):
     """The boxes nearest first from the point (x, y) (``Obstacles.compiled``), and the row of
     their distance bounds (-1 outside the grid: all boxes in index order, no bounds)."""
@@ -210,7 +211,7 @@ def _box_order(x, y, grid, order, count):
     return np.arange(count), -1
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def _closest_points(p, centers, half, cos, sin, cyl_centers, cyl_radii, reach, grid, order,
                     bound, best_q, best_d):
     """``Obstacles.closest_points`` into ``best_q`` (n, 2) and ``best_d`` (n,), which start
