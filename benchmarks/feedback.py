@@ -54,6 +54,9 @@ VARIANTS = {  # name -> allocator params set
                                      "planning_margin": 5.0},
     "learn + re-plan, 5 s drift": {"learn_travel_times": True, "replan_on_delay": True,
                                    "drift_margin": 5.0, "replan_interval": 5.0},
+    "learn + re-plan when late, re-time on 3 s drift": {
+        "learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": True,
+        "drift_margin": 3.0},
 }
 
 

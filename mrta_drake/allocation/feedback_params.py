@@ -24,7 +24,10 @@ class FeedbackParams:
     ``replan_on_delay``: between batches, allocate again when a robot's progress (with the
     travel times planned with) makes one of its planned drop-offs late or moves it by more
     than ``drift_margin`` (s) from its planned time, at most once every
-    ``replan_interval`` (s). Both switches are on by default (measured better:
+    ``replan_interval`` (s). With ``retime_on_drift`` a drift that turns no drop-off planned
+    on time late only re-times the plan (the same routes, the completion times predicted
+    now) instead of allocating again, at any check (re-timing changes no route, so
+    ``replan_interval`` does not limit it). Both switches are on by default (measured better:
     docs/allocation.md); both false, with no margin, is the open loop (``OPEN_LOOP``): plans
     made only when batches arrive or robots break down, from the scenario's matrix.
     """
@@ -39,6 +42,7 @@ class FeedbackParams:
     planning_margin: float = 0.0
     drift_margin: float = 10.0
     replan_interval: float = 10.0
+    retime_on_drift: bool = False
 
     def __post_init__(self):
         self.estimator()  # checks the estimator's fields
