@@ -1,13 +1,18 @@
 """Feedback benchmark: the open loop against each way of closing it (docs/allocation.md).
 
-Two cases, each run with every variant of the allocator's feedback switches
+The cases below, each run with every variant of the allocator's feedback switches
 (``FeedbackParams``):
 
 - busy: the six-robot hospital with people for 300 s under the generated task stream of
   ``scenarios/sweeps/hospital_20_seeds.yaml``, over 20 seeds the sweeps do not use
-  (200-219);
-- paper: ``scenarios/hospital_6_robots.yaml`` as it is (the original 6+6 stream, the ten
-  people), 600 s.
+  (200-219); busy_check: the same on ten further seeds (220-229), to check a default
+  chosen on the first twenty;
+- paper: ``scenarios/hospital_6_robots.yaml`` as it is (its 3+2 stream, the ten people),
+  600 s;
+- six_plus_six: ``scenarios/hospital_6_plus_6.yaml`` (a 6+6 stream after the original's
+  pattern, the ten people), 450 s;
+- two_floor: ``scenarios/two_floor_6_robots.yaml`` (the two-level clinic with lifts, its
+  generated stream), 600 s.
 
 Each variant is one sweep (``mrta_drake.tools.sweep``: fresh processes), the variants'
 sweeps side by side sharing ``--workers`` processes, resumable from
@@ -40,7 +45,10 @@ RESULTS = ROOT / "benchmarks" / "results"
 RUNS = RESULTS / "feedback_runs"
 BUSY_SWEEP = ROOT / "scenarios" / "sweeps" / "hospital_20_seeds.yaml"
 PAPER = ROOT / "scenarios" / "hospital_6_robots.yaml"
+SINGLE_RUNS = {"paper": PAPER, "six_plus_six": ROOT / "scenarios" / "hospital_6_plus_6.yaml",
+               "two_floor": ROOT / "scenarios" / "two_floor_6_robots.yaml"}
 SEEDS = list(range(200, 220))
+CHECK_SEEDS = list(range(220, 230))
 PARAMS = "blocks.allocator.params."
 
 VARIANTS = {  # name -> allocator params set
@@ -117,14 +125,16 @@ def main():
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--variants", nargs="*", default=list(VARIANTS),
                         help="variant names (default: all)")
-    parser.add_argument("--cases", nargs="*", default=["busy", "paper"])
+    parser.add_argument("--cases", nargs="*", default=["busy", "busy_check", *SINGLE_RUNS])
     args = parser.parse_args()
     busy = load_sweep(str(BUSY_SWEEP))
     cases = {
         "busy": SweepSpec(busy.scenario, {"seed": SEEDS[:args.seeds]},
                           {k: v for k, v in busy.fixed.items()}, busy.plugins, busy.source),
-        "paper": SweepSpec(str(PAPER), {"seed": [0]}, {}, [], str(PAPER)),
-    }
+        "busy_check": SweepSpec(busy.scenario, {"seed": CHECK_SEEDS}, dict(busy.fixed),
+                                busy.plugins, busy.source),
+    } | {name: SweepSpec(str(path), {"seed": [0]}, {}, [], str(path))
+         for name, path in SINGLE_RUNS.items()}
     path = RESULTS / "feedback.json"
     output = json.loads(path.read_text()) if path.is_file() else {"variants": {}, "cases": {}}
     output["variants"] |= {v: VARIANTS[v] for v in args.variants}
