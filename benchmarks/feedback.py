@@ -58,6 +58,8 @@ VARIANTS = {  # name -> allocator params set
     "learn + re-plan": {"learn_travel_times": True, "replan_on_delay": True},
     "learn (q0.8) + re-plan": {"learn_travel_times": True, "replan_on_delay": True,
                                "travel_time_estimator": "quantile"},
+    "learn (recent) + re-plan": {"learn_travel_times": True, "replan_on_delay": True,
+                                 "travel_time_estimator": "recent"},
     "learn + re-plan + 5 s margin": {"learn_travel_times": True, "replan_on_delay": True,
                                      "planning_margin": 5.0},
     "learn + re-plan, 5 s drift": {"learn_travel_times": True, "replan_on_delay": True,
