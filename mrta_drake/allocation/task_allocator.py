@@ -136,7 +136,9 @@ class TaskAllocator(LeafSystem):
     ``replan_on_delay`` a check with no batch or breakdown allocates again when
     ``drift.find_drift`` finds a drop-off turned late or moved by more than
     ``drift_margin``, at most ``replan_interval`` after the last allocation (a
-    ``ReplanEvent``). Done and under-way actions are kept as for a batch.
+    ``ReplanEvent``); with ``retime_on_drift`` a drift that turns nothing late only
+    re-times the plan (same routes, times predicted now, no event). Done and under-way
+    actions are kept as for a batch.
 
     Args:
         stream: the task batches (``scenario_schema.TaskBatch`` or alike: ``arrival`` s,
