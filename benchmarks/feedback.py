@@ -1,13 +1,18 @@
 """Feedback benchmark: the open loop against each way of closing it (docs/allocation.md).
 
-Two cases, each run with every variant of the allocator's feedback switches
+The cases below, each run with every variant of the allocator's feedback switches
 (``FeedbackParams``):
 
 - busy: the six-robot hospital with people for 300 s under the generated task stream of
   ``scenarios/sweeps/hospital_20_seeds.yaml``, over 20 seeds the sweeps do not use
-  (200-219);
-- paper: ``scenarios/hospital_6_robots.yaml`` as it is (the original 6+6 stream, the ten
-  people), 600 s.
+  (200-219); busy_check: the same on ten further seeds (220-229), to check a default
+  chosen on the first twenty;
+- paper: ``scenarios/hospital_6_robots.yaml`` as it is (its 3+2 stream, the ten people),
+  600 s;
+- six_plus_six: ``scenarios/hospital_6_plus_6.yaml`` (a 6+6 stream after the original's
+  pattern, the ten people), 450 s;
+- two_floor: ``scenarios/two_floor_6_robots.yaml`` (the two-level clinic with lifts, its
+  generated stream), 600 s.
 
 Each variant is one sweep (``mrta_drake.tools.sweep``: fresh processes), the variants'
 sweeps side by side sharing ``--workers`` processes, resumable from
@@ -17,7 +22,7 @@ allocation that missed their deadline); drop-off and leg prediction errors poole
 runs (median and p90 of the absolute error, mean signed error); re-plans on drift.
 
     python benchmarks/feedback.py                 # everything (hours on 2 shared cores)
-    python benchmarks/feedback.py --seeds 4 --variants "open loop" "learn + re-plan"
+    python benchmarks/feedback.py --seeds 4 --variants "open loop" "learn only"
 
 Prints the tables and writes benchmarks/results/feedback.json, keeping the variants and
 cases an earlier invocation wrote there and this one did not run.
@@ -40,20 +45,27 @@ RESULTS = ROOT / "benchmarks" / "results"
 RUNS = RESULTS / "feedback_runs"
 BUSY_SWEEP = ROOT / "scenarios" / "sweeps" / "hospital_20_seeds.yaml"
 PAPER = ROOT / "scenarios" / "hospital_6_robots.yaml"
+SINGLE_RUNS = {"paper": PAPER, "six_plus_six": ROOT / "scenarios" / "hospital_6_plus_6.yaml",
+               "two_floor": ROOT / "scenarios" / "two_floor_6_robots.yaml"}
 SEEDS = list(range(200, 220))
+CHECK_SEEDS = list(range(220, 230))
 PARAMS = "blocks.allocator.params."
 
-VARIANTS = {  # name -> allocator params set
+DRIFT_10 = {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": False,
+            "drift_margin": 10.0}  # the earlier default: allocate again on a 10 s drift
+DEFAULT = "learn + re-plan when late, re-time on 3 s drift (default)"
+VARIANTS = {  # name -> allocator params set (every switch the defaults could change)
     "open loop": {"learn_travel_times": False, "replan_on_delay": False},
-    "learn (mean)": {"learn_travel_times": True, "replan_on_delay": False},
-    "re-plan": {"learn_travel_times": False, "replan_on_delay": True},
-    "learn + re-plan": {"learn_travel_times": True, "replan_on_delay": True},
-    "learn (q0.8) + re-plan": {"learn_travel_times": True, "replan_on_delay": True,
-                               "travel_time_estimator": "quantile"},
-    "learn + re-plan + 5 s margin": {"learn_travel_times": True, "replan_on_delay": True,
-                                     "planning_margin": 5.0},
-    "learn + re-plan, 5 s drift": {"learn_travel_times": True, "replan_on_delay": True,
-                                   "drift_margin": 5.0, "replan_interval": 5.0},
+    "learn only": {"learn_travel_times": True, "replan_on_delay": False},
+    "re-plan only, 10 s drift": DRIFT_10 | {"learn_travel_times": False},
+    "learn + re-plan, 10 s drift": DRIFT_10,
+    "learn (q0.8) + re-plan, 10 s drift": DRIFT_10 | {"travel_time_estimator": "quantile"},
+    "learn (recent) + re-plan, 10 s drift": DRIFT_10 | {"travel_time_estimator": "recent"},
+    "learn + re-plan, 10 s drift, 5 s margin": DRIFT_10 | {"planning_margin": 5.0},
+    "learn + re-plan, 5 s drift every 5 s": DRIFT_10 | {"drift_margin": 5.0,
+                                                        "replan_interval": 5.0},
+    DEFAULT: {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": True,
+              "drift_margin": 3.0},
 }
 
 
@@ -114,14 +126,16 @@ def main():
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--variants", nargs="*", default=list(VARIANTS),
                         help="variant names (default: all)")
-    parser.add_argument("--cases", nargs="*", default=["busy", "paper"])
+    parser.add_argument("--cases", nargs="*", default=["busy", "busy_check", *SINGLE_RUNS])
     args = parser.parse_args()
     busy = load_sweep(str(BUSY_SWEEP))
     cases = {
         "busy": SweepSpec(busy.scenario, {"seed": SEEDS[:args.seeds]},
                           {k: v for k, v in busy.fixed.items()}, busy.plugins, busy.source),
-        "paper": SweepSpec(str(PAPER), {"seed": [0]}, {}, [], str(PAPER)),
-    }
+        "busy_check": SweepSpec(busy.scenario, {"seed": CHECK_SEEDS}, dict(busy.fixed),
+                                busy.plugins, busy.source),
+    } | {name: SweepSpec(str(path), {"seed": [0]}, {}, [], str(path))
+         for name, path in SINGLE_RUNS.items()}
     path = RESULTS / "feedback.json"
     output = json.loads(path.read_text()) if path.is_file() else {"variants": {}, "cases": {}}
     output["variants"] |= {v: VARIANTS[v] for v in args.variants}

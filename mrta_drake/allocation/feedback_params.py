@@ -24,9 +24,13 @@ class FeedbackParams:
     ``replan_on_delay``: between batches, allocate again when a robot's progress (with the
     travel times planned with) makes one of its planned drop-offs late or moves it by more
     than ``drift_margin`` (s) from its planned time, at most once every
-    ``replan_interval`` (s). Both switches are on by default (measured better:
-    docs/allocation.md); both false, with no margin, is the open loop (``OPEN_LOOP``): plans
-    made only when batches arrive or robots break down, from the scenario's matrix.
+    ``replan_interval`` (s). With ``retime_on_drift`` a drift that turns no drop-off planned
+    on time late only re-times the plan (the same routes, the completion times predicted
+    now) instead of allocating again, at any check (re-timing changes no route, so
+    ``replan_interval`` does not limit it). All three are on by default (measured better:
+    docs/allocation.md); ``learn_travel_times`` and ``replan_on_delay`` false, with no
+    margin, is the open loop (``OPEN_LOOP``): plans made only when batches arrive or robots
+    break down, from the scenario's matrix.
     """
 
     learn_travel_times: bool = True
@@ -37,8 +41,9 @@ class FeedbackParams:
     quantile_window: int = 20
     prior_samples: float = 2.0
     planning_margin: float = 0.0
-    drift_margin: float = 10.0
+    drift_margin: float = 3.0
     replan_interval: float = 10.0
+    retime_on_drift: bool = True
 
     def __post_init__(self):
         self.estimator()  # checks the estimator's fields
@@ -63,7 +68,8 @@ class FeedbackParams:
         return cls(**{f.name: getattr(params, f.name) for f in dataclasses.fields(cls)})
 
 
-OPEN_LOOP = FeedbackParams(learn_travel_times=False, replan_on_delay=False, planning_margin=0.0)
+OPEN_LOOP = FeedbackParams(learn_travel_times=False, replan_on_delay=False, planning_margin=0.0,
+                           retime_on_drift=False)
 
 
 def with_feedback(params_class: type) -> type:

@@ -17,7 +17,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
-from mrta_drake.allocation.drift import find_drift
+from mrta_drake.allocation.drift import DRIFT, find_drift
 from mrta_drake.allocation.feedback_params import OPEN_LOOP, FeedbackParams
 from mrta_drake.allocation.problem import (
     UNKNOWN,
@@ -136,7 +136,9 @@ class TaskAllocator(LeafSystem):
     ``replan_on_delay`` a check with no batch or breakdown allocates again when
     ``drift.find_drift`` finds a drop-off turned late or moved by more than
     ``drift_margin``, at most ``replan_interval`` after the last allocation (a
-    ``ReplanEvent``). Done and under-way actions are kept as for a batch.
+    ``ReplanEvent``); with ``retime_on_drift`` a drift that turns nothing late only
+    re-times the plan (same routes, times predicted now, no event). Done and under-way
+    actions are kept as for a batch.
 
     Args:
         stream: the task batches (``scenario_schema.TaskBatch`` or alike: ``arrival`` s,
@@ -240,8 +242,15 @@ class TaskAllocator(LeafSystem):
         released = [task for batch in self._batches[:arrived] for task in batch]
         drift = None
         if arrived == current.next_batch and out == current.out:
-            if feedback.replan_on_delay and self._may_replan(current, now):
-                drift = self._drift(now, released, progress, current)
+            may_replan = feedback.replan_on_delay and self._may_replan(current, now)
+            if may_replan or (feedback.replan_on_delay and feedback.retime_on_drift):
+                drift, problem, committed = self._drift(now, released, progress, current)
+                if drift is not None and feedback.retime_on_drift and drift.kind == DRIFT:
+                    current = dataclasses.replace(
+                        current, plan=_retimed(current.plan, problem, committed, current.out))
+                if drift is not None and (drift.kind == DRIFT and feedback.retime_on_drift
+                                          or not may_replan):
+                    drift = None
             if drift is None:
                 if current is not self._state(context):
                     state.get_mutable_abstract_state(self._state_index).set_value(current)
@@ -317,12 +326,13 @@ class TaskAllocator(LeafSystem):
         return now - last >= self._feedback.replan_interval
 
     def _drift(self, now, released, progress, current: _State):
-        """The drift of the current plan at ``now`` (``drift.Drift``), or None."""
+        """The drift of the current plan at ``now`` (``drift.Drift``, or None), with the
+        problem it was found in and each robot's committed stop (see ``_problem``)."""
         travel = self._planning_travel(current)
-        problem, _ = self._problem(now, released, progress, current.plan, travel, current.out,
-                                   current.lost)
+        problem, committed = self._problem(now, released, progress, current.plan, travel,
+                                           current.out, current.lost)
         plans = [plan for r, plan in enumerate(current.plan.plans) if r not in current.out]
-        return find_drift(problem, plans, self._feedback.drift_margin)
+        return find_drift(problem, plans, self._feedback.drift_margin), problem, committed
 
     def _progress(self, context, r: int) -> RobotProgress:
         port = self._progress_ports[r]
@@ -395,6 +405,25 @@ def _stops(problem: AllocationProblem, allocation: Allocation, r: int) -> tuple[
         Stop(action.key, problem.location(action), action.kind, action.task, time)
         for action, time in zip(allocation.routes[r], allocation.times[r], strict=True)
     )
+
+
+def _retimed(plan: FleetPlan, problem: AllocationProblem, committed, out) -> FleetPlan:
+    """``plan`` with the same stops for every robot and the completion times ``problem``
+    predicts now (its robots are those not ``out``, each with the rest of its plan as
+    ``planned``; ``committed[r]``: robot ``r``'s committed stop, already re-predicted)."""
+    in_service = iter(range(len(problem.robots)))
+    plans = []
+    for r, robot_plan in enumerate(plan.plans):
+        if r in out:
+            plans.append(robot_plan)
+            continue
+        i = next(in_service)
+        route = problem.robots[i].planned
+        rest = tuple(Stop(action.key, problem.location(action), action.kind, action.task, time)
+                     for action, time in zip(route, problem.completion_times(i, route),
+                                             strict=True))
+        plans.append(dataclasses.replace(robot_plan, stops=committed[r] + rest))
+    return FleetPlan(plans=tuple(plans), revision=plan.revision + 1)
 
 
 def _fields(event) -> dict:

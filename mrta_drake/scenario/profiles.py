@@ -43,6 +43,8 @@ PAPER_SWITCHES = (
     Switch("blocks.controller.params.predict_latency", False, "cluster_cbf"),
     Switch("blocks.allocator.params.greedy_start", False, "smt"),
     Switch("blocks.allocator.params.append_only", True, "smt"),
+    Switch("blocks.allocator.params.learn_travel_times", False, "smt"),
+    Switch("blocks.allocator.params.replan_on_delay", False, "smt"),
     Switch("blocks.planner.params.cost_resting_robots", False, "grid_astar"),
     Switch("blocks.waypoints.params.door_wait", False, "roadway"),
     Switch("blocks.waypoints.params.parking", False, "roadway"),

@@ -177,6 +177,28 @@ def test_a_robot_falling_behind_makes_a_replan_with_its_reason(deadline, reason,
         10.0, reason, drifted, ())
 
 
+def test_a_drift_that_breaks_no_promise_retimes_the_plan():
+    # As above with a loose deadline: at 7 s the overdue pickup (planned at 1 s) moves both
+    # drop-offs 6 s later, more than the 5 s margin. The plan keeps its routes with the new
+    # times at once (re-timing waits for no interval) and nothing is allocated again.
+    stream = (TaskBatch(0.0, (TaskConfig(0, 4, 500.0), TaskConfig(4, 0, 500.0))),)
+    feedback = replace(OPEN_LOOP, replan_on_delay=True, drift_margin=5.0, replan_interval=10.0,
+                       retime_on_drift=True)
+    simulator, allocator, _ = simulate(stream, [0], GreedyAllocator(), 10.0, feedback)
+    simulator.AdvanceTo(6.5)
+    before = allocator("plan")
+    simulator.AdvanceTo(7.5)
+    after = allocator("plan")
+    assert after.revision == before.revision + 1
+    assert [stop.key for stop in after.plans[0].stops] == [
+        stop.key for stop in before.plans[0].stops]
+    moved = [a.planned_time - b.planned_time
+             for a, b in zip(after.plans[0].stops, before.plans[0].stops, strict=True)]
+    assert moved == pytest.approx([6.0] * 4, abs=0.2)
+    simulator.AdvanceTo(12.0)
+    assert [type(event) for event in allocator("events")] == [AllocationEvent]
+
+
 def test_the_open_loop_keeps_a_drifting_plan():
     stream = (TaskBatch(0.0, (TaskConfig(0, 4, 500.0), TaskConfig(4, 0, 90.0))),)
     simulator, allocator, _ = simulate(stream, [0], GreedyAllocator(), 10.0)
