@@ -19,6 +19,7 @@ from mrta_drake.navigation.standstills import (
 )
 from mrta_drake.payloads import (
     NO_BACK_OFFS,
+    NO_DISTURBANCES,
     NO_HUMANS,
     ROBOT_STATE_SIZE,
     BackOff,
@@ -81,13 +82,15 @@ class DeadlockWatchdog(LeafSystem):
         - robot_state
         - target_<robot>
         - human_states (optional)
+        - disturbances (optional)
         output_ports:
         - back_offs
 
     Inputs: ``robot_state`` (vector, 4N: x, y, theta, v per robot, world frame, m, rad,
     m/s), ``target_<robot>`` (abstract ``WaypointTarget``, each waypoint generator's), one
     per robot in ``robot_names`` order, and optionally ``human_states`` (``HumanStates``):
-    back-off spots keep clear of people. Output: ``back_offs`` (abstract
+    back-off spots keep clear of people, and ``disturbances`` (``Disturbances``): a
+    broken-down robot is never asked to yield. Output: ``back_offs`` (abstract
     ``BackOffOrders``, from the state): the planner plans an ordered robot's path to its
     spot instead of its target; the recorder notes each order.
 
@@ -133,6 +136,8 @@ class DeadlockWatchdog(LeafSystem):
             self.DeclareAbstractInputPort(f"target_{robot}", Value[object](WaypointTarget(robot)))
             for robot in self._robots]
         self._humans = self.DeclareAbstractInputPort("human_states", Value[object](NO_HUMANS))
+        self._disturbances = self.DeclareAbstractInputPort(
+            "disturbances", Value[object](NO_DISTURBANCES))
         self.DeclareAbstractOutputPort(
             "back_offs", lambda: Value[object](NO_BACK_OFFS), self._calc_back_offs,
             prerequisites_of_calc={self.abstract_state_ticket(self._state_index)})
@@ -204,9 +209,11 @@ class DeadlockWatchdog(LeafSystem):
         p = self._params
         idle = np.array([not t.active or t.current is None for t in targets])
         stalled_here = [k for k in group if stalled[k]]
+        broken = (self._disturbances.Eval(context).broken
+                  if self._disturbances.HasValue(context) else ())
         for k in yield_order(group, idle, stalled, self._priorities):
-            if stalled_here == [k]:
-                continue  # it would make way for nobody
+            if stalled_here == [k] or k in broken:
+                continue  # it would make way for nobody, or cannot move
             blockers = tuple(j for j in group if j != k)
             ways = [(_way(xy[j], targets[j]), self._radii[j]) for j in blockers]
             spot = back_off_spot(k, xy, self._radii, ways,

@@ -164,6 +164,8 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
             names, blockages(scenario), breakdowns(scenario), outage_windows(scenario)))
         builder.Connect(state, schedule.GetInputPort("robot_state"))
         readers = [controller, planner, allocator, *generators, recorder]
+        if watchdog is not None:
+            readers.append(watchdog)
         if meshcat is not None:
             readers.append(overlay)
         for reader in readers:  # a swapped-in block without the input ignores disturbances

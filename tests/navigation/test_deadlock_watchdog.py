@@ -23,7 +23,7 @@ from mrta_drake.navigation.standstills import (
     next_anchor,
     yield_order,
 )
-from mrta_drake.payloads import WaypointTarget
+from mrta_drake.payloads import Breakdown, Disturbances, WaypointTarget
 from mrta_drake.robots.unicycle_robots import UnicycleRobots
 from mrta_drake.scenario.loading import load_scenario
 from mrta_drake.stack.blocks import resolve_block
@@ -57,9 +57,9 @@ def _corridor_with_bay(width=1.6, bay_depth=1.6, t=0.2):
     ))
 
 
-def _run(with_watchdog: bool, duration=75.0):
+def _run(with_watchdog: bool, duration=75.0, watchdog_sees=None):
     """Robot states (T, 2, 4) at 10 Hz and the watchdog's orders at the end (None
-    without it)."""
+    without it); ``watchdog_sees``: disturbances on the watchdog's input only."""
     obstacles = _corridor_with_bay()
     builder = DiagramBuilder()
     robots = builder.AddSystem(UnicycleRobots(NAMES, np.array(STARTS), rate_hz=20.0))
@@ -78,6 +78,9 @@ def _run(with_watchdog: bool, duration=75.0):
             rate_hz=2.0))
         builder.Connect(state, watchdog.GetInputPort("robot_state"))
         builder.Connect(watchdog.GetOutputPort("back_offs"), planner.GetInputPort("back_offs"))
+        if watchdog_sees is not None:
+            source = builder.AddSystem(ConstantValueSource(Value[object](watchdog_sees)))
+            builder.Connect(source.get_output_port(), watchdog.GetInputPort("disturbances"))
     for name, goal in zip(NAMES, GOALS, strict=True):
         target = builder.AddSystem(ConstantValueSource(Value[object](
             WaypointTarget(name, True, goal, None, True))))
@@ -119,6 +122,13 @@ def test_the_watchdog_backs_one_robot_into_the_bay_and_both_arrive():
     assert BAY[0] < first.point[0] < BAY[1] and first.point[1] > 0.8
     assert first.issued - first.stalled_since == pytest.approx(15.0, abs=0.5)
     assert not orders.active
+
+
+def test_a_broken_down_robot_is_never_asked_to_yield():
+    # r0, the only robot with a spot that makes way, reported broken down: nobody yields.
+    _, orders = _run(with_watchdog=True, duration=40.0,
+                     watchdog_sees=Disturbances(breakdowns=(Breakdown(0, 0.0),)))
+    assert orders.history == ()
 
 
 def test_stalled_robots_and_their_neighbours_form_groups():
