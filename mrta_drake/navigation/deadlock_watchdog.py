@@ -56,8 +56,7 @@ class WatchdogParams:
     def __post_init__(self):
         require_positive(self, "standstill_time", "yield_time", unit=" s")
         require_positive(self, "progress_distance", "goal_tolerance", "search_reach",
-                         "wall_clearance",
-                         unit=" m")
+                         "wall_clearance", unit=" m")
         require_non_negative(self, "block_gap", "spot_clearance", unit=" m")
 
 
