@@ -286,6 +286,40 @@ class Relocations:
     moves: tuple[tuple[int, tuple[float, float, float]] | None, ...] = ()
 
 
+# --- Standstills: deadlock watchdog -> planner, recorder ------------------------------------
+
+
+@dataclass(frozen=True)
+class BackOff:
+    """An order of the deadlock watchdog: ``robot`` drives to ``point`` (x, y, world frame,
+    m) and stands there, instead of following its target, until ``until`` (s); ordered at
+    ``issued`` (s) to make way for ``blockers`` (robot names; the group stalled since
+    ``stalled_since``, s); ``arrived`` (s) once it reached the spot."""
+
+    robot: str
+    point: tuple[float, float]
+    issued: float
+    until: float
+    blockers: tuple[str, ...] = ()
+    stalled_since: float = 0.0
+    arrived: float | None = None
+
+
+@dataclass(frozen=True)
+class BackOffOrders:
+    """The back-offs in force (at most one per robot), and every one ordered so far,
+    oldest first (``history``, a growing log for the recorder)."""
+
+    active: tuple[BackOff, ...] = ()
+    history: tuple[BackOff, ...] = ()
+
+    def of(self, robot: str) -> BackOff | None:
+        return next((order for order in self.active if order.robot == robot), None)
+
+
+NO_BACK_OFFS = BackOffOrders()
+
+
 # --- Paths: planner -> controller ------------------------------------------------------------
 
 PATH_OK = "ok"

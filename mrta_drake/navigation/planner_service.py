@@ -15,12 +15,14 @@ from mrta_drake.navigation.costmap import (
 )
 from mrta_drake.navigation.grid_planner import GridPlanner, PlannerParams
 from mrta_drake.payloads import (
+    NO_BACK_OFFS,
     NO_DISTURBANCES,
     PATH_FAILED,
     PATH_IDLE,
     PATH_OK,
     ROBOT_STATE_SIZE,
     ROBOT_STOPPED_SPEED,
+    BackOffOrders,
     Disturbances,
     FleetPaths,
     RobotPath,
@@ -72,6 +74,7 @@ class PlannerService(LeafSystem):
         - robot_state
         - target_<robot>
         - disturbances (optional)
+        - back_offs (optional)
         output_ports:
         - paths
 
@@ -104,6 +107,10 @@ class PlannerService(LeafSystem):
     their boxes are obstacles of the costmap (``Costmap.with_obstacles``, recomputed around
     them only). When the costs change, every robot is re-planned at the next check tick. A
     robot caught inside a blockage has no path (failed) until it opens.
+
+    Optional input ``back_offs`` (abstract ``BackOffOrders``, the deadlock watchdog's): a
+    robot ordered to back off is planned to its spot, to stop there, instead of to its
+    target, until the order ends.
     """
 
     def __init__(self, planner: GridPlanner, robot_names: Sequence[str], *,
@@ -130,6 +137,8 @@ class PlannerService(LeafSystem):
         ]
         self._disturbances = self.DeclareAbstractInputPort(
             "disturbances", Value[object](Disturbances()))
+        self._back_offs = self.DeclareAbstractInputPort(
+            "back_offs", Value[object](BackOffOrders()))
         self.DeclareAbstractOutputPort(
             "paths",
             lambda: Value[object](initial.paths),
@@ -171,7 +180,7 @@ class PlannerService(LeafSystem):
     def _update(self, context, state):
         old = context.get_abstract_state(self._state_index).get_value()
         now = context.get_time()
-        targets = tuple(port.Eval(context) for port in self._targets)
+        targets = self._targets_now(context)
         disturbances = (self._disturbances.Eval(context) if self._disturbances.HasValue(context)
                         else NO_DISTURBANCES)
         periodic = now >= old.next_replan - 1e-9
@@ -197,6 +206,18 @@ class PlannerService(LeafSystem):
         state.get_mutable_abstract_state(self._state_index).set_value(
             _ServiceState(FleetPaths(tuple(paths), failures), targets, next_replan, closed))
         return EventStatus.Succeeded()
+
+    def _targets_now(self, context) -> tuple[WaypointTarget, ...]:
+        """Each robot's target: its waypoint generator's, or its back-off spot while the
+        watchdog orders one."""
+        targets = tuple(port.Eval(context) for port in self._targets)
+        orders = (self._back_offs.Eval(context) if self._back_offs.HasValue(context)
+                  else NO_BACK_OFFS)
+        if not orders.active:
+            return targets
+        spots = {order.robot: order.point for order in orders.active}
+        return tuple(WaypointTarget(t.robot, True, spots[t.robot], None, True)
+                     if t.robot in spots else t for t in targets)
 
     def _closures(self, context, disturbances: Disturbances, targets, old: tuple,
                   periodic: bool) -> tuple:

@@ -221,7 +221,9 @@ class WaypointGenerator(LeafSystem):
     - enter: once holding the room, drive through the remaining slots and the entry path;
       but while another robot moves within ``door_clearance`` of the entry path or the point
       (e.g. one that had parked in the room, leaving), wait at the slot: two robots in a
-      doorway cannot pass (unless ``door_wait`` is off).
+      doorway cannot pass (unless ``door_wait`` is off). The mirror: a robot about to leave
+      the room it stands in (on its point or a parking spot) while another robot holds the
+      room and moves there waits, target inactive, until it stops moving.
     - serve: within ``reach_tolerance`` of the point and holding the room, stand for
       ``service_time``; the stop is then done (a ``Visit`` at that time) and the next begins.
       A stop at the location the robot is already at starts here (requesting the room);
@@ -576,7 +578,8 @@ class WaypointGenerator(LeafSystem):
             s = _changed(s, index=self._reached(s, xy))
             if s.index == len(s.route) - 1:
                 s = replace(s, phase=RobotMode.SERVE, route=(), index=0)
-        s = _changed(s, waiting=s.phase == RobotMode.SERVE and not holding)
+        s = _changed(s, waiting=(s.phase == RobotMode.SERVE and not holding)
+                     or self._held_at_door(s, robots, queues))
         if (s.phase == RobotMode.SERVE and holding
                 and _distance(xy, place.point) <= params.reach_tolerance):
             since = t if s.since is None else s.since
@@ -639,6 +642,23 @@ class WaypointGenerator(LeafSystem):
         return bool(len(others)) and bool(
             (np.linalg.norm(others - np.asarray(spot), axis=1)
              <= self._params.parking_clearance).any())
+
+    def _held_at_door(self, s: _Drive, robots: _Robots, queues: QueueState) -> bool:
+        """Whether the robot, about to leave the room it stands in (within
+        ``reach_tolerance`` of its point or a parking spot, driving to the first waypoint of
+        its leg), waits for the room's holder, another robot, moving in the doorway
+        (``_door_busy``): the mirror of an entering holder's wait (with ``door_wait``)."""
+        if (not self._params.door_wait or s.phase != RobotMode.DRIVE or s.index != 0
+                or s.last_location is None):
+            return False
+        queue = queues.room(s.last_location)
+        if queue is None or queue.holder in (None, self._robot):
+            return False
+        place = self._roadways.place(s.last_location)
+        if min(_distance(robots.xy, spot) for spot in (place.point, *place.parking)) > \
+                self._params.reach_tolerance:
+            return False
+        return self._door_busy(place, robots.states)
 
     def _door_busy(self, place, states: np.ndarray) -> bool:
         """Whether another robot is moving (faster than ``ROBOT_STOPPED_SPEED``) within

@@ -90,6 +90,10 @@ def format_summary(summary: dict) -> str:
                      f"space, {humans['contacts']} contacts, {humans['encounters']} "
                      f"encounters, {humans['detour_length']:.1f} m detours")
     lines.append(_format_deadlocks(summary["deadlocks"]))
+    if summary.get("back_offs", {}).get("count"):
+        per_robot = ", ".join(f"{robot} {n}" for robot, n in summary["back_offs"]["robots"].items())
+        lines.append(f"back-offs  {summary['back_offs']['count']} ordered by the deadlock "
+                     f"watchdog ({per_robot})")
     lines += _format_disturbances(summary.get("disturbances") or [], summary["duration"])
     return "\n".join(lines)
 
@@ -181,6 +185,7 @@ _COMPARED = [
     ("planner failures", lambda s: s["planner_failures"]),
     ("controller failures", lambda s: s["controller_failures"]),
     ("deadlocks", lambda s: s["deadlocks"]["count"]),
+    ("watchdog back-offs", lambda s: s.get("back_offs", {}).get("count")),
     ("simulated s", lambda s: s["duration"]),
     ("real-time factor", lambda s: s["real_time_factor"]),
 ]

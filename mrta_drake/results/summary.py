@@ -45,6 +45,8 @@ clearances), times in s of simulation time unless named ``wall``/``cpu``. The ke
   ``mean_wait`` and ``max_wait`` (s) from a robot's request to its boarding; empty without
   lifts. A robot's ``distance`` leaves out the jump of a lift ride (a step longer than
   ``RELOCATION_STEP``).
+- ``back_offs``: the deadlock watchdog's orders (recorder ``back_off`` events): ``count``
+  and ``robots`` (orders per robot ordered aside); 0 without the watchdog.
 """
 
 import dataclasses
@@ -128,7 +130,14 @@ def summarize(stack, duration: float, wall_time: float, cpu_time: float) -> dict
         "physics_contacts": stack.contacts.summary() if stack.contacts is not None else None,
         "disturbances": _disturbances(scenario.disturbances, names, times, xy, radii, events),
         "lifts": _lifts([e for e in events if e["type"] == "lift"]),
+        "back_offs": _back_offs([e for e in events if e["type"] == "back_off"]),
     }
+
+
+def _back_offs(events: list[dict]) -> dict:
+    """The deadlock watchdog's interventions: how many, and per robot ordered aside."""
+    return {"count": len(events),
+            "robots": dict(sorted(Counter(e["robot"] for e in events).items()))}
 
 
 def _lifts(events: list[dict]) -> dict:

@@ -122,7 +122,7 @@ def reference() -> str:
     parts += [_section(cls.__name__, cls, prefix) for cls, prefix in FILES]
     parts += ["## Block implementations (`blocks.<slot>.kind`, `blocks.<slot>.params`)", ""]
     for slot in ("allocator", "waypoints", "queues", "planner", "controller", "robots",
-                 "humans"):
+                 "humans", "watchdog"):
         for kind in block_kinds(slot):
             params = block_type(slot, kind).params
             parts.append(_section(f"`blocks.{slot}`: `{kind}` ({params.__name__})", params,

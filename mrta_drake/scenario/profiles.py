@@ -50,6 +50,7 @@ PAPER_SWITCHES = (
     Switch("blocks.waypoints.params.parking", False, "roadway"),
     Switch("blocks.humans.params.wall_strength", 0.0, "social_force"),
     Switch("blocks.humans.params.yield_to_robots", False, "social_force"),
+    Switch("blocks.watchdog.params.enabled", False, "back_off"),
 )
 
 PROFILES: dict[str, tuple[Switch, ...]] = {"mrta_drake": (), "paper": PAPER_SWITCHES}

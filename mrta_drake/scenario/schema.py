@@ -254,6 +254,7 @@ class BlocksConfig:
     robots: BlockConfig = field(default_factory=lambda: BlockConfig("kinematic"))
     humans: BlockConfig = field(default_factory=lambda: BlockConfig("social_force"))
     lifts: BlockConfig = field(default_factory=lambda: BlockConfig("fifo"))
+    watchdog: BlockConfig = field(default_factory=lambda: BlockConfig("back_off"))
 
 
 @dataclass(frozen=True)
@@ -272,6 +273,7 @@ class RatesConfig:
     robots: float = 20.0
     humans: float = 20.0
     lifts: float = 10.0
+    watchdog: float = 2.0
     logging: float = 10.0
     meshcat: float = 20.0
 

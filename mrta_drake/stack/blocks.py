@@ -18,6 +18,8 @@ humans      robot_state (4N)                      human_states (HumanStates), pl
 lifts       request_<robot> (LiftRequest),        lift_state (LiftState), relocations,
             robot_state (4N)                      events (only with lifts: a building run
                                                   across levels)
+watchdog    robot_state (4N), target_<robot>,     back_offs (BackOffOrders; not in the
+            human_states (optional)               diagram when its ``enabled`` is off)
 =========== ===================================== ============================================
 
 A robots block that steps the plant (``BlockType.physics``, e.g. kind ``physics``) also has
@@ -119,7 +121,7 @@ class BlockType:
 
 _REGISTRY: dict[str, dict[str, Callable[[], BlockType]]] = {
     "allocator": {}, "waypoints": {}, "queues": {}, "planner": {}, "controller": {},
-    "robots": {}, "humans": {}, "lifts": {},
+    "robots": {}, "humans": {}, "lifts": {}, "watchdog": {},
 }
 
 
@@ -293,6 +295,20 @@ def _grid_astar_planner() -> BlockType:
         replan_rate_hz=ctx.rates.planner, target_check_rate_hz=ctx.rates.planner_target_check))
 
 
+def _back_off_watchdog() -> BlockType:
+    from mrta_drake.navigation.costmap import Costmap, CostmapParams
+    from mrta_drake.navigation.deadlock_watchdog import DeadlockWatchdog, WatchdogParams
+
+    def make(ctx: BuildContext, params: WatchdogParams):
+        _, planner = resolve_block(ctx.scenario, "planner")
+        costmap = Costmap.from_obstacles(ctx.obstacles, ctx.floor_plan.bounds,
+                                         getattr(planner, "costmap", CostmapParams()))
+        return DeadlockWatchdog(ctx.robot_names, [r.radius for r in ctx.scenario.robots],
+                                costmap, params, _priorities(ctx), rate_hz=ctx.rates.watchdog)
+
+    return BlockType(WatchdogParams, make)
+
+
 def _social_force_humans() -> BlockType:
     from mrta_drake.humans.people import generate_people
     from mrta_drake.humans.social_force_humans import SocialForceHumans
@@ -343,6 +359,7 @@ register_block("allocator", "greedy", _greedy_allocator)
 register_block("waypoints", "roadway", _roadway_waypoints)
 register_block("queues", "fifo", _fifo_queues)
 register_block("lifts", "fifo", _fifo_lifts)
+register_block("watchdog", "back_off", _back_off_watchdog)
 
 
 def replace_block(scenario: Scenario, slot: str, kind: str, **params) -> Scenario:

@@ -31,7 +31,8 @@ class Stack:
     """Handles to the systems of one scenario's diagram (``diagram`` once built);
     ``contacts`` records the plant's contacts when a physics robots block steps it;
     ``disturbances`` is the schedule of a scenario with a ``disturbances:`` section;
-    ``lifts`` the lift bank of a building run across levels."""
+    ``lifts`` the lift bank of a building run across levels; ``watchdog`` the deadlock
+    watchdog unless the scenario turns it off."""
 
     scenario: Scenario
     world: World
@@ -48,6 +49,7 @@ class Stack:
     contacts: ContactRecorder | None = None
     disturbances: DisturbanceSchedule | None = None
     lifts: LeafSystem | None = None
+    watchdog: LeafSystem | None = None
     extras: dict = field(default_factory=dict)
 
 
@@ -110,6 +112,7 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
         builder.Connect(state, humans.GetInputPort("robot_state"))
         builder.Connect(humans.GetOutputPort("human_states"),
                         controller.GetInputPort("human_states"))
+    watchdog = _add_watchdog(builder, scenario, make, state, generators, planner, humans)
     human_positions = humans.GetOutputPort("plant_positions") if humans is not None else None
     contacts = None
     if robots_type.physics is None:
@@ -141,6 +144,8 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
     if lifts is not None:
         builder.Connect(lifts.GetOutputPort("lift_state"), recorder.GetInputPort("lift_state"))
         builder.Connect(lifts.GetOutputPort("events"), recorder.GetInputPort("lift_events"))
+    if watchdog is not None:
+        builder.Connect(watchdog.GetOutputPort("back_offs"), recorder.GetInputPort("back_offs"))
 
     visualizer = None
     if meshcat is not None:
@@ -165,6 +170,8 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
             names, blockages(scenario), breakdowns(scenario), outage_windows(scenario)))
         builder.Connect(state, schedule.GetInputPort("robot_state"))
         readers = [controller, planner, allocator, *generators, recorder]
+        if watchdog is not None:
+            readers.append(watchdog)
         if meshcat is not None:
             readers.append(overlay)
         for reader in readers:  # a swapped-in block without the input ignores disturbances
@@ -173,7 +180,7 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
                                 reader.GetInputPort("disturbances"))
     return Stack(scenario, world, robots, controller, planner, queues, allocator, generators,
                  humans, recorder, visualizer, contacts=contacts, disturbances=schedule,
-                 lifts=lifts)
+                 lifts=lifts, watchdog=watchdog)
 
 
 def _add_lifts(builder: DiagramBuilder, ctx: BuildContext, make, robots: LeafSystem,
@@ -221,6 +228,27 @@ def _add_levels_view(builder: DiagramBuilder, ctx: BuildContext, meshcat: Meshca
     extent = max(x1 - x0, y1 - y0, top)
     meshcat.SetCameraPose(middle + [0.3 * extent, -0.8 * extent, 0.45 * extent], middle)
     return view
+
+
+def _add_watchdog(builder: DiagramBuilder, scenario: Scenario, make, state,
+                  generators: list[LeafSystem], planner: LeafSystem,
+                  humans: LeafSystem | None) -> LeafSystem | None:
+    """The deadlock watchdog, between the waypoint generators and the planner (None when
+    the scenario turns it off)."""
+    _, params = resolve_block(scenario, "watchdog")
+    if not getattr(params, "enabled", True):
+        return None
+    watchdog = builder.AddNamedSystem("watchdog", make("watchdog"))
+    builder.Connect(state, watchdog.GetInputPort("robot_state"))
+    for generator, name in zip(generators, scenario.robots, strict=True):
+        builder.Connect(generator.GetOutputPort("target"),
+                        watchdog.GetInputPort(f"target_{name.name}"))
+    if humans is not None and watchdog.HasInputPort("human_states"):
+        builder.Connect(humans.GetOutputPort("human_states"),
+                        watchdog.GetInputPort("human_states"))
+    if planner.HasInputPort("back_offs"):  # a swapped-in planner without it ignores them
+        builder.Connect(watchdog.GetOutputPort("back_offs"), planner.GetInputPort("back_offs"))
+    return watchdog
 
 
 def _look_at_floor_plan(meshcat: Meshcat, bounds) -> None:

@@ -13,6 +13,7 @@ from pydrake.systems.framework import LeafSystem
 from mrta_drake.payloads import (
     PATH_FAILED,
     ROBOT_STATE_SIZE,
+    BackOffOrders,
     ControllerTelemetry,
     Disturbances,
     FleetPaths,
@@ -46,6 +47,7 @@ class RunRecorder(LeafSystem):
         - disturbances (optional)
         - lift_state (optional)
         - lift_events (optional)
+        - back_offs (optional)
 
     Keeps in memory, per sample: the time, the robot states (T, N, 4) [x, y, theta, v]
     (world frame, m, rad, m/s), the human positions (T, M, 2) (NaN while a human is not yet
@@ -71,6 +73,8 @@ class RunRecorder(LeafSystem):
       ``found`` False: no lane was left, it waits.
     - ``lift``: an event of the lift bank's ``events`` output (``LiftEvent``: ``lift``,
       ``robot``, ``kind``, ``level``, ``at`` s).
+    - ``back_off``: the deadlock watchdog ordered ``robot`` to ``point`` (x, y) at ``at``
+      until ``until`` (s), blocked by ``blockers`` since ``stalled_since`` (s).
 
     With ``out_dir`` it appends every sample to ``timeline.csv`` and every event to
     ``events.jsonl`` as they happen, flushed, so a crash loses nothing.
@@ -84,7 +88,8 @@ class RunRecorder(LeafSystem):
     ``progress_<robot>`` and ``target_<robot>`` per robot; optional (may stay unconnected):
     ``human_states``, ``human_active`` (M, 1 = present), ``allocator_events`` (a sequence
     of event objects; new ones are noted), ``disturbances``, ``lift_state`` (``LiftState``)
-    and ``lift_events`` (a growing tuple of ``LiftEvent``).
+    and ``lift_events`` (a growing tuple of ``LiftEvent``), ``back_offs``
+    (``BackOffOrders``; its ``history`` grows).
     """
 
     def __init__(self, robot_names, humans=(), *, rate_hz: float, out_dir: str | None = None,
@@ -113,6 +118,7 @@ class RunRecorder(LeafSystem):
         self.DeclareAbstractInputPort("lift_state", _value(LiftState()))
         self.DeclareAbstractInputPort("lift_events", _value(()))
         self._lift_events_seen = 0
+        self.DeclareAbstractInputPort("back_offs", _value(BackOffOrders()))
         # Looked up once: by name, a lookup scans all (2N + 9) ports.
         self._ports = {port.get_name(): port for port in
                        (self.get_input_port(i) for i in range(self.num_input_ports()))}
@@ -139,6 +145,7 @@ class RunRecorder(LeafSystem):
         self._last_segments: tuple = ((), ())
         self._last_failures = 0
         self._allocator_events = ()
+        self._back_offs_seen = 0
         self._timeline = None
         self._event_file = None
 
@@ -195,6 +202,7 @@ class RunRecorder(LeafSystem):
         self._note_allocator_events(context, t)
         self._note_disturbances(context, t)
         self._note_lift_events(context, t)
+        self._note_back_offs(context, t)
 
     def _modes(self, context, states: np.ndarray, queues: QueueState,
                progress: list[RobotProgress]) -> np.ndarray:
@@ -311,6 +319,18 @@ class RunRecorder(LeafSystem):
             self._event({"time": t, "type": "lift", "lift": event.lift, "robot": event.robot,
                          "kind": event.kind, "level": event.level, "at": event.time})
         self._lift_events_seen = len(events)
+
+    def _note_back_offs(self, context, t: float) -> None:
+        port = self._ports["back_offs"]
+        if not port.HasValue(context):
+            return
+        history = port.Eval(context).history
+        for order in history[self._back_offs_seen:]:
+            self._event({"time": t, "type": "back_off", "robot": order.robot,
+                         "point": list(order.point), "at": order.issued, "until": order.until,
+                         "blockers": list(order.blockers),
+                         "stalled_since": order.stalled_since})
+        self._back_offs_seen = len(history)
 
     def _note_disturbances(self, context, t: float) -> None:
         port = self._ports["disturbances"]

@@ -16,6 +16,8 @@ from mrta_drake import load_scenario, simulate
 from mrta_drake.payloads import (
     DROPOFF,
     PICKUP,
+    BackOff,
+    BackOffOrders,
     ControllerTelemetry,
     FleetPaths,
     FleetPlan,
@@ -257,6 +259,30 @@ def test_recorder_notes_modes_plans_starts_arrivals_and_allocator_events(tmp_pat
     assert len(on_file) == len(recorder.events)
     assert on_file[0]["plans"]["a"][0]["planned"] is None  # NaN is written as null
 
+
+
+def test_recorder_notes_each_new_back_off_and_the_summary_counts_them_per_robot():
+    recorder = RunRecorder(["a", "b"], rate_hz=10.0)
+    context = recorder.CreateDefaultContext()
+    recorder.get_input_port(0).FixValue(context, np.zeros(8))  # robot_state
+    fixed = {"telemetry": ControllerTelemetry(), "paths": FleetPaths(()),
+             "plan": FleetPlan(()), "queue_state": QueueState(),
+             "progress_a": RobotProgress("a"), "target_a": WaypointTarget("a"),
+             "progress_b": RobotProgress("b"), "target_b": WaypointTarget("b"),
+             "allocator_events": ()}
+    for name, value in fixed.items():
+        recorder.GetInputPort(name).FixValue(context, value)
+    first = BackOff("b", (1.0, 2.0), 0.0, 15.0, ("a",), 0.0)
+    second = BackOff("b", (1.5, 2.0), 30.0, 45.0, ("a",), 15.0)
+    for t, history in ((0.0, (first,)), (0.1, (first,)), (30.0, (first, second))):
+        recorder.GetInputPort("back_offs").FixValue(context, BackOffOrders(history[-1:],
+                                                                            history))
+        context.SetTime(t)
+        recorder.ForcedPublish(context)
+    noted = [e for e in recorder.events if e["type"] == "back_off"]
+    assert [(e["robot"], e["at"], e["point"], e["blockers"]) for e in noted] == [
+        ("b", 0.0, [1.0, 2.0], ["a"]), ("b", 30.0, [1.5, 2.0], ["a"])]
+    assert summary._back_offs(noted) == {"count": 2, "robots": {"b": 2}}
 
 # --- Time near walls -----------------------------------------------------------------------------
 

@@ -34,7 +34,8 @@ OPTIONAL = " (optional)"
 # The name in the diagram of the (first) system of each block slot.
 SYSTEM_OF_SLOT = {"allocator": "allocator", "waypoints": "waypoints_robot1",
                   "queues": "room_queues", "planner": "planner", "controller": "controller",
-                  "robots": "robots", "humans": "humans", "lifts": "lift_bank"}
+                  "robots": "robots", "humans": "humans", "lifts": "lift_bank",
+                  "watchdog": "watchdog"}
 # The blocks add_stack adds itself: (name in the diagram, the robots kind it needs).
 STACK_BLOCKS = [("recorder", None), ("meshcat_overlay", None), ("disturbances", None),
                 ("contacts", "physics"), ("human_bodies", "physics")]

@@ -1,0 +1,243 @@
+"""A fleet manager's deadlock watchdog: robots standing blocked by each other are sent, one
+at a time, to a free spot nearby to let the others pass."""
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+from pydrake.common.value import Value
+from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
+
+from mrta_drake.errors import require_non_negative, require_positive
+from mrta_drake.navigation.costmap import Costmap
+from mrta_drake.navigation.standstills import (
+    Anchor,
+    back_off_spot,
+    blocked_groups,
+    next_anchor,
+    yield_order,
+)
+from mrta_drake.payloads import (
+    NO_BACK_OFFS,
+    NO_DISTURBANCES,
+    NO_HUMANS,
+    ROBOT_STATE_SIZE,
+    BackOff,
+    BackOffOrders,
+    HumanStates,
+    WaypointTarget,
+)
+
+
+@dataclass(frozen=True)
+class WatchdogParams:
+    """When the watchdog steps in and what it orders; distances in m, times in s.
+
+    A robot *has a goal* when its target is active and it is farther than
+    ``goal_tolerance`` from the target's current waypoint; it is *stalled* once it has had
+    one for ``standstill_time`` without getting farther than ``progress_distance`` from
+    where it stood. A stalled robot is blocked by the robots within ``block_gap`` of it
+    (surface to surface). The robot chosen to yield drives to the nearest spot within
+    ``search_reach`` at least ``spot_clearance`` from every other robot and person and from
+    its blockers' ways to their targets, its centre ``wall_clearance`` from walls, and
+    stands there for ``yield_time``. ``enabled`` off: no watchdog in the diagram (as in
+    the paper)."""
+
+    enabled: bool = True
+    standstill_time: float = 15.0
+    progress_distance: float = 0.5
+    goal_tolerance: float = 1.0
+    block_gap: float = 0.6
+    search_reach: float = 8.0
+    wall_clearance: float = 0.8
+    spot_clearance: float = 0.3
+    yield_time: float = 15.0
+
+    def __post_init__(self):
+        require_positive(self, "standstill_time", "yield_time", unit=" s")
+        require_positive(self, "progress_distance", "goal_tolerance", "search_reach",
+                         "wall_clearance", unit=" m")
+        require_non_negative(self, "block_gap", "spot_clearance", unit=" m")
+
+
+@dataclass(frozen=True)
+class _WatchdogState:
+    """Each robot's ``Anchor`` (None: no goal, or backing off) and the orders."""
+
+    anchors: tuple[Anchor | None, ...]
+    orders: BackOffOrders = NO_BACK_OFFS
+
+    def __deepcopy__(self, memo):
+        return self  # immutable: Drake's copies of the state can share it
+
+
+class DeadlockWatchdog(LeafSystem):
+    """Resolves standstills of robots blocked by each other, as a fleet manager would.
+
+    .. pydrake_system::
+
+        name: DeadlockWatchdog
+        input_ports:
+        - robot_state
+        - target_<robot>
+        - human_states (optional)
+        - disturbances (optional)
+        output_ports:
+        - back_offs
+
+    Inputs: ``robot_state`` (vector, 4N: x, y, theta, v per robot, world frame, m, rad,
+    m/s), ``target_<robot>`` (abstract ``WaypointTarget``, each waypoint generator's), one
+    per robot in ``robot_names`` order, and optionally ``human_states`` (``HumanStates``):
+    back-off spots keep clear of people, and ``disturbances`` (``Disturbances``): a
+    broken-down robot is never asked to yield. Output: ``back_offs`` (abstract
+    ``BackOffOrders``, from the state): the planner plans an ordered robot's path to its
+    spot instead of its target; the recorder notes each order.
+
+    ``rate_hz`` times a second an unrestricted update (see ``WatchdogParams`` for the
+    terms):
+
+    1. Orders whose ``until`` has passed end (see 4).
+    2. Each robot's anchor is renewed (``standstills.next_anchor``); a robot backing off
+       has none.
+    3. Stalled robots and the robots within ``block_gap`` of them form groups
+       (``standstills.blocked_groups``). In each group (in robot order) without a robot
+       backing off, the first of ``standstills.yield_order`` (robots without a goal, then
+       stalled ones, then those at their goal; the lowest priority first) that makes way
+       for a stalled robot (not the only stalled one itself) and for which
+       ``standstills.back_off_spot`` finds a spot clear of the others' ways is ordered
+       there; every member's anchor starts again, so the group gets another
+       ``standstill_time`` before the next order. A group with no spot for anyone is tried
+       again at the next update.
+    4. An order holds until ``yield_time`` after its robot reached its spot (within
+       ``progress_distance``), or after the order if it has not reached it by then.
+
+    ``costmap``: the static costmap the spots are checked against (the way to a spot
+    keeps to its ``FREE`` cells). ``priorities``: per robot, smaller keeps its way
+    (default: robot order, as the controller's cluster leaders).
+    """
+
+    def __init__(self, robot_names: Sequence[str], radii: Sequence[float], costmap: Costmap,
+                 params: WatchdogParams = WatchdogParams(), priorities=None, *,
+                 rate_hz: float):
+        super().__init__()
+        self._robots = tuple(robot_names)
+        n = len(self._robots)
+        self._radii = np.asarray(radii, dtype=float).reshape(n)
+        self._costmap = costmap
+        self._params = params
+        self._priorities = (np.arange(n, dtype=float) if priorities is None
+                            else np.asarray(priorities, dtype=float).reshape(n))
+        self._state_index = self.DeclareAbstractState(
+            Value[object](_WatchdogState((None,) * n)))
+        self._robot_state = self.DeclareVectorInputPort(
+            "robot_state", BasicVector(ROBOT_STATE_SIZE * n))
+        self._targets = [
+            self.DeclareAbstractInputPort(f"target_{robot}", Value[object](WaypointTarget(robot)))
+            for robot in self._robots]
+        self._humans = self.DeclareAbstractInputPort("human_states", Value[object](NO_HUMANS))
+        self._disturbances = self.DeclareAbstractInputPort(
+            "disturbances", Value[object](NO_DISTURBANCES))
+        self.DeclareAbstractOutputPort(
+            "back_offs", lambda: Value[object](NO_BACK_OFFS), self._calc_back_offs,
+            prerequisites_of_calc={self.abstract_state_ticket(self._state_index)})
+        self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate_hz, 0.0, self._update)
+
+    def _calc_back_offs(self, context, output):
+        output.set_value(context.get_abstract_state(self._state_index).get_value().orders)
+
+    def _update(self, context, state):
+        old = context.get_abstract_state(self._state_index).get_value()
+        now = context.get_time()
+        states = self._robot_state.Eval(context).reshape(-1, ROBOT_STATE_SIZE)
+        targets = [port.Eval(context) for port in self._targets]
+        active = self._in_force(old.orders.active, states, now)
+        backing = {order.robot for order in active}
+        anchors = [next_anchor(anchor, states[k, :2], self._has_goal(states[k], targets[k])
+                               and self._robots[k] not in backing, now,
+                               self._params.progress_distance)
+                   for k, anchor in enumerate(old.anchors)]
+        stalled = np.array([a is not None and now - a.since >= self._params.standstill_time
+                            - 1e-9 for a in anchors])
+        history = old.orders.history
+        groups = (blocked_groups(stalled, states[:, :2], self._radii, self._params.block_gap)
+                  if stalled.any() else ())
+        for group in groups:
+            if any(self._robots[k] in backing for k in group):
+                continue
+            order = self._order(group, stalled, anchors, states, targets, context, now)
+            if order is None:
+                continue
+            active, history = active + (order,), history + (order,)
+            backing.add(order.robot)
+            for k in group:
+                anchors[k] = _restarted(anchors[k], now, self._robots[k] == order.robot)
+        orders = (old.orders if (active, history) == (old.orders.active, old.orders.history)
+                  else BackOffOrders(active, history))
+        if tuple(anchors) == old.anchors and orders is old.orders:
+            return EventStatus.DidNothing()
+        state.get_mutable_abstract_state(self._state_index).set_value(
+            _WatchdogState(tuple(anchors), orders))
+        return EventStatus.Succeeded()
+
+    def _has_goal(self, robot_state: np.ndarray, target: WaypointTarget) -> bool:
+        return (target.active and target.current is not None
+                and float(np.hypot(*(robot_state[:2] - target.current)))
+                > self._params.goal_tolerance)
+
+    def _in_force(self, orders: tuple[BackOff, ...], states: np.ndarray, now: float
+                  ) -> tuple[BackOff, ...]:
+        """The orders still in force at ``now``, each given its ``arrived`` time (and so its
+        end) once its robot is within ``progress_distance`` of its spot."""
+        kept = []
+        for order in orders:
+            k = self._robots.index(order.robot)
+            if (order.arrived is None and float(np.hypot(*(states[k, :2] - order.point)))
+                    <= self._params.progress_distance):
+                order = replace(order, arrived=now, until=now + self._params.yield_time)
+            if order.until > now + 1e-9:
+                kept.append(order)
+        return tuple(kept)
+
+    def _order(self, group, stalled, anchors, states, targets, context, now
+               ) -> BackOff | None:
+        """The back-off of the first robot of ``group`` (in ``yield_order``) with a free
+        spot that frees the way of a stalled robot, or None."""
+        humans: HumanStates = (self._humans.Eval(context) if self._humans.HasValue(context)
+                               else NO_HUMANS)
+        xy = states[:, :2]
+        p = self._params
+        idle = np.array([not t.active or t.current is None for t in targets])
+        stalled_here = [k for k in group if stalled[k]]
+        broken = (self._disturbances.Eval(context).broken
+                  if self._disturbances.HasValue(context) else ())
+        for k in yield_order(group, idle, stalled, self._priorities):
+            if stalled_here == [k] or k in broken:
+                continue  # it would make way for nobody, or cannot move
+            blockers = tuple(j for j in group if j != k)
+            ways = [(_way(xy[j], targets[j]), self._radii[j]) for j in blockers]
+            spot = back_off_spot(k, xy, self._radii, ways,
+                                 np.asarray(humans.positions).reshape(-1, 2),
+                                 np.asarray(humans.radii).reshape(-1), self._costmap,
+                                 p.search_reach, p.spot_clearance, p.wall_clearance)
+            if spot is not None:
+                since = min(anchors[j].since for j in stalled_here)
+                return BackOff(self._robots[k], spot, now, now + p.yield_time,
+                               tuple(self._robots[j] for j in blockers), since)
+        return None
+
+
+def _way(xy, target: WaypointTarget) -> np.ndarray:
+    """(P, 2) the way a robot at ``xy`` will drive: to its target's current waypoint and
+    on to the next (just where it stands without an active target)."""
+    if not target.active or target.current is None:
+        return np.asarray(xy, dtype=float).reshape(1, 2)
+    return np.array([xy, target.current] + ([target.next] if target.next else []),
+                    dtype=float)
+
+
+def _restarted(anchor: Anchor | None, now: float, backing_off: bool) -> Anchor | None:
+    """A group member's anchor after an order: none for the robot backing off; the others
+    count their standstill again from ``now``."""
+    if backing_off or anchor is None:
+        return None
+    return Anchor(anchor.xy, now)

@@ -1,0 +1,154 @@
+"""Standstills: which robots stand blocked by each other, which of them yields, and where to
+(pure numpy; the ``DeadlockWatchdog`` block runs these).
+
+Units: metres, seconds; world frame (x east, y north).
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from mrta_drake.navigation.costmap import FREE, Costmap
+
+SEARCH_STEP = 0.1  # m between the points searched for a back-off spot
+
+
+@dataclass(frozen=True)
+class Anchor:
+    """Where (``xy``) and since when (``since``) a robot with a goal has not progressed."""
+
+    xy: tuple[float, float]
+    since: float
+
+
+def next_anchor(anchor: Anchor | None, xy, has_goal: bool, now: float,
+                progress_distance: float) -> Anchor | None:
+    """A robot's anchor after a sample at ``now``: none without a goal; a new one at ``xy``
+    when it had none or got farther than ``progress_distance`` from it; else the same."""
+    if not has_goal:
+        return None
+    if anchor is None or math.dist(anchor.xy, xy) > progress_distance:
+        return Anchor((float(xy[0]), float(xy[1])), now)
+    return anchor
+
+
+def blocked_groups(stalled: np.ndarray, xy: np.ndarray, radii: np.ndarray,
+                   block_gap: float) -> list[tuple[int, ...]]:
+    """The groups of robots standing in each other's way: each stalled robot (``stalled``
+    (N,) bool) joined with every robot within ``block_gap`` of it (surface to surface),
+    transitively; groups without two robots are left out. Each group is sorted, and the
+    groups by their first member."""
+    n = len(xy)
+    gaps = np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=-1) - radii[:, None] - radii
+    near = (gaps <= block_gap) & ~np.eye(n, dtype=bool)
+    links = near & (stalled[:, None] | stalled[None, :])
+    group = list(range(n))
+
+    def root(k: int) -> int:
+        while group[k] != k:
+            k = group[k]
+        return k
+
+    for i, j in zip(*np.nonzero(links), strict=True):
+        a, b = root(int(i)), root(int(j))
+        if a != b:
+            group[max(a, b)] = min(a, b)
+    members: dict[int, list[int]] = {}
+    for k in range(n):
+        if stalled[k] or links[k].any():
+            members.setdefault(root(k), []).append(k)
+    return [tuple(m) for _, m in sorted(members.items()) if len(m) > 1]
+
+
+def yield_order(group: tuple[int, ...], idle: np.ndarray, stalled: np.ndarray,
+                priorities: np.ndarray) -> list[int]:
+    """Who of ``group`` is asked to yield first: robots without a goal (``idle``: they lose
+    nothing by moving), then the stalled ones, then those standing at their goal; within
+    each, the lowest priority (largest ``priorities`` value) first."""
+    def rank(k: int) -> tuple[int, float]:
+        kind = 0 if idle[k] else 1 if stalled[k] else 2
+        return kind, -float(priorities[k])
+
+    return sorted(group, key=rank)
+
+
+def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
+                  ways: list[tuple[np.ndarray, float]],
+                  people_xy: np.ndarray, people_radii: np.ndarray, costmap: Costmap,
+                  reach: float, clearance: float, wall_clearance: float
+                  ) -> tuple[float, float] | None:
+    """The nearest spot to which robot ``k`` at ``xy[k]`` can drive out of the others' way,
+    or None: searched on a grid of ``SEARCH_STEP`` within ``reach`` of it, moving between
+    neighbouring points (4-connected) where its centre may be: on the costmap's ``FREE``
+    cells (beyond its inflation radius from walls, where the controller keeps a robot
+    anyway), no nearer another robot than ``clearance`` (surface to surface), or than it
+    is now. A spot is such a point at least ``wall_clearance`` from walls (the free points
+    eroded by the grid steps beyond the inflation radius), at least ``clearance`` (surface
+    to surface) from every other robot and person and from each of ``ways`` ((polyline
+    (P, 2), radius): the way a blocker of that radius will follow, e.g. from
+    where it stands to its target).
+    Nearest: the fewest grid moves, ties in grid order."""
+    n_side = int(reach / SEARCH_STEP)
+    offsets = np.arange(-n_side, n_side + 1) * SEARCH_STEP
+    points = xy[k] + np.stack(np.meshgrid(offsets, offsets, indexing="ij"), axis=-1)
+    others = np.delete(np.arange(len(xy)), k)
+    robot_gaps = (np.linalg.norm(points[..., None, :] - xy[others], axis=-1)
+                  - radii[others] - radii[k])
+    # Passing another robot closer than ``clearance`` means squeezing by: only as close as
+    # it is now.
+    start_gaps = np.linalg.norm(xy[others] - xy[k], axis=-1) - radii[others] - radii[k]
+    free = costmap.cost_at(points) == FREE
+    passable = (free
+                & (robot_gaps >= np.minimum(clearance, start_gaps) - 1e-9).all(axis=-1)
+                & (np.hypot(*np.moveaxis(points - xy[k], -1, 0)) <= reach))
+    with np.errstate(invalid="ignore"):  # people absent from the run are NaN
+        people_clear = ~((np.linalg.norm(points[..., None, :] - people_xy, axis=-1)
+                          - people_radii - radii[k]) < clearance).any(axis=-1)
+    steps = math.ceil((wall_clearance - costmap.params.inflation_radius) / SEARCH_STEP - 1e-9)
+    spot_ok = (passable & _eroded(free, steps) & (robot_gaps >= clearance).all(axis=-1)
+               & people_clear)
+    for way, radius in ways:
+        spot_ok &= _distance_to_polyline(points, way) >= radii[k] + radius + clearance
+    start = (n_side, n_side)
+    passable[start] = True
+    seen = np.zeros(passable.shape, dtype=bool)
+    seen[start] = True
+    frontier = [start]
+    while frontier:
+        reached = []
+        for i, j in frontier:
+            if spot_ok[i, j]:
+                return (float(points[i, j, 0]), float(points[i, j, 1]))
+            for a, b in ((i - 1, j), (i + 1, j), (i, j - 1), (i, j + 1)):
+                if 0 <= a < passable.shape[0] and 0 <= b < passable.shape[1] \
+                        and passable[a, b] and not seen[a, b]:
+                    seen[a, b] = True
+                    reached.append((a, b))
+        frontier = reached
+    return None
+
+
+def _eroded(mask: np.ndarray, steps: int) -> np.ndarray:
+    """``mask`` where every point within ``steps`` 4-connected moves is set too (the
+    border counts as unset)."""
+    for _ in range(max(0, steps)):
+        inner = np.zeros_like(mask)
+        inner[1:-1, 1:-1] = (mask[1:-1, 1:-1] & mask[:-2, 1:-1] & mask[2:, 1:-1]
+                             & mask[1:-1, :-2] & mask[1:-1, 2:])
+        mask = inner
+    return mask
+
+
+def _distance_to_polyline(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
+    """Distance (m) from each of ``points`` (..., 2) to the polyline (P, 2) (a point if
+    P = 1)."""
+    polyline = np.asarray(polyline, dtype=float).reshape(-1, 2)
+    if len(polyline) == 1:
+        return np.linalg.norm(points - polyline[0], axis=-1)
+    a, b = polyline[:-1], polyline[1:]
+    ab = b - a
+    length2 = np.maximum((ab * ab).sum(axis=1), 1e-12)
+    rel = points[..., None, :] - a
+    f = np.clip((rel * ab).sum(axis=-1) / length2, 0.0, 1.0)
+    return np.linalg.norm(rel - f[..., None] * ab, axis=-1).min(axis=-1)

@@ -1,0 +1,187 @@
+"""The deadlock watchdog: two robots head-on in a corridor too narrow to pass stand nose to
+nose for good; with the watchdog one backs into a bay, the other passes, both arrive."""
+
+import math
+import pathlib
+
+import numpy as np
+import pytest
+from pydrake.common.value import Value
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantValueSource, LogVectorOutput
+
+from mrta_drake.control.cluster_cbf_controller import ClusterCbfController
+from mrta_drake.errors import InputError
+from mrta_drake.navigation.costmap import Costmap
+from mrta_drake.navigation.deadlock_watchdog import DeadlockWatchdog, WatchdogParams
+from mrta_drake.navigation.planner_service import PlannerService
+from mrta_drake.navigation.standstills import (
+    Anchor,
+    back_off_spot,
+    blocked_groups,
+    next_anchor,
+    yield_order,
+)
+from mrta_drake.payloads import Breakdown, Disturbances, WaypointTarget
+from mrta_drake.robots.unicycle_robots import UnicycleRobots
+from mrta_drake.scenario.loading import load_scenario
+from mrta_drake.stack.blocks import resolve_block
+from mrta_drake.world.obstacles import Box, Obstacles
+
+HOSPITAL = pathlib.Path(__file__).resolve().parents[2] / "scenarios/hospital_6_robots.yaml"
+RADIUS = 0.22
+NAMES = ("r0", "r1")
+BOUNDS = (-1.0, 15.0, -2.0, 4.0)
+BAY = (4.5, 6.5)  # x extent of the bay north of the corridor, m
+# r1 comes out of the corridor's closed east end as r0 drives there: r0, leading, pushes r1
+# back against the end, where neither can get by.
+STARTS = [[7.0, 0.0, 0.0], [13.3, 0.0, math.pi]]
+GOALS = [(13.0, 0.0), (1.0, 0.0)]
+
+
+def _corridor_with_bay(width=1.6, bay_depth=1.6, t=0.2):
+    """A corridor along x (y in [-width/2, width/2]), closed at both ends, with a bay
+    opening north at ``BAY``: one robot fits in it with its wall distance, two cannot pass."""
+    half, (x0, x1) = width / 2, BAY
+    north = half + t / 2
+    return Obstacles((
+        Box("south", (7.0, -half - t / 2), (16.0, t)),
+        Box("north_west", ((-1.0 + x0) / 2, north), (x0 + 1.0, t)),
+        Box("north_east", ((x1 + 15.0) / 2, north), (15.0 - x1, t)),
+        Box("bay_west", (x0 - t / 2, half + bay_depth / 2), (t, bay_depth)),
+        Box("bay_east", (x1 + t / 2, half + bay_depth / 2), (t, bay_depth)),
+        Box("bay_back", ((x0 + x1) / 2, half + bay_depth + t / 2), (x1 - x0 + 2 * t, t)),
+        Box("west_end", (-0.1, 0.0), (t, width)),
+        Box("east_end", (14.1, 0.0), (t, width)),
+    ))
+
+
+def _run(with_watchdog: bool, duration=75.0, watchdog_sees=None):
+    """Robot states (T, 2, 4) at 10 Hz and the watchdog's orders at the end (None
+    without it); ``watchdog_sees``: disturbances on the watchdog's input only."""
+    obstacles = _corridor_with_bay()
+    builder = DiagramBuilder()
+    robots = builder.AddSystem(UnicycleRobots(NAMES, np.array(STARTS), rate_hz=20.0))
+    controller = builder.AddSystem(ClusterCbfController(NAMES, obstacles, rate_hz=20.0))
+    planner = builder.AddSystem(PlannerService.from_obstacles(
+        obstacles, BOUNDS, NAMES, replan_rate_hz=2.0, target_check_rate_hz=10.0))
+    state = robots.GetOutputPort("state")
+    builder.Connect(state, controller.GetInputPort("robot_state"))
+    builder.Connect(controller.GetOutputPort("commands"), robots.GetInputPort("commands"))
+    builder.Connect(planner.GetOutputPort("paths"), controller.GetInputPort("paths"))
+    builder.Connect(state, planner.GetInputPort("robot_state"))
+    watchdog = None
+    if with_watchdog:
+        watchdog = builder.AddSystem(DeadlockWatchdog(
+            NAMES, [RADIUS, RADIUS], Costmap.from_obstacles(obstacles, BOUNDS),
+            rate_hz=2.0))
+        builder.Connect(state, watchdog.GetInputPort("robot_state"))
+        builder.Connect(watchdog.GetOutputPort("back_offs"), planner.GetInputPort("back_offs"))
+        if watchdog_sees is not None:
+            source = builder.AddSystem(ConstantValueSource(Value[object](watchdog_sees)))
+            builder.Connect(source.get_output_port(), watchdog.GetInputPort("disturbances"))
+    for name, goal in zip(NAMES, GOALS, strict=True):
+        target = builder.AddSystem(ConstantValueSource(Value[object](
+            WaypointTarget(name, True, goal, None, True))))
+        builder.Connect(target.get_output_port(), planner.GetInputPort(f"target_{name}"))
+        if watchdog is not None:
+            builder.Connect(target.get_output_port(), watchdog.GetInputPort(f"target_{name}"))
+    log = LogVectorOutput(state, builder, 0.1)
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(duration)
+    context = simulator.get_context()
+    orders = (watchdog.GetOutputPort("back_offs").Eval(watchdog.GetMyContextFromRoot(context))
+              if watchdog is not None else None)
+    return log.FindLog(context).data().T.reshape(-1, 2, 4), orders
+
+
+def _distances_to_goals(states):
+    return np.linalg.norm(states[-1, :, :2] - np.array(GOALS), axis=1)
+
+
+def _min_separation(states):
+    return np.linalg.norm(states[:, 0, :2] - states[:, 1, :2], axis=1).min()
+
+
+def test_without_the_watchdog_the_corridor_deadlocks():
+    states, _ = _run(with_watchdog=False, duration=40.0)
+    assert _distances_to_goals(states)[1] > 10.0  # r1 never got out
+    late = states[len(states) // 2:, :, :2]
+    assert np.ptp(late, axis=0).max() < 0.5  # nose to nose for the last 20 s
+
+
+def test_the_watchdog_backs_one_robot_into_the_bay_and_both_arrive():
+    states, orders = _run(with_watchdog=True)
+    assert (_distances_to_goals(states) < 0.5).all()
+    assert _min_separation(states) >= 2 * RADIUS
+    first = orders.history[0]
+    # r1 yields first by priority, but no spot is free of r0's way on its side: r0 yields.
+    assert first.robot == "r0" and first.blockers == ("r1",)
+    assert BAY[0] < first.point[0] < BAY[1] and first.point[1] > 0.8
+    assert first.issued - first.stalled_since == pytest.approx(15.0, abs=0.5)
+    assert not orders.active
+
+
+def test_a_broken_down_robot_is_never_asked_to_yield():
+    # r0, the only robot with a spot that makes way, reported broken down: nobody yields.
+    _, orders = _run(with_watchdog=True, duration=40.0,
+                     watchdog_sees=Disturbances(breakdowns=(Breakdown(0, 0.0),)))
+    assert orders.history == ()
+
+
+def test_stalled_robots_and_their_neighbours_form_groups():
+    xy = np.array([[0.0, 0.0], [0.7, 0.0], [5.0, 0.0], [5.5, 0.0], [9.0, 0.0]])
+    radii = np.full(5, RADIUS)
+    stalled = np.array([True, False, False, False, True])
+    assert blocked_groups(stalled, xy, radii, block_gap=0.6) == [(0, 1)]
+    stalled[3] = True
+    assert blocked_groups(stalled, xy, radii, block_gap=0.6) == [(0, 1), (2, 3)]
+
+
+def test_idle_robots_yield_before_stalled_ones_and_low_priority_first():
+    idle = np.array([False, True, False, False])
+    stalled = np.array([True, False, True, False])
+    assert yield_order((0, 1, 2, 3), idle, stalled, np.arange(4.0)) == [1, 2, 0, 3]
+
+
+def test_an_anchor_moves_only_with_progress_and_goes_without_a_goal():
+    anchor = next_anchor(None, (0.0, 0.0), True, 1.0, 0.5)
+    assert anchor == Anchor((0.0, 0.0), 1.0)
+    assert next_anchor(anchor, (0.4, 0.0), True, 2.0, 0.5) is anchor
+    assert next_anchor(anchor, (0.6, 0.0), True, 3.0, 0.5) == Anchor((0.6, 0.0), 3.0)
+    assert next_anchor(anchor, (0.0, 0.0), False, 3.0, 0.5) is None
+
+
+def test_no_spot_when_the_only_way_out_is_through_the_blocker():
+    obstacles = _corridor_with_bay()
+    costmap = Costmap.from_obstacles(obstacles, BOUNDS)
+    xy = np.array([[12.0, 0.0], [12.7, 0.0]])  # r1 against the closed east end
+    ways = [(np.array([[12.0, 0.0], [13.9, 0.0]]), RADIUS)]  # r0 on to the end
+    none = np.zeros((0, 2))
+    assert back_off_spot(1, xy, np.full(2, RADIUS), ways, none, np.zeros(0), costmap,
+                         4.0, 0.3, 0.8) is None
+    spot = back_off_spot(0, xy, np.full(2, RADIUS), [(xy[1:], RADIUS)], none, np.zeros(0),
+                         costmap, 4.0, 0.3, 0.8)
+    assert spot is not None and spot[0] < 12.0
+
+
+@pytest.mark.parametrize("field, value", [("standstill_time", 0.0), ("yield_time", -1.0),
+                                          ("search_reach", 0.0), ("block_gap", -0.1)])
+def test_params_refuse_bad_values(field, value):
+    with pytest.raises(InputError, match=field):
+        WatchdogParams(**{field: value})
+
+
+def test_a_scenario_with_a_bad_watchdog_field_is_refused_with_its_place():
+    scenario = load_scenario(HOSPITAL,
+                             overrides={"blocks.watchdog.params.standstill_time": -2.0})
+    with pytest.raises(InputError, match=r"blocks\.watchdog\.params.*standstill_time"):
+        resolve_block(scenario, "watchdog")
+
+
+def test_the_paper_profile_turns_the_watchdog_off():
+    scenario = load_scenario(HOSPITAL, overrides={"profile": "paper"})
+    _, params = resolve_block(scenario, "watchdog")
+    assert params.enabled is False
