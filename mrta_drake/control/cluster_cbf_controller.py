@@ -1,12 +1,14 @@
 """Safe control of a fleet of dynamic unicycles with clustered CBF-QPs (the paper's controller)."""
 
-import math
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
+from pydrake.common.value import Value
 from pydrake.systems.framework import LeafSystem
 
 from mrta_drake.control.cbf_params import CbfParams
+from mrta_drake.control.cluster_views import cluster_of, cut_off, group_of, views_disagree
 from mrta_drake.control.clusters import LEADER_RULES, LeaderRule, clusters_of, stall_times_of
 from mrta_drake.control.controller_common import controller_update, declare_controller_ports
 from mrta_drake.control.followers import follower_rule_code
@@ -26,10 +28,13 @@ from mrta_drake.payloads import (
     NO_DISTURBANCES,
     NO_HUMANS,
     ROBOT_STATE_SIZE,
+    CommandMessages,
     ControllerTelemetry,
     Disturbances,
     FleetPaths,
     HumanStates,
+    NetworkViews,
+    frozen_array,
 )
 
 
@@ -51,6 +56,44 @@ class TickPlan:
     def problems(self) -> tuple[QpProblem, ...]:
         """Every QP of the tick."""
         return self.qps.problems
+
+
+@dataclass(frozen=True)
+class SolvedQps:
+    """Inputs ``u`` (N, 2) ``[a, omega]`` after a tick's solves: robots braked on solver
+    failures, the largest slack, and per solver call (robots in the QP, s)."""
+
+    u: np.ndarray
+    failures: int
+    max_slack: float
+    calls: tuple[tuple[int, float], ...]
+
+
+@dataclass(frozen=True)
+class NetworkedTick:
+    """One tick over a network: inputs ``u`` (N, 2), the telemetry, the commands sent to
+    followers and each robot's stall time (s) as it sees itself."""
+
+    u: np.ndarray
+    telemetry: ControllerTelemetry
+    messages: CommandMessages
+    stall_times: np.ndarray
+
+
+def _telemetry(time: float, plans_solved, clusters) -> ControllerTelemetry:
+    """The telemetry of a tick that solved ``plans_solved`` ((TickPlan, SolvedQps) pairs)
+    and formed ``clusters``."""
+    barriers = np.array([plan.min_barriers for plan, _ in plans_solved] or
+                        [(np.inf,) * 3]).min(axis=0).tolist()
+    deviation = max((float(np.sqrt(((solved.u - plan.u_nominal) ** 2).sum(axis=1).max(
+        initial=0.0))) for plan, solved in plans_solved), default=0.0)
+    calls = tuple(call for _, solved in plans_solved for call in solved.calls)
+    return ControllerTelemetry(
+        time=float(time), min_barrier_wall=barriers[0], min_barrier_human=barriers[1],
+        min_barrier_robot=barriers[2],
+        max_slack=max((solved.max_slack for _, solved in plans_solved), default=0.0),
+        control_deviation=deviation, clusters=clusters, solve_time=sum(t for _, t in calls),
+        failures=sum(solved.failures for _, solved in plans_solved), qp_calls=calls)
 
 
 class ClusterCbfController(LeafSystem):
@@ -144,6 +187,14 @@ class ClusterCbfController(LeafSystem):
         (self.robot_state_port, self.paths_port, self.human_states_port,
          self.disturbances_port, self.commands_port, self.telemetry_port) = self._ports.handles
         self._stall_index = self.DeclareDiscreteState(self._n)  # s stood as a blocked leader
+        self._network = self.DeclareAbstractInputPort("network", Value[object](NetworkViews()))
+        self._sent_index = self.DeclareDiscreteState(CommandMessages(
+            -np.inf, (-1,) * self._n, np.zeros((self._n, 2))).as_vector())
+        self.DeclareAbstractOutputPort(
+            "leader_commands", lambda: Value[object](CommandMessages()),
+            lambda context, output: output.set_value(CommandMessages.from_vector(
+                context.get_discrete_state(self._sent_index).value())),
+            prerequisites_of_calc={self.discrete_state_ticket(self._sent_index)})
         self._paths_seen: tuple[FleetPaths | None, PathArrays | None] = (None, None)
 
     @property
@@ -235,10 +286,18 @@ class ClusterCbfController(LeafSystem):
                                            disturbances))
 
     def _solve(self, time: float, plan: TickPlan) -> tuple[np.ndarray, ControllerTelemetry]:
-        # Only QPs whose clipped nominal breaks a row reach the solver (the rest are settled).
+        solved = self._solved(plan, plan.qps.to_solve() if plan.qps.needs_solver.any() else ())
+        return solved.u, _telemetry(time, ((plan, solved),), plan.clusters)
+
+    def _solved(self, plan: TickPlan, groups) -> SolvedQps:
+        """Every robot's input from ``plan``: its group's solution for ``groups`` (indices
+        of ``plan.qps.groups``), the settled input otherwise. Only QPs whose clipped nominal
+        breaks a row reach the solver (the rest are settled)."""
         u = plan.qps.settled.copy()
         failures, max_slack, calls = 0, 0.0, []
-        for g in plan.qps.to_solve() if plan.qps.needs_solver.any() else ():
+        for g in groups:
+            if not plan.qps.needs_solver[g]:
+                continue
             members = list(plan.qps.groups[g])
             u_nominal, G, b, lower, upper = plan.qps.arrays(g)
             solution = self._qp.solve(u_nominal, G, b, lower, upper)
@@ -249,20 +308,55 @@ class ClusterCbfController(LeafSystem):
             else:
                 u[members] = np.stack([lower[:, 0], np.zeros(len(members))], axis=1)
                 failures += len(members)
-        wall, human, robot = plan.min_barriers
-        change = u - plan.u_nominal
-        deviation = math.sqrt((change * change).sum(axis=1).max(initial=0.0))
-        telemetry = ControllerTelemetry(
-            time=float(time), min_barrier_wall=wall, min_barrier_human=human,
-            min_barrier_robot=robot, max_slack=max_slack, control_deviation=deviation,
-            clusters=plan.clusters, solve_time=sum(t for _, t in calls), failures=failures,
-            qp_calls=tuple(calls))
-        return u, telemetry
+        return SolvedQps(u, failures, max_slack, tuple(calls))
+
+    def _networked(self, time: float, states, paths: FleetPaths, human_states: HumanStates,
+                   stall, d: Disturbances, views: NetworkViews) -> NetworkedTick:
+        """One tick over a network: each robot plans from its own view (the others' states
+        as last received, ``views``); a robot leading its cluster as it sees it solves the
+        cluster's QP, applies its own input and sends the followers theirs; a follower
+        applies its leader's command if fresh, else brakes on its own QP against its view."""
+        n, c = self._n, self._params.coordination
+        seen_states = [views.view_of(i, states[i]) for i in range(n)]
+        plans = [self.plan(view, paths, human_states, stall, d) for view in seen_states]
+        seen = [cluster_of(plan.clusters, i) for i, plan in enumerate(plans)]
+        stall_after = np.array([stall_times_of(
+            stall, seen_states[i][:, 3], plan.cluster_order, plan.cluster_start, plan.active,
+            self._dt, c.stall_time, c.stall_speed)[i] for i, plan in enumerate(plans)])
+        u, leaders, sent = np.zeros((n, 2)), [-1] * n, np.zeros((n, 2))
+        used, stale = [], 0
+        for i, plan in enumerate(plans):
+            leader = seen[i][0]
+            if i in d.broken:
+                continue
+            if leader != i and views.fresh_command(i, leader):
+                u[i] = views.commands[i]
+                continue
+            if leader != i:  # no fresh command: brake alone, against what it last heard
+                stale += 1
+                plan = self.plan(seen_states[i], paths, human_states, stall,
+                                 cut_off(d, i, time, seen_states[i]))
+            solved = self._solved(plan, [group_of(plan.qps.groups, i)])
+            u[i] = solved.u[i]
+            for follower in seen[i][1:] if leader == i else ():
+                leaders[follower], sent[follower] = i, solved.u[follower]
+            used.append((plan, solved))
+        telemetry = dataclasses.replace(
+            _telemetry(time, used, tuple(s for i, s in enumerate(seen) if s[0] == i)),
+            leader_disagreement=views_disagree(seen), stale_commands=stale)
+        return NetworkedTick(u, telemetry, CommandMessages(float(time), tuple(leaders),
+                                                           frozen_array(sent)), stall_after)
 
     def _update(self, context, discrete_state) -> None:
         p, stall = self._params, context.get_discrete_state(self._stall_index).value()
 
         def control(time, states, paths, human_states, disturbances):
+            if self._network.HasValue(context):
+                tick = self._networked(time, states, paths, human_states, stall,
+                                       disturbances, self._network.Eval(context))
+                discrete_state.set_value(self._stall_index, tick.stall_times)
+                discrete_state.set_value(self._sent_index, tick.messages.as_vector())
+                return tick.u, tick.telemetry
             plan = self.plan(states, paths, human_states, stall, disturbances)
             discrete_state.set_value(self._stall_index, stall_times_of(
                 stall, states[:, 3], plan.cluster_order, plan.cluster_start, plan.active,

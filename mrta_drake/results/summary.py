@@ -45,6 +45,9 @@ clearances), times in s of simulation time unless named ``wall``/``cpu``. The ke
   ``mean_wait`` and ``max_wait`` (s) from a robot's request to its boarding; empty without
   lifts. A robot's ``distance`` leaves out the jump of a lift ride (a step longer than
   ``RELOCATION_STEP``).
+- ``communication``: with a network (``communication:`` not ideal), the age of information
+  and the time robots' views of their clusters disagreed and followers braked for want of a
+  command (``communication.communication_metrics``); None when ideal.
 """
 
 import dataclasses
@@ -57,6 +60,7 @@ import numpy as np
 
 from mrta_drake.payloads import RobotMode
 from mrta_drake.results.clearances import clearances
+from mrta_drake.results.communication import communication_metrics
 from mrta_drake.results.deadlocks import (
     NEIGHBOUR_RANGE,
     PROGRESS_DISTANCE,
@@ -128,6 +132,7 @@ def summarize(stack, duration: float, wall_time: float, cpu_time: float) -> dict
         "physics_contacts": stack.contacts.summary() if stack.contacts is not None else None,
         "disturbances": _disturbances(scenario.disturbances, names, times, xy, radii, events),
         "lifts": _lifts([e for e in events if e["type"] == "lift"]),
+        "communication": communication_metrics(recorder, 1.0 / scenario.rates.logging),
     }
 
 
