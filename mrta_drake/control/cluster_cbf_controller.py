@@ -108,11 +108,18 @@ class ClusterCbfController(LeafSystem):
         - paths
         - human_states (optional)
         - disturbances (optional)
+        - network (optional)
         output_ports:
         - commands
         - telemetry
+        - leader_commands
 
     Ports as in ``mrta_drake.control.controller_common``; robots in ``robot_names`` order.
+    Over a network (input ``network``, ``NetworkViews``, connected when the scenario's
+    ``communication:`` is not ideal) the controller is every robot's share of the protocol
+    (``control_over_network``), and output ``leader_commands`` (``CommandMessages``) holds
+    the commands the leaders sent their followers at the last tick; unconnected, one
+    all-knowing controller forms the clusters from the true states.
 
     Every tick (fixed dt = 1 / rate_hz) each robot's nominal input ``[a, omega]`` follows its
     path (``mrta_drake.control.nominal``); QPs (``qp_solver``) then change the inputs as
@@ -310,19 +317,17 @@ class ClusterCbfController(LeafSystem):
                 failures += len(members)
         return SolvedQps(u, failures, max_slack, tuple(calls))
 
-    def _networked(self, time: float, states, paths: FleetPaths, human_states: HumanStates,
-                   stall, d: Disturbances, views: NetworkViews) -> NetworkedTick:
+    def control_over_network(self, time: float, states, paths: FleetPaths,
+                             human_states: HumanStates, stall, d: Disturbances,
+                             views: NetworkViews) -> NetworkedTick:
         """One tick over a network: each robot plans from its own view (the others' states
         as last received, ``views``); a robot leading its cluster as it sees it solves the
         cluster's QP, applies its own input and sends the followers theirs; a follower
         applies its leader's command if fresh, else brakes on its own QP against its view."""
-        n, c = self._n, self._params.coordination
+        n = self._n
         seen_states = [views.view_of(i, states[i]) for i in range(n)]
         plans = [self.plan(view, paths, human_states, stall, d) for view in seen_states]
         seen = [cluster_of(plan.clusters, i) for i, plan in enumerate(plans)]
-        stall_after = np.array([stall_times_of(
-            stall, seen_states[i][:, 3], plan.cluster_order, plan.cluster_start, plan.active,
-            self._dt, c.stall_time, c.stall_speed)[i] for i, plan in enumerate(plans)])
         u, leaders, sent = np.zeros((n, 2)), [-1] * n, np.zeros((n, 2))
         used, stale = [], 0
         for i, plan in enumerate(plans):
@@ -345,14 +350,23 @@ class ClusterCbfController(LeafSystem):
             _telemetry(time, used, tuple(s for i, s in enumerate(seen) if s[0] == i)),
             leader_disagreement=views_disagree(seen), stale_commands=stale)
         return NetworkedTick(u, telemetry, CommandMessages(float(time), tuple(leaders),
-                                                           frozen_array(sent)), stall_after)
+                                                           frozen_array(sent)),
+                             self._stall_times_seen(stall, seen_states, plans))
+
+    def _stall_times_seen(self, stall, seen_states, plans) -> np.ndarray:
+        """Each robot's stall time (s) after this tick, as it sees itself: from its own view
+        ``seen_states[i]`` and its plan ``plans[i]`` (``clusters.stall_times_of``)."""
+        c = self._params.coordination
+        return np.array([stall_times_of(
+            stall, seen_states[i][:, 3], plan.cluster_order, plan.cluster_start, plan.active,
+            self._dt, c.stall_time, c.stall_speed)[i] for i, plan in enumerate(plans)])
 
     def _update(self, context, discrete_state) -> None:
         p, stall = self._params, context.get_discrete_state(self._stall_index).value()
 
         def control(time, states, paths, human_states, disturbances):
             if self._network.HasValue(context):
-                tick = self._networked(time, states, paths, human_states, stall,
+                tick = self.control_over_network(time, states, paths, human_states, stall,
                                        disturbances, self._network.Eval(context))
                 discrete_state.set_value(self._stall_index, tick.stall_times)
                 discrete_state.set_value(self._sent_index, tick.messages.as_vector())
