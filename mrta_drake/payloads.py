@@ -368,9 +368,13 @@ class NetworkViews:
                 and self.time - self.command_sent_at[robot] <= self.max_age)
 
     def view_of(self, observer: int, own_state: np.ndarray) -> np.ndarray:
-        """Every robot's state (N, 4) as robot ``observer`` knows it: the others' as last
-        received, its own ``own_state`` (its own sensors)."""
+        """Every robot's state (N, 4) as robot ``observer`` knows it at ``time``: the
+        others' as last received, carried on at their speed and heading for the state's
+        age (dead reckoning), its own ``own_state`` (its own sensors)."""
         view = np.array(self.states[observer])
+        travelled = view[:, 3] * (self.time - self.sent_at[observer])
+        view[:, 0] += travelled * np.cos(view[:, 2])
+        view[:, 1] += travelled * np.sin(view[:, 2])
         view[observer] = own_state
         return view
 

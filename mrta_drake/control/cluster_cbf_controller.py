@@ -296,18 +296,21 @@ class ClusterCbfController(LeafSystem):
         solved = self._solved(plan, plan.qps.to_solve() if plan.qps.needs_solver.any() else ())
         return solved.u, _telemetry(time, ((plan, solved),), plan.clusters)
 
-    def _solved(self, plan: TickPlan, groups) -> SolvedQps:
+    def _solved(self, plan: TickPlan, groups, u_nominal=None) -> SolvedQps:
         """Every robot's input from ``plan``: its group's solution for ``groups`` (indices
         of ``plan.qps.groups``), the settled input otherwise. Only QPs whose clipped nominal
-        breaks a row reach the solver (the rest are settled)."""
+        breaks a row reach the solver (the rest are settled). ``u_nominal`` (N, 2): nominal
+        inputs in place of the plan's, for ``groups``."""
         u = plan.qps.settled.copy()
         failures, max_slack, calls = 0, 0.0, []
         for g in groups:
-            if not plan.qps.needs_solver[g]:
+            if u_nominal is None and not plan.qps.needs_solver[g]:
                 continue
             members = list(plan.qps.groups[g])
-            u_nominal, G, b, lower, upper = plan.qps.arrays(g)
-            solution = self._qp.solve(u_nominal, G, b, lower, upper)
+            nominal, G, b, lower, upper = plan.qps.arrays(g)
+            if u_nominal is not None:
+                nominal = u_nominal[members]
+            solution = self._qp.solve(nominal, G, b, lower, upper)
             calls.append((len(members), solution.solve_time))
             if solution.success:
                 u[members] = solution.u
@@ -323,7 +326,9 @@ class ClusterCbfController(LeafSystem):
         """One tick over a network: each robot plans from its own view (the others' states
         as last received, ``views``); a robot leading its cluster as it sees it solves the
         cluster's QP, applies its own input and sends the followers theirs; a follower
-        applies its leader's command if fresh, else brakes on its own QP against its view."""
+        solves its own QP against its view, with its leader's command as the nominal if
+        that is fresh (the command, kept within the follower's own barriers), else with the
+        slow-down nominal (it brakes)."""
         n = self._n
         seen_states = [views.view_of(i, states[i]) for i in range(n)]
         plans = [self.plan(view, paths, human_states, stall, d) for view in seen_states]
@@ -331,17 +336,18 @@ class ClusterCbfController(LeafSystem):
         u, leaders, sent = np.zeros((n, 2)), [-1] * n, np.zeros((n, 2))
         used, stale = [], 0
         for i, plan in enumerate(plans):
-            leader = seen[i][0]
+            leader, nominal = seen[i][0], None
             if i in d.broken:
                 continue
-            if leader != i and views.fresh_command(i, leader):
-                u[i] = views.commands[i]
-                continue
-            if leader != i:  # no fresh command: brake alone, against what it last heard
-                stale += 1
+            if leader != i:  # a follower: its own QP against what it last heard
                 plan = self.plan(seen_states[i], paths, human_states, stall,
                                  cut_off(d, i, time, seen_states[i]))
-            solved = self._solved(plan, [group_of(plan.qps.groups, i)])
+                if views.fresh_command(i, leader):  # the command, kept within its barriers
+                    nominal = np.zeros((n, 2))
+                    nominal[i] = views.commands[i]
+                else:  # no fresh command: brake
+                    stale += 1
+            solved = self._solved(plan, [group_of(plan.qps.groups, i)], nominal)
             u[i] = solved.u[i]
             for follower in seen[i][1:] if leader == i else ():
                 leaders[follower], sent[follower] = i, solved.u[follower]

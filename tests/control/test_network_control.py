@@ -60,35 +60,48 @@ def test_a_head_on_swap_over_a_lossy_network_with_latency_keeps_clear():
     np.testing.assert_allclose(states[-1, :, :2], goals, atol=0.1)
 
 
-def _approaching():
-    """Two robots 1.2 m apart driving at each other at 0.5 m/s, each knowing the other's
-    true state, sent now."""
-    states = np.array([[5.0, 0.0, 0.0, 0.5], [6.2, 0.0, math.pi, 0.5]])
-    return states, _paths(states, [[9.0, 0.0], [1.0, 0.0]])
+def _driving(gap: float, toward: bool):
+    """Two robots ``gap`` m apart along the corridor at 0.5 m/s, driving at each other
+    (``toward``) or one behind the other (east), each with a path 8 m on."""
+    heading = np.pi if toward else 0.0
+    states = np.array([[5.0, 0.0, 0.0, 0.5], [5.0 + gap, 0.0, heading, 0.5]])
+    ends = [[13.0, 0.0], [5.0 + gap + 8.0 * np.cos(heading), 0.0]]
+    return states, _paths(states, ends)
 
 
 def _views(states, command_from, command=(0.0, 0.0), time=1.0) -> NetworkViews:
+    """Each robot knows the other's true state, sent now; robot 1's last command
+    ``command`` came from ``command_from[1]`` 0.2 s ago."""
     return NetworkViews(time, frozen_array(np.broadcast_to(states, (2, 2, 4))),
                         frozen_array(np.full((2, 2), time)),
                         frozen_array([[0.0, 0.0], command]), command_from,
                         frozen_array([-np.inf, time - 0.2]), 0.3)
 
 
-def test_a_follower_applies_its_leaders_fresh_command_and_the_leader_sends_it():
-    states, paths = _approaching()
+def _tick(states, paths, views):
     controller = ClusterCbfController(NAMES, CORRIDOR, rate_hz=20.0)
-    tick = controller.control_over_network(1.0, states, paths, HumanStates(), None,
-                                           Disturbances(), _views(states, (-1, 0), (0.1, 0.2)))
-    np.testing.assert_array_equal(tick.u[1], [0.1, 0.2])
+    return controller.control_over_network(1.0, states, paths, HumanStates(), None,
+                                           Disturbances(), views)
+
+
+def test_a_follower_applies_its_leaders_fresh_safe_command_and_the_leader_sends_it():
+    states, paths = _driving(3.0, toward=False)
+    tick = _tick(states, paths, _views(states, (-1, 0), (0.1, 0.2)))
+    np.testing.assert_allclose(tick.u[1], [0.1, 0.2])
     assert tick.messages.leaders == (-1, 0)
     assert tick.telemetry.stale_commands == 0 and tick.telemetry.clusters == ((0, 1),)
     assert not tick.telemetry.leader_disagreement
 
 
+def test_a_follower_keeps_its_leaders_command_within_its_own_barriers():
+    states, paths = _driving(1.2, toward=True)
+    tick = _tick(states, paths, _views(states, (-1, 0), (0.5, 0.0)))
+    assert tick.telemetry.stale_commands == 0
+    assert tick.u[1, 0] < 0.0  # told to speed up at the other robot, it slows down
+
+
 def test_a_follower_without_a_fresh_command_brakes_on_its_own_qp():
-    states, paths = _approaching()
-    controller = ClusterCbfController(NAMES, CORRIDOR, rate_hz=20.0)
-    tick = controller.control_over_network(1.0, states, paths, HumanStates(), None,
-                                           Disturbances(), _views(states, (-1, -1)))
+    states, paths = _driving(3.0, toward=False)
+    tick = _tick(states, paths, _views(states, (-1, -1)))
     assert tick.telemetry.stale_commands == 1
     assert tick.u[1, 0] < 0.0  # decelerates
