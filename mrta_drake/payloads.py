@@ -387,6 +387,67 @@ class ControllerTelemetry:
     solve_time: float = 0.0  # s (wall clock) spent in solvers this tick
     failures: int = 0  # solver failures this tick (robots braked)
     qp_calls: tuple[tuple[int, float], ...] = ()  # per solver call: (robots in the QP, s)
+    leader_disagreement: bool = False  # robots' views of a cluster differ (over a network)
+    stale_commands: int = 0  # followers without a fresh command from their leader (braking)
+
+
+# --- Network: robots -> network -> controller; controller -> network -> controller ------------
+
+
+@dataclass(frozen=True)
+class CommandMessages:
+    """The commands cluster leaders sent their followers at one control tick, ``time`` (s):
+    ``leaders[i]`` is the robot whose command follower i was sent (-1: none), ``inputs[i]``
+    that command ``[a, omega]`` (m/s^2, rad/s; (N, 2))."""
+
+    time: float = -np.inf
+    leaders: tuple[int, ...] = ()
+    inputs: np.ndarray = field(default_factory=lambda: frozen_array(np.zeros((0, 2))))
+
+    @classmethod
+    def from_vector(cls, vector) -> "CommandMessages":
+        """The messages of ``as_vector``'s layout."""
+        n = (len(vector) - 1) // 3
+        return cls(float(vector[0]), tuple(int(k) for k in vector[1:n + 1]),
+                   frozen_array(vector[n + 1:], shape=(n, 2)))
+
+    def as_vector(self) -> np.ndarray:
+        """``[time, leaders (N), inputs (2N)]``, for a block's discrete state."""
+        return np.concatenate([[self.time], self.leaders, np.ravel(self.inputs)])
+
+
+@dataclass(frozen=True)
+class NetworkViews:
+    """What each robot has received over the network by ``time`` (s). ``states[i, j]``
+    (N, N, 4) is robot j's ``[x, y, theta, v]`` (world frame, m, rad, m/s) as robot i last
+    received it, sent at ``sent_at[i, j]`` (s; row i, column i: robot i's own, as at its last
+    broadcast). ``commands[i]`` (N, 2) is the last command ``[a, omega]`` robot i received,
+    from leader ``command_from[i]`` (-1: none yet), sent at ``command_sent_at[i]`` (s); a
+    command older than ``max_age`` s is stale."""
+
+    time: float = 0.0
+    states: np.ndarray = field(default_factory=lambda: frozen_array(np.zeros((0, 0, 4))))
+    sent_at: np.ndarray = field(default_factory=lambda: frozen_array(np.zeros((0, 0))))
+    commands: np.ndarray = field(default_factory=lambda: frozen_array(np.zeros((0, 2))))
+    command_from: tuple[int, ...] = ()
+    command_sent_at: np.ndarray = field(default_factory=lambda: frozen_array(np.zeros(0)))
+    max_age: float = 0.0
+
+    def fresh_command(self, robot: int, leader: int) -> bool:
+        """Whether ``robot``'s last command came from ``leader`` and is not stale."""
+        return (self.command_from[robot] == leader
+                and self.time - self.command_sent_at[robot] <= self.max_age)
+
+    def view_of(self, observer: int, own_state: np.ndarray) -> np.ndarray:
+        """Every robot's state (N, 4) as robot ``observer`` knows it at ``time``: the
+        others' as last received, carried on at their speed and heading for the state's
+        age (dead reckoning), its own ``own_state`` (its own sensors)."""
+        view = np.array(self.states[observer])
+        travelled = view[:, 3] * (self.time - self.sent_at[observer])
+        view[:, 0] += travelled * np.cos(view[:, 2])
+        view[:, 1] += travelled * np.sin(view[:, 2])
+        view[observer] = own_state
+        return view
 
 
 # --- Disturbances: disturbance schedule -> planner, waypoints, allocator, controller, results

@@ -1,12 +1,14 @@
 """Safe control of a fleet of dynamic unicycles with clustered CBF-QPs (the paper's controller)."""
 
-import math
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
+from pydrake.common.value import Value
 from pydrake.systems.framework import LeafSystem
 
 from mrta_drake.control.cbf_params import CbfParams
+from mrta_drake.control.cluster_views import cluster_of, cut_off, group_of, views_disagree
 from mrta_drake.control.clusters import LEADER_RULES, LeaderRule, clusters_of, stall_times_of
 from mrta_drake.control.controller_common import controller_update, declare_controller_ports
 from mrta_drake.control.followers import follower_rule_code
@@ -26,10 +28,13 @@ from mrta_drake.payloads import (
     NO_DISTURBANCES,
     NO_HUMANS,
     ROBOT_STATE_SIZE,
+    CommandMessages,
     ControllerTelemetry,
     Disturbances,
     FleetPaths,
     HumanStates,
+    NetworkViews,
+    frozen_array,
 )
 
 
@@ -53,6 +58,44 @@ class TickPlan:
         return self.qps.problems
 
 
+@dataclass(frozen=True)
+class SolvedQps:
+    """Inputs ``u`` (N, 2) ``[a, omega]`` after a tick's solves: robots braked on solver
+    failures, the largest slack, and per solver call (robots in the QP, s)."""
+
+    u: np.ndarray
+    failures: int
+    max_slack: float
+    calls: tuple[tuple[int, float], ...]
+
+
+@dataclass(frozen=True)
+class NetworkedTick:
+    """One tick over a network: inputs ``u`` (N, 2), the telemetry, the commands sent to
+    followers and each robot's stall time (s) as it sees itself."""
+
+    u: np.ndarray
+    telemetry: ControllerTelemetry
+    messages: CommandMessages
+    stall_times: np.ndarray
+
+
+def _telemetry(time: float, plans_solved, clusters) -> ControllerTelemetry:
+    """The telemetry of a tick that solved ``plans_solved`` ((TickPlan, SolvedQps) pairs)
+    and formed ``clusters``."""
+    barriers = np.array([plan.min_barriers for plan, _ in plans_solved] or
+                        [(np.inf,) * 3]).min(axis=0).tolist()
+    deviation = max((float(np.sqrt(((solved.u - plan.u_nominal) ** 2).sum(axis=1).max(
+        initial=0.0))) for plan, solved in plans_solved), default=0.0)
+    calls = tuple(call for _, solved in plans_solved for call in solved.calls)
+    return ControllerTelemetry(
+        time=float(time), min_barrier_wall=barriers[0], min_barrier_human=barriers[1],
+        min_barrier_robot=barriers[2],
+        max_slack=max((solved.max_slack for _, solved in plans_solved), default=0.0),
+        control_deviation=deviation, clusters=clusters, solve_time=sum(t for _, t in calls),
+        failures=sum(solved.failures for _, solved in plans_solved), qp_calls=calls)
+
+
 class ClusterCbfController(LeafSystem):
     """Commands for N robots from their paths, kept safe from walls, humans and each other by
     second-order control barrier functions (``mrta_drake.control.barriers``).
@@ -65,11 +108,18 @@ class ClusterCbfController(LeafSystem):
         - paths
         - human_states (optional)
         - disturbances (optional)
+        - network (optional)
         output_ports:
         - commands
         - telemetry
+        - leader_commands
 
     Ports as in ``mrta_drake.control.controller_common``; robots in ``robot_names`` order.
+    Over a network (input ``network``, ``NetworkViews``, connected when the scenario's
+    ``communication:`` is not ideal) the controller is every robot's share of the protocol
+    (``control_over_network``), and output ``leader_commands`` (``CommandMessages``) holds
+    the commands the leaders sent their followers at the last tick; unconnected, one
+    all-knowing controller forms the clusters from the true states.
 
     Every tick (fixed dt = 1 / rate_hz) each robot's nominal input ``[a, omega]`` follows its
     path (``mrta_drake.control.nominal``); QPs (``qp_solver``) then change the inputs as
@@ -144,6 +194,14 @@ class ClusterCbfController(LeafSystem):
         (self.robot_state_port, self.paths_port, self.human_states_port,
          self.disturbances_port, self.commands_port, self.telemetry_port) = self._ports.handles
         self._stall_index = self.DeclareDiscreteState(self._n)  # s stood as a blocked leader
+        self._network = self.DeclareAbstractInputPort("network", Value[object](NetworkViews()))
+        self._sent_index = self.DeclareDiscreteState(CommandMessages(
+            -np.inf, (-1,) * self._n, np.zeros((self._n, 2))).as_vector())
+        self.DeclareAbstractOutputPort(
+            "leader_commands", lambda: Value[object](CommandMessages()),
+            lambda context, output: output.set_value(CommandMessages.from_vector(
+                context.get_discrete_state(self._sent_index).value())),
+            prerequisites_of_calc={self.discrete_state_ticket(self._sent_index)})
         self._paths_seen: tuple[FleetPaths | None, PathArrays | None] = (None, None)
 
     @property
@@ -235,13 +293,24 @@ class ClusterCbfController(LeafSystem):
                                            disturbances))
 
     def _solve(self, time: float, plan: TickPlan) -> tuple[np.ndarray, ControllerTelemetry]:
-        # Only QPs whose clipped nominal breaks a row reach the solver (the rest are settled).
+        solved = self._solved(plan, plan.qps.to_solve() if plan.qps.needs_solver.any() else ())
+        return solved.u, _telemetry(time, ((plan, solved),), plan.clusters)
+
+    def _solved(self, plan: TickPlan, groups, u_nominal=None) -> SolvedQps:
+        """Every robot's input from ``plan``: its group's solution for ``groups`` (indices
+        of ``plan.qps.groups``), the settled input otherwise. Only QPs whose clipped nominal
+        breaks a row reach the solver (the rest are settled). ``u_nominal`` (N, 2): nominal
+        inputs in place of the plan's, for ``groups``."""
         u = plan.qps.settled.copy()
         failures, max_slack, calls = 0, 0.0, []
-        for g in plan.qps.to_solve() if plan.qps.needs_solver.any() else ():
+        for g in groups:
+            if u_nominal is None and not plan.qps.needs_solver[g]:
+                continue
             members = list(plan.qps.groups[g])
-            u_nominal, G, b, lower, upper = plan.qps.arrays(g)
-            solution = self._qp.solve(u_nominal, G, b, lower, upper)
+            nominal, G, b, lower, upper = plan.qps.arrays(g)
+            if u_nominal is not None:
+                nominal = u_nominal[members]
+            solution = self._qp.solve(nominal, G, b, lower, upper)
             calls.append((len(members), solution.solve_time))
             if solution.success:
                 u[members] = solution.u
@@ -249,20 +318,65 @@ class ClusterCbfController(LeafSystem):
             else:
                 u[members] = np.stack([lower[:, 0], np.zeros(len(members))], axis=1)
                 failures += len(members)
-        wall, human, robot = plan.min_barriers
-        change = u - plan.u_nominal
-        deviation = math.sqrt((change * change).sum(axis=1).max(initial=0.0))
-        telemetry = ControllerTelemetry(
-            time=float(time), min_barrier_wall=wall, min_barrier_human=human,
-            min_barrier_robot=robot, max_slack=max_slack, control_deviation=deviation,
-            clusters=plan.clusters, solve_time=sum(t for _, t in calls), failures=failures,
-            qp_calls=tuple(calls))
-        return u, telemetry
+        return SolvedQps(u, failures, max_slack, tuple(calls))
+
+    def control_over_network(self, time: float, states, paths: FleetPaths,
+                             human_states: HumanStates, stall, d: Disturbances,
+                             views: NetworkViews) -> NetworkedTick:
+        """One tick over a network: each robot plans from its own view (the others' states
+        as last received, ``views``); a robot leading its cluster as it sees it solves the
+        cluster's QP, applies its own input and sends the followers theirs; a follower
+        solves its own QP against its view, with its leader's command as the nominal if
+        that is fresh (the command, kept within the follower's own barriers), else with the
+        slow-down nominal (it brakes)."""
+        n = self._n
+        seen_states = [views.view_of(i, states[i]) for i in range(n)]
+        plans = [self.plan(view, paths, human_states, stall, d) for view in seen_states]
+        seen = [cluster_of(plan.clusters, i) for i, plan in enumerate(plans)]
+        u, leaders, sent = np.zeros((n, 2)), [-1] * n, np.zeros((n, 2))
+        used, stale = [], 0
+        for i, plan in enumerate(plans):
+            leader, nominal = seen[i][0], None
+            if i in d.broken:
+                continue
+            if leader != i:  # a follower: its own QP against what it last heard
+                plan = self.plan(seen_states[i], paths, human_states, stall,
+                                 cut_off(d, i, time, seen_states[i]))
+                if views.fresh_command(i, leader):  # the command, kept within its barriers
+                    nominal = np.zeros((n, 2))
+                    nominal[i] = views.commands[i]
+                else:  # no fresh command: brake
+                    stale += 1
+            solved = self._solved(plan, [group_of(plan.qps.groups, i)], nominal)
+            u[i] = solved.u[i]
+            for follower in seen[i][1:] if leader == i else ():
+                leaders[follower], sent[follower] = i, solved.u[follower]
+            used.append((plan, solved))
+        telemetry = dataclasses.replace(
+            _telemetry(time, used, tuple(s for i, s in enumerate(seen) if s[0] == i)),
+            leader_disagreement=views_disagree(seen), stale_commands=stale)
+        return NetworkedTick(u, telemetry, CommandMessages(float(time), tuple(leaders),
+                                                           frozen_array(sent)),
+                             self._stall_times_seen(stall, seen_states, plans))
+
+    def _stall_times_seen(self, stall, seen_states, plans) -> np.ndarray:
+        """Each robot's stall time (s) after this tick, as it sees itself: from its own view
+        ``seen_states[i]`` and its plan ``plans[i]`` (``clusters.stall_times_of``)."""
+        c = self._params.coordination
+        return np.array([stall_times_of(
+            stall, seen_states[i][:, 3], plan.cluster_order, plan.cluster_start, plan.active,
+            self._dt, c.stall_time, c.stall_speed)[i] for i, plan in enumerate(plans)])
 
     def _update(self, context, discrete_state) -> None:
         p, stall = self._params, context.get_discrete_state(self._stall_index).value()
 
         def control(time, states, paths, human_states, disturbances):
+            if self._network.HasValue(context):
+                tick = self.control_over_network(time, states, paths, human_states, stall,
+                                       disturbances, self._network.Eval(context))
+                discrete_state.set_value(self._stall_index, tick.stall_times)
+                discrete_state.set_value(self._sent_index, tick.messages.as_vector())
+                return tick.u, tick.telemetry
             plan = self.plan(states, paths, human_states, stall, disturbances)
             discrete_state.set_value(self._stall_index, stall_times_of(
                 stall, states[:, 3], plan.cluster_order, plan.cluster_start, plan.active,

@@ -34,7 +34,8 @@ from mrta_drake.payloads import (
 from mrta_drake.robots.unicycle_robots import UnicycleParams, unicycle_step
 
 _TELEMETRY_FIELDS = ("time", "min_barrier_wall", "min_barrier_human", "min_barrier_robot",
-                     "max_slack", "control_deviation", "solve_time", "failures")
+                     "max_slack", "control_deviation", "solve_time", "failures",
+                     "leader_disagreement", "stale_commands")
 
 
 @dataclass(frozen=True, eq=False)
@@ -149,6 +150,8 @@ def _telemetry_from_vector(vector, n: int) -> ControllerTelemetry:
     k = len(_TELEMETRY_FIELDS)
     fields = dict(zip(_TELEMETRY_FIELDS, vector[:k].tolist(), strict=True))
     fields["failures"] = int(fields["failures"])
+    fields["leader_disagreement"] = bool(fields["leader_disagreement"])
+    fields["stale_commands"] = int(fields["stale_commands"])
     members = vector[k:k + n].astype(int).tolist()
     clusters, first = [], 0
     for end in vector[k + n:k + 2 * n].astype(int).tolist():

@@ -47,6 +47,9 @@ clearances), times in s of simulation time unless named ``wall``/``cpu``. The ke
   ``RELOCATION_STEP``).
 - ``back_offs``: the deadlock watchdog's orders (recorder ``back_off`` events): ``count``
   and ``robots`` (orders per robot ordered aside); 0 without the watchdog.
+- ``communication``: with a network (``communication:`` not ideal), the age of information
+  and the time robots' views of their clusters disagreed and followers braked for want of a
+  command (``communication.communication_metrics``); None when ideal.
 """
 
 import dataclasses
@@ -59,6 +62,7 @@ import numpy as np
 
 from mrta_drake.payloads import RobotMode
 from mrta_drake.results.clearances import clearances
+from mrta_drake.results.communication import communication_metrics
 from mrta_drake.results.deadlocks import (
     NEIGHBOUR_RANGE,
     PROGRESS_DISTANCE,
@@ -131,6 +135,7 @@ def summarize(stack, duration: float, wall_time: float, cpu_time: float) -> dict
         "disturbances": _disturbances(scenario.disturbances, names, times, xy, radii, events),
         "lifts": _lifts([e for e in events if e["type"] == "lift"]),
         "back_offs": _back_offs([e for e in events if e["type"] == "back_off"]),
+        "communication": communication_metrics(recorder, 1.0 / scenario.rates.logging),
     }
 
 

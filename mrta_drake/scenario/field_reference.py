@@ -34,6 +34,7 @@ SECTIONS = [
     (schema.BlockageConfig, "disturbances.blockages[]."),
     (schema.BreakdownConfig, "disturbances.breakdowns[]."),
     (schema.OutageConfig, "disturbances.outages[]."),
+    (schema.CommunicationConfig, "communication."),
 ]
 
 FILES = [  # files a scenario names, with their own formats

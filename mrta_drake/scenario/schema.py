@@ -7,6 +7,8 @@ file into ``Scenario`` and validates it; docs/scenario.md describes every field.
 
 from dataclasses import dataclass, field
 
+from mrta_drake.errors import InputError, require_non_negative
+
 
 @dataclass(frozen=True)
 class WorldConfig:
@@ -276,6 +278,35 @@ class RatesConfig:
     watchdog: float = 2.0
     logging: float = 10.0
     meshcat: float = 20.0
+    network: float = 20.0  # robots' broadcasts (communication:, unless ideal)
+
+
+@dataclass(frozen=True)
+class CommunicationConfig:
+    """The network the robots' cluster messages travel over (docs/fidelity.md). Every
+    message (a robot's state broadcast to each other robot, a leader's command to a
+    follower) is lost with probability ``loss``, independently, or arrives ``latency`` s
+    plus a delay uniform in [0, ``jitter``] s after it is sent. A follower whose leader's
+    last command is older than ``latency + jitter + stale_after`` s brakes on its own QP.
+    ``kind``: the registered network block (``stack.blocks.register_block("network",
+    ...)``). With no latency, jitter or loss (the default) the network is ideal: no network
+    block, the controller forms clusters from the true states every tick."""
+
+    latency: float = 0.0
+    jitter: float = 0.0
+    loss: float = 0.0
+    stale_after: float = 0.1
+    kind: str = "broadcast"
+
+    def __post_init__(self):
+        require_non_negative(self, "latency", "jitter", "stale_after", unit=" s")
+        if not 0.0 <= self.loss < 1.0:
+            raise InputError(None, "loss", f"must be in [0, 1), got {self.loss!r}")
+
+    @property
+    def ideal(self) -> bool:
+        """No latency, jitter or loss: messages arrive at once, every one."""
+        return self.latency == 0.0 and self.jitter == 0.0 and self.loss == 0.0
 
 
 @dataclass(frozen=True)
@@ -295,6 +326,7 @@ class Scenario:
     blocks: BlocksConfig = field(default_factory=BlocksConfig)
     rates: RatesConfig = field(default_factory=RatesConfig)
     disturbances: DisturbancesConfig = field(default_factory=DisturbancesConfig)
+    communication: CommunicationConfig = field(default_factory=CommunicationConfig)
     seed: int = 0
     duration: float = 60.0
     profile: str = "mrta_drake"

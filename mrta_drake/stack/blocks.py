@@ -20,7 +20,12 @@ lifts       request_<robot> (LiftRequest),        lift_state (LiftState), reloca
                                                   across levels)
 watchdog    robot_state (4N), target_<robot>,     back_offs (BackOffOrders; not in the
             human_states (optional)               diagram when its ``enabled`` is off)
+network     robot_state (4N), leader_commands     views (NetworkViews) (only when the
+            (CommandMessages)                     ``communication:`` is not ideal)
 =========== ===================================== ============================================
+
+The network's kind and parameters are the scenario's ``communication:`` section
+(``CommunicationConfig``: its ``kind``, the rest its parameters), not a ``blocks:`` entry.
 
 A robots block that steps the plant (``BlockType.physics``, e.g. kind ``physics``) also has
 an input ``plant_state`` and an output ``generalized_force`` (see
@@ -39,6 +44,7 @@ from functools import cached_property
 import numpy as np
 
 from mrta_drake.errors import InputError
+from mrta_drake.payloads import ROBOT_STATE_SIZE
 from mrta_drake.scenario.schema import BlockConfig, Scenario
 from mrta_drake.scenario.section_files import start_locations
 from mrta_drake.scenario.typed_yaml import load_typed
@@ -119,9 +125,10 @@ class BlockType:
     physics: Callable | None = None
 
 
+NETWORK = "network"  # the slot whose kind and parameters are the ``communication:`` section
 _REGISTRY: dict[str, dict[str, Callable[[], BlockType]]] = {
     "allocator": {}, "waypoints": {}, "queues": {}, "planner": {}, "controller": {},
-    "robots": {}, "humans": {}, "lifts": {}, "watchdog": {},
+    "robots": {}, "humans": {}, "lifts": {}, "watchdog": {}, NETWORK: {},
 }
 
 
@@ -145,6 +152,8 @@ def block_type(slot: str, kind: str) -> BlockType:
 
 def resolve_block(scenario: Scenario, slot: str) -> tuple[BlockType, object]:
     """The chosen implementation of ``slot`` and its parameters, checked."""
+    if slot == NETWORK:
+        return _network_block(scenario), scenario.communication
     config: BlockConfig = getattr(scenario.blocks, slot)
     kinds = _REGISTRY[slot]
     if config.kind not in kinds:
@@ -155,6 +164,16 @@ def resolve_block(scenario: Scenario, slot: str) -> tuple[BlockType, object]:
     _refuse_moved_fields(config.params, chosen.params, scenario.source, path)
     params = load_typed(config.params, chosen.params, scenario.source, path)
     return chosen, params
+
+
+def _network_block(scenario: Scenario) -> BlockType:
+    """The network block the scenario's ``communication.kind`` names."""
+    kinds = _REGISTRY[NETWORK]
+    kind = scenario.communication.kind
+    if kind not in kinds:
+        raise InputError(scenario.source, "communication.kind",
+                         f"unknown kind {kind!r} (known: {', '.join(sorted(kinds))})")
+    return kinds[kind]()
 
 
 def _refuse_moved_fields(raw: dict, params_class: type, file: str, path: str) -> None:
@@ -347,11 +366,25 @@ def _go_to_goal_controller() -> BlockType:
         ctx.robot_names, ctx.obstacles, params, rate_hz=ctx.rates.controller))
 
 
+def _broadcast_network() -> BlockType:
+    from mrta_drake.network.broadcast_network import BroadcastNetwork
+    from mrta_drake.scenario.schema import CommunicationConfig
+
+    def make(ctx: BuildContext, config: CommunicationConfig):
+        starts = np.zeros((len(ctx.robot_names), ROBOT_STATE_SIZE))
+        starts[:, :3] = ctx.robot_starts
+        return BroadcastNetwork(ctx.robot_names, starts, config, ctx.scenario.seed,
+                                rate_hz=ctx.rates.network)
+
+    return BlockType(CommunicationConfig, make)
+
+
 register_block("robots", "kinematic", _kinematic_robots)
 register_block("robots", "physics", _physics_robots)
 register_block("controller", "cluster_cbf", _cluster_cbf_controller)
 register_block("controller", "go_to_goal", _go_to_goal_controller)
 register_block("humans", "social_force", _social_force_humans)
+register_block(NETWORK, "broadcast", _broadcast_network)
 register_block("planner", "grid_astar", _grid_astar_planner)
 register_block("allocator", "fixed", _fixed_allocator)
 register_block("allocator", "smt", _smt_allocator)

@@ -17,7 +17,7 @@ from mrta_drake.errors import InputError
 from mrta_drake.robots.plant_stepping import add_plant_stepping
 from mrta_drake.scenario.disturbances import blockages, breakdowns, has_disturbances, outage_windows
 from mrta_drake.scenario.schema import Scenario
-from mrta_drake.stack.blocks import BuildContext, resolve_block
+from mrta_drake.stack.blocks import NETWORK, BuildContext, resolve_block
 from mrta_drake.stack.contact_recorder import ContactRecorder
 from mrta_drake.stack.disturbance_schedule import DisturbanceSchedule
 from mrta_drake.stack.levels_view import LevelsView
@@ -32,7 +32,8 @@ class Stack:
     ``contacts`` records the plant's contacts when a physics robots block steps it;
     ``disturbances`` is the schedule of a scenario with a ``disturbances:`` section;
     ``lifts`` the lift bank of a building run across levels; ``watchdog`` the deadlock
-    watchdog unless the scenario turns it off."""
+    watchdog unless the scenario turns it off; ``network`` the network of a
+    scenario whose ``communication:`` is not ideal."""
 
     scenario: Scenario
     world: World
@@ -50,6 +51,7 @@ class Stack:
     disturbances: DisturbanceSchedule | None = None
     lifts: LeafSystem | None = None
     watchdog: LeafSystem | None = None
+    network: LeafSystem | None = None
     extras: dict = field(default_factory=dict)
 
 
@@ -141,6 +143,8 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
         if humans.HasOutputPort("active"):
             builder.Connect(humans.GetOutputPort("active"), recorder.GetInputPort("human_active"))
 
+    network = None if scenario.communication.ideal else _add_network(
+        builder, make, state, controller, recorder)
     if lifts is not None:
         builder.Connect(lifts.GetOutputPort("lift_state"), recorder.GetInputPort("lift_state"))
         builder.Connect(lifts.GetOutputPort("events"), recorder.GetInputPort("lift_events"))
@@ -180,7 +184,22 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
                                 reader.GetInputPort("disturbances"))
     return Stack(scenario, world, robots, controller, planner, queues, allocator, generators,
                  humans, recorder, visualizer, contacts=contacts, disturbances=schedule,
-                 lifts=lifts, watchdog=watchdog)
+                 lifts=lifts, watchdog=watchdog, network=network)
+
+
+def _add_network(builder: DiagramBuilder, make, state, controller: LeafSystem,
+                 recorder: RunRecorder) -> LeafSystem:
+    """The network between the robots and the controller (and back to it): the robots'
+    broadcasts and the leaders' commands reach the controller through it. A controller
+    without the ``network`` input (``go_to_goal``) ignores it."""
+    network = builder.AddNamedSystem("network", make(NETWORK))
+    builder.Connect(state, network.GetInputPort("robot_state"))
+    builder.Connect(network.GetOutputPort("views"), recorder.GetInputPort("network"))
+    if controller.HasInputPort("network"):
+        builder.Connect(network.GetOutputPort("views"), controller.GetInputPort("network"))
+        builder.Connect(controller.GetOutputPort("leader_commands"),
+                        network.GetInputPort("leader_commands"))
+    return network
 
 
 def _add_lifts(builder: DiagramBuilder, ctx: BuildContext, make, robots: LeafSystem,

@@ -20,6 +20,7 @@ from mrta_drake.payloads import (
     FleetPlan,
     HumanStates,
     LiftState,
+    NetworkViews,
     QueueState,
     RobotMode,
     RobotProgress,
@@ -48,11 +49,14 @@ class RunRecorder(LeafSystem):
         - lift_state (optional)
         - lift_events (optional)
         - back_offs (optional)
+        - network (optional)
 
     Keeps in memory, per sample: the time, the robot states (T, N, 4) [x, y, theta, v]
     (world frame, m, rad, m/s), the human positions (T, M, 2) (NaN while a human is not yet
     present), each robot's ``RobotMode`` (T, N) (``IDLE``, ``DRIVE``, ``QUEUE`` or ``SERVE``)
-    and the controller telemetry; and notes events (dicts, ``time`` the sample time, s):
+    and the controller telemetry; with a ``network`` (``NetworkViews``), the ages (s) of the
+    states each robot has of each other one (``information_ages``, one array per sample);
+    and notes events (dicts, ``time`` the sample time, s):
 
     - ``plan``: the allocator's plan changed: ``revision`` and, per robot, its stops
       (``key``, ``task``, ``action``, ``location``, ``planned``: predicted completion, s).
@@ -117,6 +121,7 @@ class RunRecorder(LeafSystem):
         self.DeclareAbstractInputPort("disturbances", _value(Disturbances()))
         self.DeclareAbstractInputPort("lift_state", _value(LiftState()))
         self.DeclareAbstractInputPort("lift_events", _value(()))
+        self.DeclareAbstractInputPort("network", _value(NetworkViews()))
         self._lift_events_seen = 0
         self.DeclareAbstractInputPort("back_offs", _value(BackOffOrders()))
         # Looked up once: by name, a lookup scans all (2N + 9) ports.
@@ -133,6 +138,7 @@ class RunRecorder(LeafSystem):
         self.human_positions: list[np.ndarray] = []
         self.modes: list[np.ndarray] = []
         self.telemetry: list[ControllerTelemetry] = []
+        self.information_ages: list[np.ndarray] = []
         self.events: list[dict] = []
         self._seen_visits = [0] * self._n
         self._seen_detours = [0] * self._n
@@ -186,6 +192,10 @@ class RunRecorder(LeafSystem):
             self.human_positions.append(positions)
         telemetry = self._ports["telemetry"].Eval(context)
         self.telemetry.append(telemetry)
+        network = self._ports["network"]
+        if network.HasValue(context):
+            self.information_ages.append(t - network.Eval(context).sent_at[
+                ~np.eye(self._n, dtype=bool)])
         if self._timeline is not None:
             stamp = f"{t:.3f}"
             self._csv.writerows([stamp, name] + [f"{v:.4f}" for v in row]

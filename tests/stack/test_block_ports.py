@@ -3,11 +3,11 @@ docstring; the documented input and output names must be exactly the declared on
 
 Checked for every registered kind of every block slot and for the blocks ``add_stack`` adds
 itself, each built by ``add_stack`` for the hospital with disturbances (people, a blockage,
-a breakdown and an outage; the lift bank for the two-floor clinic, the one with lifts): a
-kind is swapped in with ``replace_block``; the overlay needs a
-Meshcat, the contact recorder and the people's body driver the physics robots. A per-robot
-port is documented with the placeholder ``<robot>`` (``progress_<robot>``), which stands
-for one port per robot name.
+a breakdown and an outage; the lift bank for the two-floor clinic, the one with lifts; the
+network with a lossy ``communication:``): a kind is swapped in with ``replace_block``; the
+overlay needs a Meshcat, the contact recorder and the people's body driver the physics
+robots. A per-robot port is documented with the placeholder ``<robot>``
+(``progress_<robot>``), which stands for one port per robot name.
 """
 
 import dataclasses
@@ -22,8 +22,8 @@ from pydrake.geometry import Meshcat
 from pydrake.systems.framework import DiagramBuilder
 
 from mrta_drake.scenario.loading import load_scenario
-from mrta_drake.scenario.schema import BlocksConfig
-from mrta_drake.stack.blocks import block_kinds, replace_block
+from mrta_drake.scenario.schema import BlocksConfig, CommunicationConfig
+from mrta_drake.stack.blocks import NETWORK, block_kinds, replace_block
 from mrta_drake.stack.diagram import add_stack
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
@@ -39,6 +39,7 @@ SYSTEM_OF_SLOT = {"allocator": "allocator", "waypoints": "waypoints_robot1",
 # The blocks add_stack adds itself: (name in the diagram, the robots kind it needs).
 STACK_BLOCKS = [("recorder", None), ("meshcat_overlay", None), ("disturbances", None),
                 ("contacts", "physics"), ("human_bodies", "physics")]
+LOSSY = CommunicationConfig(latency=0.2, loss=0.1)  # not ideal: add_stack adds the network
 
 
 def _cases():
@@ -50,6 +51,8 @@ def _cases():
             swapped = None if kind == getattr(defaults, slot).kind else kind
             cases.append(pytest.param(SYSTEM_OF_SLOT[slot], slot, swapped,
                                       id=f"{slot}-{kind}"))
+    cases += [pytest.param(NETWORK, NETWORK, kind, id=f"{NETWORK}-{kind}")
+              for kind in block_kinds(NETWORK)]
     return cases
 
 
@@ -64,7 +67,11 @@ def built():
         key = (slot, kind) if kind is not None or slot == "lifts" else None
         if key not in diagrams:
             base = load_scenario(LIFTS_SCENARIO) if slot == "lifts" else scenario
-            swapped = replace_block(base, slot, kind) if kind else base
+            if slot == NETWORK:
+                swapped = dataclasses.replace(base, communication=dataclasses.replace(
+                    LOSSY, kind=kind))
+            else:
+                swapped = replace_block(base, slot, kind) if kind else base
             builder = DiagramBuilder()
             add_stack(builder, swapped, meshcat=Meshcat() if kind is None else None)
             diagram = builder.Build()
