@@ -8,7 +8,9 @@ project's ``models/two_floor_clinic/two_floor_clinic.building.yaml``) is a world
 1. ``import_building`` (``mrta-sim import X.building.yaml --out DIR``) writes a runnable
    folder: a copy of the building, ``navigation.yaml`` (the task locations, the one-way
    roadways derived from its lanes, and the lift rides) and ``scenario.yaml`` (robots on its
-   chargers and parking spots, shared over the floors, and a generated task stream). With
+   chargers and parking spots, shared over the floors, and a generated task stream sized so
+   that the robots can serve it in the run: only legs up to a fifth of the run, so a run of
+   400 s lets tasks cross floors, legs of up to 80 s through a lift here). With
    several levels and no ``--level`` every floor runs at once: the floors lie side by side
    in one plane, 30 m apart (``LevelLayout``), so nothing on one floor sees the other.
 2. ``load_scenario`` and ``simulate`` run it like any scenario. A task whose pickup and
@@ -26,7 +28,7 @@ project's ``models/two_floor_clinic/two_floor_clinic.building.yaml``) is a world
 
 Run::
 
-    python tutorials/07_bring_your_own_building.py [--duration 240] [--meshcat] [--out DIR]
+    python tutorials/07_bring_your_own_building.py [--duration 400] [--meshcat] [--out DIR]
         [--building X.building.yaml] [--robots 4]
 """
 
@@ -45,7 +47,7 @@ BUILDING = (pathlib.Path(__file__).resolve().parent.parent
 
 
 def main(argv=None) -> dict:
-    parser = options(__doc__, duration=240.0)
+    parser = options(__doc__, duration=400.0)
     parser.add_argument("--building", default=str(BUILDING), help="an Open-RMF building")
     parser.add_argument("--robots", type=int, default=4, help="robots, shared over floors")
     args = parser.parse_args(argv)

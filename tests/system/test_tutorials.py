@@ -158,7 +158,7 @@ def test_06_collect_measures_the_matrix_afresh_and_writes_it(tmp_path):
 
 
 def test_07_an_imported_two_floor_building_runs_tasks_across_floors_through_the_lifts():
-    shown = tutorial(7).main(["--duration", "200"])
+    shown = tutorial(7).main(["--duration", "400"])
     summary = shown["summary"]
     assert summary["tasks"]["completed"] >= 3
     assert any(a != b for pair in shown["by_floors"] for a, b in [pair.split(" -> ")])
