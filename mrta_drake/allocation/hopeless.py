@@ -7,6 +7,7 @@ tardiness): the other tasks keep the times of the exact answer. docs/allocation.
 """
 
 from collections.abc import Callable
+from dataclasses import replace
 
 from mrta_drake.allocation.problem import (
     INFEASIBLE,
@@ -77,10 +78,14 @@ def solve_hopeful(problem: AllocationProblem,
 
 
 def without_tasks(problem: AllocationProblem, task_ids: set[int]) -> AllocationProblem:
-    """``problem`` less the tasks ``task_ids`` (none of them on board)."""
+    """``problem`` less the tasks ``task_ids`` (none of them on board), also in the robots'
+    ``planned`` actions."""
+    robots = tuple(replace(robot, planned=tuple(
+        action for action in robot.planned if action.task not in task_ids))
+        for robot in problem.robots)
     return AllocationProblem(
         travel=problem.travel,
-        robots=problem.robots,
+        robots=robots,
         tasks=tuple(task for task in problem.tasks if task.id not in task_ids),
         service_time=problem.service_time,
         source=problem.source,

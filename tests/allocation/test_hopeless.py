@@ -7,13 +7,16 @@ import pytest
 
 from mrta_drake.allocation import (
     INFEASIBLE,
+    Action,
     AllocationProblem,
     RobotStart,
     SmtAllocator,
+    SmtAllocatorParams,
     Task,
     verify_allocation,
 )
 from mrta_drake.allocation.hopeless import hopeless_tasks, without_tasks
+from mrta_drake.payloads import DROPOFF, PICKUP
 from tests.allocation.brute_force import brute_force
 from tests.allocation.test_allocation_random import SEEDS, random_problem
 
@@ -67,3 +70,16 @@ def test_hopeless_tasks_go_last_and_leave_the_others_exact():
     hopeful = {t: time for t, time in allocation.drop_times().items() if t not in (1, 3)}
     assert hopeful == rest.drop_times()
     assert "cannot be on time" in allocation.note
+
+
+def test_a_hopeless_task_in_a_previous_plan_is_appended_too():
+    """The robots' ``planned`` hints may name a task that has become hopeless."""
+    travel = np.abs(np.subtract.outer(np.arange(6), np.arange(6))) * 10
+    tasks = (Task(0, 1, 0, 30.0), Task(1, 5, 0, 20.0))
+    planned = (Action(1, PICKUP), Action(1, DROPOFF), Action(0, PICKUP), Action(0, DROPOFF))
+    robots = (RobotStart("a", 0, 0.0, 1, planned=planned), RobotStart("b", 0, 0.0, 1))
+    problem = AllocationProblem(travel, robots, tasks)
+    for append_only in (False, True):
+        allocation = SmtAllocator(SmtAllocatorParams(append_only=append_only)).allocate(problem)
+        assert verify_allocation(problem, allocation) == ()
+        assert 1 in allocation.late_tasks
