@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import z3
 
 from mrta_drake.allocation.greedy_allocator import GreedyAllocator
+from mrta_drake.allocation.hopeless import earliest_pickup, solve_hopeful
 from mrta_drake.allocation.local_search import improve
 from mrta_drake.allocation.problem import (
     FEASIBLE,
@@ -47,7 +48,9 @@ class SmtAllocatorParams:
     of drop-off time minus deadline). Optimized by bisection on a bound until within
     ``objective_gap`` (s) of the optimum. When not every task can be on time the allocator
     instead serves the most tasks on time and then the least total tardiness (the late
-    tasks as early as possible), whatever the objective.
+    tasks as early as possible), whatever the objective. Tasks that cannot be on time even
+    alone (``hopeless.hopeless_tasks``) are left out of that search and appended afterwards
+    (least tardiness each, ``hopeless.solve_hopeful``): the optimum is that of the others.
 
     ``budget`` bounds the solver work of one ``allocate`` call in z3 resource units
     (``rlimit``, a count of z3's steps, the same on every host), so that answers depend only
@@ -93,10 +96,15 @@ class SmtAllocator:
     def allocate(self, problem: AllocationProblem) -> Allocation:
         start = wallclock.perf_counter()
         if self.params.append_only:
-            allocation = solve_appending(problem, lambda rest: _Solve(rest, self.params).run())
+            allocation = solve_appending(problem, self._solve_hopeful)
         else:
-            allocation = _Solve(problem, self.params).run()
+            allocation = self._solve_hopeful(problem)
         return _replace(allocation, solve_time=wallclock.perf_counter() - start)
+
+    def _solve_hopeful(self, problem: AllocationProblem) -> Allocation:
+        """The exact answer for the tasks that can still be on time, the hopeless ones
+        appended (``hopeless.solve_hopeful``)."""
+        return solve_hopeful(problem, lambda rest: _Solve(rest, self.params).run())
 
 
 @dataclass(frozen=True)
@@ -176,15 +184,13 @@ class _Encoding:
                 choices = [self.assigned[task.id, r] for r in self.robots_of[task.id]]
                 solver.add(z3.PbEq([(choice, 1) for choice in choices], 1))
                 pick = self.time[Action(task.id, PICKUP)]
-                reach = []
                 for r, robot in enumerate(problem.robots):
                     arrive = robot.ready_time + travel[robot.location, task.pickup] + service
-                    reach.append(arrive)
                     solver.add(z3.Implies(self.assigned[task.id, r], pick >= arrive))
                     if arrive + travel[task.pickup, task.dropoff] + service > task.deadline:
                         solver.add(z3.Or(z3.Not(self.assigned[task.id, r]),
                                          z3.Not(self.on_time[task.id])))
-                soonest = max(min(reach), task.release + service)
+                soonest = earliest_pickup(problem, task)
                 leg = float(travel[task.pickup, task.dropoff] + service)
                 solver.add(pick >= soonest, drop >= pick + leg)
                 self.earliest[Action(task.id, PICKUP)] = soonest

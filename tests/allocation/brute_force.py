@@ -5,7 +5,8 @@ import itertools
 import math
 from dataclasses import dataclass
 
-from mrta_drake.allocation.problem import AllocationProblem
+from mrta_drake.allocation.hopeless import hopeless_tasks, without_tasks
+from mrta_drake.allocation.problem import Allocation, AllocationProblem
 
 
 @dataclass(frozen=True)
@@ -92,3 +93,13 @@ def _best_route(problem: AllocationProblem, robot: int, subset) -> _RouteBest:
     waiting = frozenset(problem.task(t) for t in subset)
     extend(float(start.ready_time), start.location, waiting, carried, 0, 0.0, 0.0)
     return best
+
+
+def hopeful_tardiness(problem: AllocationProblem, allocation: Allocation) -> tuple[float, float]:
+    """The total tardiness (s) of ``allocation`` over the tasks the SMT allocator searches
+    (all but the open hopeless ones, which it appends), and the least exhaustive search
+    finds for them."""
+    appended = {t for t in hopeless_tasks(problem) if problem.carrier(t) is None}
+    tardiness = sum(max(0.0, time - problem.task(t).deadline)
+                    for t, time in allocation.drop_times().items() if t not in appended)
+    return tardiness, brute_force(without_tasks(problem, appended)).least_tardiness

@@ -70,11 +70,11 @@ def test_a_problem_that_exhausts_the_budget_gets_the_same_answer_every_time():
 def test_a_budget_exhausted_while_polishing_gets_the_same_answer_every_time():
     # 14 tight tasks on 3 robots: z3 proves the most tasks on time, then the budget runs out
     # in the least-tardiness search, whose answers local search polishes.
-    problem = tight_problem(1, 14, 3)
+    problem = tight_problem(7, 14, 3)
     other = tight_problem(2, 14, 3)
     allocator = SmtAllocator(SmtAllocatorParams(budget=1_000_000))
     first, *again = solve_again_and_again(allocator, problem, other)
-    assert first.note == "budget ran out before the fallback was proven best"
+    assert first.note.startswith("budget ran out before the fallback was proven best")
     assert first.rank(problem) <= best_heuristic(problem).rank(problem)
     for answer in again:
         assert without_wall_clock(answer) == without_wall_clock(first)
