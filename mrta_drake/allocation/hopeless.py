@@ -52,7 +52,8 @@ def solve_hopeful(problem: AllocationProblem,
     """``solve`` on the problem without its open hopeless tasks, which are then appended.
 
     With any hopeless task the answer is ``INFEASIBLE`` (proven: that task alone is a
-    conflict) and its note names the appended tasks. Hopeless tasks already on board stay
+    conflict) and its note names the appended tasks; with any appended, it is not marked
+    ``optimal`` (its tardiness is least for the others only). Hopeless tasks already on board stay
     in the problem ``solve`` gets (their items hold capacity along its routes)."""
     hopeless = hopeless_tasks(problem)
     if not hopeless:
@@ -70,7 +71,7 @@ def solve_hopeful(problem: AllocationProblem,
         status=INFEASIBLE,
         late_tasks=allocation.late_tasks,
         conflict=rest.conflict or (hopeless[0],),
-        optimal=rest.optimal,
+        optimal=rest.optimal and not open_hopeless,
         solve_time=rest.solve_time,
         note="; ".join(part for part in (rest.note, note) if part),
         work=rest.work,

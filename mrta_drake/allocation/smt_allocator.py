@@ -48,9 +48,12 @@ class SmtAllocatorParams:
     of drop-off time minus deadline). Optimized by bisection on a bound until within
     ``objective_gap`` (s) of the optimum. When not every task can be on time the allocator
     instead serves the most tasks on time and then the least total tardiness (the late
-    tasks as early as possible), whatever the objective. Tasks that cannot be on time even
-    alone (``hopeless.hopeless_tasks``) are left out of that search and appended afterwards
-    (least tardiness each, ``hopeless.solve_hopeful``): the optimum is that of the others.
+    tasks as early as possible), whatever the objective. With ``defer_hopeless`` tasks that
+    cannot be on time even alone (``hopeless.hopeless_tasks``) are left out of that search
+    and appended afterwards (least tardiness each, ``hopeless.solve_hopeful``): the most
+    tasks on time stays exact, the least tardiness is that of the others (the answer is
+    then not marked ``optimal``); cheap under overload. Without it the search takes every
+    task, exact in both.
 
     ``budget`` bounds the solver work of one ``allocate`` call in z3 resource units
     (``rlimit``, a count of z3's steps, the same on every host), so that answers depend only
@@ -71,6 +74,7 @@ class SmtAllocatorParams:
     greedy_start: bool = True
     append_only: bool = False
     random_seed: int = 0
+    defer_hopeless: bool = True
 
     def __post_init__(self):
         if self.objective not in OBJECTIVES:
@@ -102,8 +106,11 @@ class SmtAllocator:
         return _replace(allocation, solve_time=wallclock.perf_counter() - start)
 
     def _solve_hopeful(self, problem: AllocationProblem) -> Allocation:
-        """The exact answer for the tasks that can still be on time, the hopeless ones
-        appended (``hopeless.solve_hopeful``)."""
+        """With ``defer_hopeless``: the exact answer for the tasks that can still be on
+        time, the hopeless ones appended (``hopeless.solve_hopeful``); else the exact
+        answer for all."""
+        if not self.params.defer_hopeless:
+            return _Solve(problem, self.params).run()
         return solve_hopeful(problem, lambda rest: _Solve(rest, self.params).run())
 
 

@@ -5,6 +5,8 @@ import itertools
 import math
 from dataclasses import dataclass
 
+import pytest
+
 from mrta_drake.allocation.hopeless import hopeless_tasks, without_tasks
 from mrta_drake.allocation.problem import Allocation, AllocationProblem
 
@@ -93,6 +95,21 @@ def _best_route(problem: AllocationProblem, robot: int, subset) -> _RouteBest:
     waiting = frozenset(problem.task(t) for t in subset)
     extend(float(start.ready_time), start.location, waiting, carried, 0, 0.0, 0.0)
     return best
+
+
+def assert_optimum(problem: AllocationProblem, allocation: Allocation, best: Optimum,
+                   defer_hopeless: bool) -> None:
+    """``allocation`` has the most tasks on time of ``best``; and the least tardiness, over
+    the whole problem (then marked ``optimal``), or with ``defer_hopeless`` and any open
+    hopeless task appended, over the tasks searched (then not marked ``optimal``)."""
+    assert len(problem.tasks) - len(allocation.late_tasks) == best.most_on_time
+    if defer_hopeless and any(problem.carrier(t) is None for t in hopeless_tasks(problem)):
+        assert not allocation.optimal
+        tardiness, least = hopeful_tardiness(problem, allocation)
+        assert tardiness == pytest.approx(least)
+    else:
+        assert allocation.optimal
+        assert allocation.total_tardiness(problem) == pytest.approx(best.least_tardiness)
 
 
 def hopeful_tardiness(problem: AllocationProblem, allocation: Allocation) -> tuple[float, float]:

@@ -55,7 +55,9 @@ def test_deadline_shorter_than_shortest_route(name):
     else:
         assert allocation.status == INFEASIBLE
         assert allocation.conflict == (0,)
-        assert allocation.optimal
+        assert not allocation.optimal  # appended after the search (defer_hopeless)
+        exact = SmtAllocator(SmtAllocatorParams(defer_hopeless=False)).allocate(problem)
+        assert exact.optimal and exact.routes == allocation.routes
 
 
 @pytest.mark.parametrize("name", ALLOCATORS)

@@ -2,12 +2,14 @@
 many tasks a robot can finish on time) never cut an optimal answer: on small tight problems
 where they apply, the allocator still finds exhaustive search's optimum."""
 
+import itertools
+
 import pytest
 import z3
 
 from mrta_drake.allocation import SmtAllocator, SmtAllocatorParams, verify_allocation
 from mrta_drake.allocation.smt_allocator import _Encoding
-from tests.allocation.brute_force import brute_force, hopeful_tardiness
+from tests.allocation.brute_force import assert_optimum, brute_force
 from tests.allocation.tight_instances import tight_problem
 
 CASES = [(seed, same_start, capacity) for seed in range(12) for same_start in (True, False)
@@ -24,14 +26,12 @@ def robot_bounds(problem) -> list:
 def test_cuts_keep_the_optimum(seed, same_start, capacity):
     problem = tight_problem(seed, 4, 3, same_start, LATEST, capacity)
     best = brute_force(problem)
-    for greedy_start in (True, False):
-        params = SmtAllocatorParams(greedy_start=greedy_start, objective_gap=0.5)
+    for greedy_start, defer in itertools.product((True, False), (True, False)):
+        params = SmtAllocatorParams(greedy_start=greedy_start, objective_gap=0.5,
+                                    defer_hopeless=defer)
         allocation = SmtAllocator(params).allocate(problem)
         assert verify_allocation(problem, allocation) == ()
-        assert allocation.optimal
-        assert len(problem.tasks) - len(allocation.late_tasks) == best.most_on_time
-        tardiness, least = hopeful_tardiness(problem, allocation)
-        assert tardiness == pytest.approx(least)
+        assert_optimum(problem, allocation, best, defer)
 
 
 def test_the_cases_exercise_the_cuts():
