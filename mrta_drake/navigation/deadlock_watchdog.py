@@ -218,8 +218,7 @@ class DeadlockWatchdog(LeafSystem):
             spot = back_off_spot(k, xy, self._radii, ways,
                                  np.asarray(humans.positions).reshape(-1, 2),
                                  np.asarray(humans.radii).reshape(-1), self._costmap,
-                                 p.search_reach, p.spot_clearance, p.wall_clearance,
-                                 p.progress_distance)
+                                 p.search_reach, p.spot_clearance, p.wall_clearance)
             if spot is not None:
                 since = min(anchors[j].since for j in stalled_here)
                 return BackOff(self._robots[k], spot, now, now + p.yield_time,

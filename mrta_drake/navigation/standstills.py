@@ -76,8 +76,8 @@ def yield_order(group: tuple[int, ...], idle: np.ndarray, stalled: np.ndarray,
 def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
                   ways: list[tuple[np.ndarray, float]],
                   people_xy: np.ndarray, people_radii: np.ndarray, costmap: Costmap,
-                  reach: float, clearance: float, wall_clearance: float,
-                  least_move: float = 0.0) -> tuple[float, float] | None:
+                  reach: float, clearance: float, wall_clearance: float
+                  ) -> tuple[float, float] | None:
     """The nearest spot to which robot ``k`` at ``xy[k]`` can drive out of the others' way,
     or None: searched on a grid of ``SEARCH_STEP`` within ``reach`` of it, moving between
     neighbouring points (4-connected) where its centre may be: on the costmap's ``FREE``
@@ -87,8 +87,7 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
     eroded by the grid steps beyond the inflation radius), at least ``clearance`` (surface
     to surface) from every other robot and person and from each of ``ways`` ((polyline
     (P, 2), radius): the way a blocker of that radius will follow, e.g. from
-    where it stands to its target), and at least ``least_move`` from where robot ``k``
-    stands (a shorter move would not count as progress).
+    where it stands to its target).
     Nearest: the fewest grid moves, ties in grid order."""
     n_side = int(reach / SEARCH_STEP)
     offsets = np.arange(-n_side, n_side + 1) * SEARCH_STEP
@@ -100,16 +99,15 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
     # it is now.
     start_gaps = np.linalg.norm(xy[others] - xy[k], axis=-1) - radii[others] - radii[k]
     free = costmap.cost_at(points) == FREE
-    moved = np.hypot(*np.moveaxis(points - xy[k], -1, 0))
     passable = (free
                 & (robot_gaps >= np.minimum(clearance, start_gaps) - 1e-9).all(axis=-1)
-                & (moved <= reach))
+                & (np.hypot(*np.moveaxis(points - xy[k], -1, 0)) <= reach))
     with np.errstate(invalid="ignore"):  # people absent from the run are NaN
         people_clear = ~((np.linalg.norm(points[..., None, :] - people_xy, axis=-1)
                           - people_radii - radii[k]) < clearance).any(axis=-1)
     steps = math.ceil((wall_clearance - costmap.params.inflation_radius) / SEARCH_STEP - 1e-9)
     spot_ok = (passable & _eroded(free, steps) & (robot_gaps >= clearance).all(axis=-1)
-               & people_clear & (moved >= least_move))
+               & people_clear)
     for way, radius in ways:
         spot_ok &= _distance_to_polyline(points, way) >= radii[k] + radius + clearance
     start = (n_side, n_side)

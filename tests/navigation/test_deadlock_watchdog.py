@@ -167,19 +167,6 @@ def test_no_spot_when_the_only_way_out_is_through_the_blocker():
     assert spot is not None and spot[0] < 12.0
 
 
-def test_a_spot_is_at_least_the_least_move_away():
-    obstacles = _corridor_with_bay()
-    costmap = Costmap.from_obstacles(obstacles, BOUNDS)
-    xy = np.array([[12.0, 0.0], [12.7, 0.0]])
-    none = np.zeros((0, 2))
-    near = back_off_spot(0, xy, np.full(2, RADIUS), [], none, np.zeros(0), costmap,
-                         4.0, 0.3, 0.8)
-    far = back_off_spot(0, xy, np.full(2, RADIUS), [], none, np.zeros(0), costmap,
-                        4.0, 0.3, 0.8, least_move=1.0)
-    assert near is not None and far is not None
-    assert np.hypot(near[0] - 12.0, near[1]) < 1.0 <= np.hypot(far[0] - 12.0, far[1])
-
-
 @pytest.mark.parametrize("field, value", [("standstill_time", 0.0), ("yield_time", -1.0),
                                           ("search_reach", 0.0), ("block_gap", -0.1)])
 def test_params_refuse_bad_values(field, value):
