@@ -225,10 +225,13 @@ class DeadlockWatchdog(LeafSystem):
         broken = (self._disturbances.Eval(context).broken
                   if self._disturbances.HasValue(context) else ())
         names = {self._robots[k] for k in group}
-        recent = frozenset(self._robots.index(order.robot) for order in history
-                           if order.issued >= now - p.standstill_time - p.yield_time - 1e-9
-                           and names.intersection(order.blockers))
-        for k in yield_order(group, idle, stalled, self._priorities, recent):
+        recent = {order.robot for order in history
+                  if order.issued >= now - p.standstill_time - p.yield_time - 1e-9
+                  and names.intersection(order.blockers)}
+        order_of = yield_order(group, idle, stalled, self._priorities)
+        order_of = ([k for k in order_of if self._robots[k] not in recent]
+                    + [k for k in order_of if self._robots[k] in recent])
+        for k in order_of:
             if stalled_here == [k] or k in broken:
                 continue  # it would make way for nobody, or cannot move
             blockers = tuple(j for j in group if j != k)

@@ -77,14 +77,13 @@ def person_standoffs(stalled: np.ndarray, xy: np.ndarray, radii: np.ndarray,
 
 
 def yield_order(group: tuple[int, ...], idle: np.ndarray, stalled: np.ndarray,
-                priorities: np.ndarray, recent: frozenset[int] = frozenset()) -> list[int]:
+                priorities: np.ndarray) -> list[int]:
     """Who of ``group`` is asked to yield first: robots without a goal (``idle``: they lose
     nothing by moving), then the stalled ones, then those standing at their goal; within
-    each, the lowest priority (largest ``priorities`` value) first. Robots in ``recent``
-    (ordered aside for this group lately, which freed nobody) come after all the others."""
-    def rank(k: int) -> tuple[bool, int, float]:
+    each, the lowest priority (largest ``priorities`` value) first."""
+    def rank(k: int) -> tuple[int, float]:
         kind = 0 if idle[k] else 1 if stalled[k] else 2
-        return k in recent, kind, -float(priorities[k])
+        return kind, -float(priorities[k])
 
     return sorted(group, key=rank)
 
