@@ -107,9 +107,7 @@ class DeadlockWatchdog(LeafSystem):
        for a stalled robot (not the only stalled one itself) and for which
        ``standstills.back_off_spot`` finds a spot clear of the others' ways is ordered
        there; every member's anchor starts again, so the group gets another
-       ``standstill_time`` before the next order. A robot ordered aside for the group
-       within the last ``standstill_time + yield_time`` comes last: its order freed nobody,
-       so another robot of the group tries next. A group with no spot for anyone is tried
+       ``standstill_time`` before the next order. A group with no spot for anyone is tried
        again at the next update.
     4. An order holds until ``yield_time`` after its robot reached its spot (within
        ``progress_distance``), or after the order if it has not reached it by then.
@@ -170,8 +168,7 @@ class DeadlockWatchdog(LeafSystem):
         for group in groups:
             if any(self._robots[k] in backing for k in group):
                 continue
-            order = self._order(group, stalled, anchors, states, targets, context, now,
-                                history)
+            order = self._order(group, stalled, anchors, states, targets, context, now)
             if order is None:
                 continue
             active, history = active + (order,), history + (order,)
@@ -210,12 +207,10 @@ class DeadlockWatchdog(LeafSystem):
                 kept.append(order)
         return tuple(kept)
 
-    def _order(self, group, stalled, anchors, states, targets, context, now, history
+    def _order(self, group, stalled, anchors, states, targets, context, now
                ) -> BackOff | None:
-        """The back-off of the first robot of ``group`` (in ``yield_order``, but robots
-        ordered aside for this group within the last ``standstill_time + yield_time`` last:
-        their order freed nobody) with a free spot that frees the way of a stalled robot,
-        or None."""
+        """The back-off of the first robot of ``group`` (in ``yield_order``) with a free
+        spot that frees the way of a stalled robot, or None."""
         humans: HumanStates = (self._humans.Eval(context) if self._humans.HasValue(context)
                                else NO_HUMANS)
         xy = states[:, :2]
@@ -224,14 +219,7 @@ class DeadlockWatchdog(LeafSystem):
         stalled_here = [k for k in group if stalled[k]]
         broken = (self._disturbances.Eval(context).broken
                   if self._disturbances.HasValue(context) else ())
-        names = {self._robots[k] for k in group}
-        recent = {order.robot for order in history
-                  if order.issued >= now - p.standstill_time - p.yield_time - 1e-9
-                  and names.intersection(order.blockers)}
-        order_of = yield_order(group, idle, stalled, self._priorities)
-        order_of = ([k for k in order_of if self._robots[k] not in recent]
-                    + [k for k in order_of if self._robots[k] in recent])
-        for k in order_of:
+        for k in yield_order(group, idle, stalled, self._priorities):
             if stalled_here == [k] or k in broken:
                 continue  # it would make way for nobody, or cannot move
             blockers = tuple(j for j in group if j != k)
