@@ -15,7 +15,6 @@ from mrta_drake.navigation.standstills import (
     back_off_spot,
     blocked_groups,
     next_anchor,
-    person_standoffs,
     yield_order,
 )
 from mrta_drake.payloads import (
@@ -111,9 +110,6 @@ class DeadlockWatchdog(LeafSystem):
        again at the next update.
     4. An order holds until ``yield_time`` after its robot reached its spot (within
        ``progress_distance``), or after the order if it has not reached it by then.
-    5. A stalled robot in no group with a person within ``block_gap`` (each waiting for
-       the other) is sent to a spot clear of people and robots
-       (``standstills.person_standoffs``), making the person room to pass.
 
     ``costmap``: the static costmap the spots are checked against (the way to a spot
     keeps to its ``FREE`` cells). ``priorities``: per robot, smaller keeps its way
@@ -175,11 +171,6 @@ class DeadlockWatchdog(LeafSystem):
             backing.add(order.robot)
             for k in group:
                 anchors[k] = _restarted(anchors[k], now, self._robots[k] == order.robot)
-        for order in self._person_orders(stalled, groups, backing, anchors, states, context,
-                                         now):
-            active, history = active + (order,), history + (order,)
-            k = self._robots.index(order.robot)
-            anchors[k] = _restarted(anchors[k], now, True)
         orders = (old.orders if (active, history) == (old.orders.active, old.orders.history)
                   else BackOffOrders(active, history))
         if tuple(anchors) == old.anchors and orders is old.orders:
@@ -233,35 +224,6 @@ class DeadlockWatchdog(LeafSystem):
                 return BackOff(self._robots[k], spot, now, now + p.yield_time,
                                tuple(self._robots[j] for j in blockers), since)
         return None
-
-
-    def _person_orders(self, stalled, groups, backing, anchors, states, context, now
-                       ) -> list[BackOff]:
-        """Back-offs for robots standing off with a person (``standstills.person_standoffs``):
-        the robot steps to a free spot (clear of people and the other robots), making room
-        for the person, who yields to robots, to pass."""
-        if not stalled.any() or not self._humans.HasValue(context):
-            return []
-        humans: HumanStates = self._humans.Eval(context)
-        people_xy = np.asarray(humans.positions, dtype=float).reshape(-1, 2)
-        people_radii = np.asarray(humans.radii, dtype=float).reshape(-1)
-        xy = states[:, :2]
-        p = self._params
-        broken = (self._disturbances.Eval(context).broken
-                  if self._disturbances.HasValue(context) else ())
-        grouped = {k for group in groups for k in group}
-        orders = []
-        for k in person_standoffs(stalled, xy, self._radii, people_xy, people_radii,
-                                  p.block_gap, grouped):
-            if self._robots[k] in backing or k in broken:
-                continue
-            spot = back_off_spot(k, xy, self._radii, [], people_xy, people_radii,
-                                 self._costmap, p.search_reach, p.spot_clearance,
-                                 p.wall_clearance)
-            if spot is not None:
-                orders.append(BackOff(self._robots[k], spot, now, now + p.yield_time, (),
-                                      anchors[k].since))
-        return orders
 
 
 def _way(xy, target: WaypointTarget) -> np.ndarray:

@@ -61,21 +61,6 @@ def blocked_groups(stalled: np.ndarray, xy: np.ndarray, radii: np.ndarray,
     return [tuple(m) for _, m in sorted(members.items()) if len(m) > 1]
 
 
-def person_standoffs(stalled: np.ndarray, xy: np.ndarray, radii: np.ndarray,
-                     people_xy: np.ndarray, people_radii: np.ndarray, block_gap: float,
-                     grouped: set[int]) -> list[int]:
-    """The stalled robots (``stalled`` (N,) bool) in none of the robot groups ``grouped``
-    with a person within ``block_gap`` of them (surface to surface): a robot and a person
-    each waiting for the other to pass. People absent from the run (NaN) count for none."""
-    if not len(people_xy):
-        return []
-    gaps = (np.linalg.norm(xy[:, None, :] - people_xy[None, :, :], axis=-1)
-            - radii[:, None] - people_radii[None, :])
-    with np.errstate(invalid="ignore"):
-        near = (gaps <= block_gap).any(axis=1)
-    return [k for k in range(len(xy)) if stalled[k] and near[k] and k not in grouped]
-
-
 def yield_order(group: tuple[int, ...], idle: np.ndarray, stalled: np.ndarray,
                 priorities: np.ndarray) -> list[int]:
     """Who of ``group`` is asked to yield first: robots without a goal (``idle``: they lose

@@ -21,10 +21,9 @@ from mrta_drake.navigation.standstills import (
     back_off_spot,
     blocked_groups,
     next_anchor,
-    person_standoffs,
     yield_order,
 )
-from mrta_drake.payloads import Breakdown, Disturbances, HumanStates, WaypointTarget
+from mrta_drake.payloads import Breakdown, Disturbances, WaypointTarget
 from mrta_drake.robots.unicycle_robots import UnicycleRobots
 from mrta_drake.scenario.loading import load_scenario
 from mrta_drake.stack.blocks import resolve_block
@@ -130,55 +129,6 @@ def test_a_broken_down_robot_is_never_asked_to_yield():
     _, orders = _run(with_watchdog=True, duration=40.0,
                      watchdog_sees=Disturbances(breakdowns=(Breakdown(0, 0.0),)))
     assert orders.history == ()
-
-
-def test_a_robot_standing_off_with_a_person_steps_aside():
-    # One robot, a person standing still in the corridor ahead: the robot stops short of
-    # the person and, stalled for the standstill time, is sent to a spot clear of people.
-    obstacles = _corridor_with_bay()
-    names = ("r0",)
-    person = HumanStates(("p",), np.array([[9.5, 0.0]]), np.zeros((1, 2)), np.array([0.25]))
-    builder = DiagramBuilder()
-    robots = builder.AddSystem(UnicycleRobots(names, np.array([STARTS[0]]), rate_hz=20.0))
-    controller = builder.AddSystem(ClusterCbfController(names, obstacles, rate_hz=20.0))
-    planner = builder.AddSystem(PlannerService.from_obstacles(
-        obstacles, BOUNDS, names, replan_rate_hz=2.0, target_check_rate_hz=10.0))
-    watchdog = builder.AddSystem(DeadlockWatchdog(
-        names, [RADIUS], Costmap.from_obstacles(obstacles, BOUNDS), rate_hz=2.0))
-    people = builder.AddSystem(ConstantValueSource(Value[object](person)))
-    target = builder.AddSystem(ConstantValueSource(Value[object](
-        WaypointTarget("r0", True, GOALS[0], None, True))))
-    state = robots.GetOutputPort("state")
-    for block in (controller, planner, watchdog):
-        builder.Connect(state, block.GetInputPort("robot_state"))
-    builder.Connect(controller.GetOutputPort("commands"), robots.GetInputPort("commands"))
-    builder.Connect(planner.GetOutputPort("paths"), controller.GetInputPort("paths"))
-    builder.Connect(people.get_output_port(), controller.GetInputPort("human_states"))
-    builder.Connect(people.get_output_port(), watchdog.GetInputPort("human_states"))
-    builder.Connect(watchdog.GetOutputPort("back_offs"), planner.GetInputPort("back_offs"))
-    for block in (planner, watchdog):
-        builder.Connect(target.get_output_port(), block.GetInputPort("target_r0"))
-    simulator = Simulator(builder.Build())
-    simulator.AdvanceTo(25.0)
-    orders = watchdog.GetOutputPort("back_offs").Eval(
-        watchdog.GetMyContextFromRoot(simulator.get_context()))
-    assert orders.history, "the robot was never sent aside"
-    first = orders.history[0]
-    assert first.robot == "r0" and first.blockers == ()
-    assert first.issued - first.stalled_since == pytest.approx(15.0, abs=0.5)
-    gap = np.hypot(first.point[0] - 9.5, first.point[1]) - 0.25 - RADIUS
-    assert gap >= WatchdogParams().spot_clearance
-
-
-def test_person_standoffs_are_stalled_robots_outside_groups_with_a_person_near():
-    stalled = np.array([True, True, False, True])
-    xy = np.array([[0.0, 0.0], [5.0, 0.0], [10.0, 0.0], [15.0, 0.0]])
-    radii = np.full(4, 0.2)
-    people = np.array([[0.6, 0.0], [5.6, 0.0], [10.5, 0.0], [np.nan, np.nan]])
-    people_radii = np.full(4, 0.25)
-    assert person_standoffs(stalled, xy, radii, people, people_radii, 0.6, {1}) == [0]
-    assert person_standoffs(stalled, xy, radii, np.zeros((0, 2)), np.zeros(0), 0.6,
-                            set()) == []
 
 
 def test_stalled_robots_and_their_neighbours_form_groups():
