@@ -11,7 +11,7 @@ from mrta_drake.payloads import Disturbances, Outage, frozen_array
 
 def cluster_of(clusters: Sequence[tuple[int, ...]], robot: int) -> tuple[int, ...]:
     """The cluster of ``clusters`` (each led by its first member) that holds ``robot``."""
-    return next(cluster for cluster in clusters if robot in cluster)
+    return clusters[group_of(clusters, robot)]
 
 
 def views_disagree(seen: Sequence[tuple[int, ...]]) -> bool:
