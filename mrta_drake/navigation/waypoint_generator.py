@@ -639,9 +639,8 @@ class WaypointGenerator(LeafSystem):
         """Whether another robot stands within ``parking_clearance`` of parking ``spot``
         (every spot taken: this robot waits beside the point, not holding its room)."""
         others = np.delete(states[:, :2], self._index, axis=0)
-        return bool(len(others)) and bool(
-            (np.linalg.norm(others - np.asarray(spot), axis=1)
-             <= self._params.parking_clearance).any())
+        return bool((np.linalg.norm(others - np.asarray(spot), axis=1)
+                     <= self._params.parking_clearance).any())
 
     def _held_at_door(self, s: _Drive, robots: _Robots, queues: QueueState) -> bool:
         """Whether the robot, about to leave the room it stands in (within
