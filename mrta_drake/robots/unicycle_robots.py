@@ -27,6 +27,16 @@ class UnicycleParams:
     max_yaw_rate: float = 2.0  # |omega|, rad/s
 
 
+@dataclass(frozen=True)
+class _Applied:
+    """Per robot, the sequence number of the last relocation applied (0: none)."""
+
+    seen: tuple[int, ...]
+
+    def __deepcopy__(self, memo):
+        return self  # immutable: Drake's copies of the state at each update can share it
+
+
 class UnicycleRobots(LeafSystem):
     """N kinematic unicycles, stepped at ``rate_hz``.
 
@@ -68,7 +78,7 @@ class UnicycleRobots(LeafSystem):
         self.DeclareVectorInputPort("commands", ROBOT_COMMAND_SIZE * self._n)
         self._relocations = self.DeclareAbstractInputPort("relocations",
                                                           Value[object](Relocations()))
-        self._applied = self.DeclareAbstractState(Value[object]((0,) * self._n))
+        self._applied = self.DeclareAbstractState(Value[object](_Applied((0,) * self._n)))
         self.DeclareStateOutputPort("state", state)
         self.DeclareVectorOutputPort(
             "plant_positions", PLANAR_POSITION_SIZE * self._n, self._calc_plant_positions,
@@ -97,7 +107,7 @@ class UnicycleRobots(LeafSystem):
         if not self._relocations.HasValue(context):
             return
         moves = self._relocations.Eval(context).moves
-        applied = context.get_abstract_state(self._applied).get_value()
+        applied = context.get_abstract_state(self._applied).get_value().seen
         if not any(move is not None and move[0] > seen
                    for move, seen in zip(moves, applied, strict=False)):
             return
@@ -108,7 +118,7 @@ class UnicycleRobots(LeafSystem):
                 x[k] = (*move[1], 0.0)
                 seen[k] = move[0]
         state.get_mutable_discrete_state().get_mutable_vector(0).SetFromVector(x.ravel())
-        state.get_mutable_abstract_state(self._applied).set_value(tuple(seen))
+        state.get_mutable_abstract_state(self._applied).set_value(_Applied(tuple(seen)))
 
     def _calc_plant_positions(self, context, output: BasicVector) -> None:
         x = context.get_discrete_state_vector().value().reshape(self._n, ROBOT_STATE_SIZE)
