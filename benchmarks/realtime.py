@@ -35,7 +35,8 @@ fast the shared host ran, so that figures taken at different hours can be compar
 
 With pyinstrument installed (the ``dev`` extra), the runs with ``--profile-robots`` robots
 go on for ``--profile-duration`` s more under the sampling profiler, and the time is split
-by the block whose event handler spent it (``mrta_drake/systems/<block>.py``); "framework"
+by the module of ``mrta_drake`` whose code the simulator called (a block's event handler,
+named after its module, or a compiled kernel sampled on its own); "framework"
 is what Drake's simulator and systems framework spend outside the blocks' Python code;
 ``qp_solver_share`` is the part of the controller's time inside Drake's ``Solve``
 (Clarabel).
@@ -68,6 +69,7 @@ from mrta_drake import load_scenario
 from mrta_drake.stack.diagram import build_diagram
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
+PACKAGE = ROOT / "mrta_drake"
 RESULTS = ROOT / "benchmarks/results/realtime.json"
 SCENARIO = ROOT / "scenarios/hospital_6_robots.yaml"
 NAVIGATION = ROOT / "models/hospital/navigation.yaml"
@@ -247,9 +249,9 @@ def profile(simulator, until: float) -> dict:
     functions: dict[str, float] = {}
 
     def walk(frame):
-        path = frame.file_path or ""
-        if f"mrta_drake{os.sep}systems{os.sep}" in path:
-            block = pathlib.Path(path).stem
+        path = pathlib.Path(frame.file_path or "")
+        if PACKAGE in path.parents:
+            block = path.stem
             blocks[block] = blocks.get(block, 0.0) + frame.time
             return
         for child in frame.children:
