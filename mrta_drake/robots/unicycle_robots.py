@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 from pydrake.common.value import Value
-from pydrake.systems.framework import BasicVector, LeafSystem
+from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
 from mrta_drake.payloads import (
     PLANAR_POSITION_SIZE,
@@ -103,14 +103,16 @@ class UnicycleRobots(LeafSystem):
             u = np.zeros((self._n, ROBOT_COMMAND_SIZE))
         discrete_state.set_value(unicycle_step(x, u, p, dt).ravel())
 
-    def _relocate(self, context, state) -> None:
+    def _relocate(self, context, state) -> EventStatus:
+        # Nothing to apply: DidNothing lets Drake skip applying the update (and invalidating
+        # what depends on the state) when no other block updates at this instant.
         if not self._relocations.HasValue(context):
-            return
+            return EventStatus.DidNothing()
         moves = self._relocations.Eval(context).moves
         applied = context.get_abstract_state(self._applied).get_value().seen
         if not any(move is not None and move[0] > seen
                    for move, seen in zip(moves, applied, strict=False)):
-            return
+            return EventStatus.DidNothing()
         x = context.get_discrete_state_vector().value().reshape(self._n, ROBOT_STATE_SIZE).copy()
         seen = list(applied)
         for k, move in enumerate(moves):
@@ -119,6 +121,7 @@ class UnicycleRobots(LeafSystem):
                 seen[k] = move[0]
         state.get_mutable_discrete_state().get_mutable_vector(0).SetFromVector(x.ravel())
         state.get_mutable_abstract_state(self._applied).set_value(_Applied(tuple(seen)))
+        return EventStatus.Succeeded()
 
     def _calc_plant_positions(self, context, output: BasicVector) -> None:
         x = context.get_discrete_state_vector().value().reshape(self._n, ROBOT_STATE_SIZE)
