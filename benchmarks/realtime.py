@@ -81,7 +81,7 @@ TASK_PERIOD = 240.0  # s x robots between task batches
 # Where the extra visitors walk: the lobby and the corridors.
 VISITOR_POINTS = [[-3.0, 9.0], [3.0, 9.0], [-5.0, 3.0], [0.0, 12.0], [5.0, -5.0],
                   [-5.0, -5.0], [5.0, -18.0], [-5.0, -18.0], [0.0, -14.6], [0.0, -8.5]]
-GOALS = {6: 88.0, 25: 40.0, 50: 5.0, 100: 10.0}  # the issues' real-time factor goals (18: 6, 25, 100)
+GOALS = {6: 88.0, 25: 40.0, 50: 5.0, 100: 10.0}  # the issues' real-time factor goals
 PAPER = {2: 0.73, 4: 0.56, 6: 0.42}  # MRTA-Sim (Gazebo, ROS 2), Table III
 QUICKSTART = ["run", "scenarios/hospital_6_robots.yaml", "--duration", "60", "--quiet"]
 QUICKSTART_GOALS = {"cold": 15.0, "warm": 4.0}  # issue 18: wall s of the whole command

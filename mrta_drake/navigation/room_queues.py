@@ -5,7 +5,7 @@ import dataclasses
 from collections.abc import Mapping, Sequence
 
 from pydrake.common.value import Value
-from pydrake.systems.framework import LeafSystem
+from pydrake.systems.framework import EventStatus, LeafSystem
 
 from mrta_drake.payloads import (
     FREE_SEGMENT,
@@ -92,7 +92,7 @@ class RoomQueues(LeafSystem):
     def get_request_input_port(self, robot: str):
         return self._requests[self._robots.index(robot)]
 
-    def _update(self, context, state):
+    def _update(self, context, state) -> EventStatus:
         old = context.get_abstract_state(self._state_index).get_value()
         requests = [port.Eval(context) for port in self._requests]
         new = self._applied(old, requests) if self._changes_anything(old, requests) else old
@@ -100,8 +100,10 @@ class RoomQueues(LeafSystem):
             holds, waiting = self._segments_applied(old, requests)
             if holds != old.segments or waiting != old.segment_waiting:
                 new = dataclasses.replace(new, segments=holds, segment_waiting=waiting)
-        if new is not old:  # else ``state`` already holds ``old``
-            state.get_mutable_abstract_state(self._state_index).set_value(new)
+        if new is old:  # unchanged: Drake applies an instant's updates only if one changed
+            return EventStatus.DidNothing()
+        state.get_mutable_abstract_state(self._state_index).set_value(new)
+        return EventStatus.Succeeded()
 
     def _segments_applied(self, old: QueueState, requests: list[QueueRequest]
                           ) -> tuple[tuple[SegmentHold, ...], tuple[str, ...]]:

@@ -6,7 +6,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from pydrake.common.value import Value
-from pydrake.systems.framework import BasicVector, LeafSystem
+from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
 from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.single_file import NOTHING, Need, SingleFileParams, need
@@ -370,7 +370,7 @@ class WaypointGenerator(LeafSystem):
 
     # --- Update ------------------------------------------------------------------------------
 
-    def _update(self, context, state):
+    def _update(self, context, state) -> EventStatus:
         old = s = self._drive(context)
         t = context.get_time()
         robots = _Robots(self._robot_state, context, self._index)
@@ -396,8 +396,10 @@ class WaypointGenerator(LeafSystem):
         s = _changed(s, lanes=self._lanes(s, robots, queues))
         if s.stop is not None and (old.stop is None or old.stop.key != s.stop.key):
             s = replace(s, began=t)
-        if s is not old:  # ``state`` comes holding the current state
-            state.get_mutable_abstract_state(self._state_index).set_value(s)
+        if s is old:  # unchanged: Drake applies an instant's updates only if one changed
+            return EventStatus.DidNothing()
+        state.get_mutable_abstract_state(self._state_index).set_value(s)
+        return EventStatus.Succeeded()
 
     def _stops(self, context) -> tuple[Stop, ...]:
         plans = self._plan.Eval(context).plans
