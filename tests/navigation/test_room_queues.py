@@ -5,9 +5,10 @@ import random
 import pytest
 from pydrake.common.value import Value
 from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from mrta_drake.navigation.room_queues import RoomQueues
-from mrta_drake.payloads import QueueRequest, RoomQueue
+from mrta_drake.payloads import QueueRequest, QueueState, RoomQueue
 
 ROOM, OTHER = 7, 8
 
@@ -193,3 +194,43 @@ def test_a_robot_waiting_first_keeps_its_turn():
     bench.step()
     state = bench.state()
     assert state.segments[0].holders == ("b",) and state.segment_waiting == ("c",)
+
+
+class _QueueReader(LeafSystem):
+    """Reads ``queue_state`` into an output and counts how often that output is computed."""
+
+    def __init__(self):
+        super().__init__()
+        self.computed = 0
+        port = self.DeclareAbstractInputPort("queue_state", Value[object](QueueState()))
+
+        def calc(context, output):
+            self.computed += 1
+            output.set_value(port.Eval(context))
+
+        self.output = self.DeclareAbstractOutputPort(
+            "copy", lambda: Value[object](QueueState()), calc,
+            prerequisites_of_calc={port.ticket()})
+
+
+def test_an_update_that_changes_nothing_leaves_what_reads_the_queues_cached():
+    # The queues report DidNothing, so Drake applies no update and what is computed from
+    # their state stays cached; a granted request changes the state and is computed again.
+    builder = DiagramBuilder()
+    queues = builder.AddSystem(RoomQueues(["r0"], rooms=[ROOM], rate_hz=10.0))
+    reader = builder.AddSystem(_QueueReader())
+    builder.Connect(queues.GetOutputPort("queue_state"), reader.get_input_port())
+    builder.ExportInput(queues.get_request_input_port("r0"))
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    reader_context = reader.GetMyContextFromRoot(context)
+    diagram.get_input_port().FixValue(context, Value[object](QueueRequest("r0")))
+    for k in range(6):
+        simulator.AdvanceTo(0.05 + 0.1 * k)
+        reader.output.Eval(reader_context)
+    assert reader.computed == 1
+    diagram.get_input_port().FixValue(context, Value[object](QueueRequest("r0", ROOM)))
+    simulator.AdvanceTo(0.65)
+    assert reader.output.Eval(reader_context).room(ROOM).holder == "r0"
+    assert reader.computed == 2
