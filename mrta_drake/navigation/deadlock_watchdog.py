@@ -40,8 +40,11 @@ class WatchdogParams:
     (surface to surface). The robot chosen to yield drives to the nearest spot within
     ``search_reach`` at least ``spot_clearance`` from every other robot and person and from
     its blockers' ways to their targets, its centre ``wall_clearance`` from walls, and
-    stands there for ``yield_time``. ``enabled`` off: no watchdog in the diagram (as in
-    the paper)."""
+    stands there for ``yield_time``. An order *missed* when its robot did not reach the
+    spot in that time; for ``retry_window`` after a miss, the robot is asked to yield only
+    after robots that missed fewer orders, and never to a spot within
+    ``progress_distance`` of the one it missed. ``enabled`` off: no watchdog in the diagram
+    (as in the paper)."""
 
     enabled: bool = True
     standstill_time: float = 15.0
@@ -52,9 +55,10 @@ class WatchdogParams:
     wall_clearance: float = 0.8
     spot_clearance: float = 0.3
     yield_time: float = 15.0
+    retry_window: float = 120.0
 
     def __post_init__(self):
-        require_positive(self, "standstill_time", "yield_time", unit=" s")
+        require_positive(self, "standstill_time", "yield_time", "retry_window", unit=" s")
         require_positive(self, "progress_distance", "goal_tolerance", "search_reach",
                          "wall_clearance", unit=" m")
         require_non_negative(self, "block_gap", "spot_clearance", unit=" m")
@@ -62,10 +66,12 @@ class WatchdogParams:
 
 @dataclass(frozen=True)
 class _WatchdogState:
-    """Each robot's ``Anchor`` (None: no goal, or backing off) and the orders."""
+    """Each robot's ``Anchor`` (None: no goal, or backing off), the orders, and the orders
+    missed within the retry window (each as ordered, ``until`` the time it ended)."""
 
     anchors: tuple[Anchor | None, ...]
     orders: BackOffOrders = NO_BACK_OFFS
+    misses: tuple[BackOff, ...] = ()
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the state can share it
@@ -109,7 +115,11 @@ class DeadlockWatchdog(LeafSystem):
        ``standstill_time`` before the next order. A group with no spot for anyone is tried
        again at the next update.
     4. An order holds until ``yield_time`` after its robot reached its spot (within
-       ``progress_distance``), or after the order if it has not reached it by then.
+       ``progress_distance``), or after the order if it has not reached it by then: then
+       it is a miss, and its robot counts as stalled since the order. Robots with fewer
+       misses within ``retry_window`` are asked first (a stable sort of ``yield_order``),
+       and a robot's spots keep ``progress_distance`` from those it missed, so a
+       standstill is never met with the same order again and again.
 
     ``costmap``: the static costmap the spots are checked against (the way to a spot
     keeps to its ``FREE`` cells). ``priorities``: per robot, smaller keeps its way
@@ -150,12 +160,18 @@ class DeadlockWatchdog(LeafSystem):
         now = context.get_time()
         states = self._robot_state.Eval(context).reshape(-1, ROBOT_STATE_SIZE)
         targets = [port.Eval(context) for port in self._targets]
-        active = self._in_force(old.orders.active, states, now)
+        active, missed = self._in_force(old.orders.active, states, now)
+        misses = tuple(m for m in old.misses + missed
+                       if m.until > now - self._params.retry_window + 1e-9)
         backing = {order.robot for order in active}
         anchors = [next_anchor(anchor, states[k, :2], self._has_goal(states[k], targets[k])
                                and self._robots[k] not in backing, now,
                                self._params.progress_distance)
                    for k, anchor in enumerate(old.anchors)]
+        for order in missed:  # it stood still all along: stalled since the order
+            k = self._robots.index(order.robot)
+            if anchors[k] is not None:
+                anchors[k] = Anchor(anchors[k].xy, min(anchors[k].since, order.issued))
         stalled = np.array([a is not None and now - a.since >= self._params.standstill_time
                             - 1e-9 for a in anchors])
         history = old.orders.history
@@ -164,7 +180,8 @@ class DeadlockWatchdog(LeafSystem):
         for group in groups:
             if any(self._robots[k] in backing for k in group):
                 continue
-            order = self._order(group, stalled, anchors, states, targets, context, now)
+            order = self._order(group, stalled, anchors, states, targets, context, now,
+                                misses)
             if order is None:
                 continue
             active, history = active + (order,), history + (order,)
@@ -173,10 +190,10 @@ class DeadlockWatchdog(LeafSystem):
                 anchors[k] = _restarted(anchors[k], now, self._robots[k] == order.robot)
         orders = (old.orders if (active, history) == (old.orders.active, old.orders.history)
                   else BackOffOrders(active, history))
-        if tuple(anchors) == old.anchors and orders is old.orders:
+        if tuple(anchors) == old.anchors and orders is old.orders and misses == old.misses:
             return EventStatus.DidNothing()
         state.get_mutable_abstract_state(self._state_index).set_value(
-            _WatchdogState(tuple(anchors), orders))
+            _WatchdogState(tuple(anchors), orders, misses))
         return EventStatus.Succeeded()
 
     def _has_goal(self, robot_state: np.ndarray, target: WaypointTarget) -> bool:
@@ -185,10 +202,11 @@ class DeadlockWatchdog(LeafSystem):
                 > self._params.goal_tolerance)
 
     def _in_force(self, orders: tuple[BackOff, ...], states: np.ndarray, now: float
-                  ) -> tuple[BackOff, ...]:
+                  ) -> tuple[tuple[BackOff, ...], tuple[BackOff, ...]]:
         """The orders still in force at ``now``, each given its ``arrived`` time (and so its
-        end) once its robot is within ``progress_distance`` of its spot."""
-        kept = []
+        end) once its robot is within ``progress_distance`` of its spot; and the orders
+        that ended now without their robot reaching the spot (missed)."""
+        kept, missed = [], []
         for order in orders:
             k = self._robots.index(order.robot)
             if (order.arrived is None and float(np.hypot(*(states[k, :2] - order.point)))
@@ -196,12 +214,15 @@ class DeadlockWatchdog(LeafSystem):
                 order = replace(order, arrived=now, until=now + self._params.yield_time)
             if order.until > now + 1e-9:
                 kept.append(order)
-        return tuple(kept)
+            elif order.arrived is None:
+                missed.append(order)
+        return tuple(kept), tuple(missed)
 
-    def _order(self, group, stalled, anchors, states, targets, context, now
+    def _order(self, group, stalled, anchors, states, targets, context, now, misses
                ) -> BackOff | None:
-        """The back-off of the first robot of ``group`` (in ``yield_order``) with a free
-        spot that frees the way of a stalled robot, or None."""
+        """The back-off of the first robot of ``group`` (in ``yield_order``, those with
+        fewer ``misses`` first) with a free spot, away from the spots it missed, that frees
+        the way of a stalled robot, or None."""
         humans: HumanStates = (self._humans.Eval(context) if self._humans.HasValue(context)
                                else NO_HUMANS)
         xy = states[:, :2]
@@ -210,7 +231,10 @@ class DeadlockWatchdog(LeafSystem):
         stalled_here = [k for k in group if stalled[k]]
         broken = (self._disturbances.Eval(context).broken
                   if self._disturbances.HasValue(context) else ())
-        for k in yield_order(group, idle, stalled, self._priorities):
+        missed_spots = {k: np.array([m.point for m in misses if m.robot == self._robots[k]],
+                                    dtype=float).reshape(-1, 2) for k in group}
+        for k in sorted(yield_order(group, idle, stalled, self._priorities),
+                        key=lambda k: len(missed_spots[k])):
             if stalled_here == [k] or k in broken:
                 continue  # it would make way for nobody, or cannot move
             blockers = tuple(j for j in group if j != k)
@@ -218,7 +242,8 @@ class DeadlockWatchdog(LeafSystem):
             spot = back_off_spot(k, xy, self._radii, ways,
                                  np.asarray(humans.positions).reshape(-1, 2),
                                  np.asarray(humans.radii).reshape(-1), self._costmap,
-                                 p.search_reach, p.spot_clearance, p.wall_clearance)
+                                 p.search_reach, p.spot_clearance, p.wall_clearance,
+                                 avoid=missed_spots[k], avoid_radius=p.progress_distance)
             if spot is not None:
                 since = min(anchors[j].since for j in stalled_here)
                 return BackOff(self._robots[k], spot, now, now + p.yield_time,

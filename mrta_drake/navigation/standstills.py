@@ -76,7 +76,8 @@ def yield_order(group: tuple[int, ...], idle: np.ndarray, stalled: np.ndarray,
 def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
                   ways: list[tuple[np.ndarray, float]],
                   people_xy: np.ndarray, people_radii: np.ndarray, costmap: Costmap,
-                  reach: float, clearance: float, wall_clearance: float
+                  reach: float, clearance: float, wall_clearance: float,
+                  avoid=(), avoid_radius: float = 0.0
                   ) -> tuple[float, float] | None:
     """The nearest spot to which robot ``k`` at ``xy[k]`` can drive out of the others' way,
     or None: searched on a grid of ``SEARCH_STEP`` within ``reach`` of it, moving between
@@ -87,7 +88,8 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
     eroded by the grid steps beyond the inflation radius), at least ``clearance`` (surface
     to surface) from every other robot and person and from each of ``ways`` ((polyline
     (P, 2), radius): the way a blocker of that radius will follow, e.g. from
-    where it stands to its target).
+    where it stands to its target), and farther than ``avoid_radius`` from each of
+    ``avoid`` ((M, 2): spots it was sent to and did not reach).
     Nearest: the fewest grid moves, ties in grid order."""
     n_side = int(reach / SEARCH_STEP)
     offsets = np.arange(-n_side, n_side + 1) * SEARCH_STEP
@@ -110,6 +112,8 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
                & people_clear)
     for way, radius in ways:
         spot_ok &= _distance_to_polyline(points, way) >= radii[k] + radius + clearance
+    for missed in np.asarray(avoid, dtype=float).reshape(-1, 2):
+        spot_ok &= np.linalg.norm(points - missed, axis=-1) > avoid_radius
     start = (n_side, n_side)
     passable[start] = True
     seen = np.zeros(passable.shape, dtype=bool)

@@ -185,3 +185,31 @@ def test_the_paper_profile_turns_the_watchdog_off():
     scenario = load_scenario(HOSPITAL, overrides={"profile": "paper"})
     _, params = resolve_block(scenario, "watchdog")
     assert params.enabled is False
+
+
+def _orders_for_robots_that_never_move(duration: float):
+    """The watchdog's orders when two robots stand nose to nose in an open room, each with
+    its goal behind the other, and never move (whatever they are told)."""
+    obstacles = Obstacles((Box("south", (5.0, -4.1), (10.0, 0.2)),
+                           Box("north", (5.0, 4.1), (10.0, 0.2))))
+    watchdog = DeadlockWatchdog(NAMES, [RADIUS, RADIUS],
+                                Costmap.from_obstacles(obstacles, (0.0, 10.0, -4.0, 4.0)),
+                                rate_hz=2.0)
+    context = watchdog.CreateDefaultContext()
+    watchdog.GetInputPort("robot_state").FixValue(
+        context, np.array([4.7, 0.0, 0.0, 0.0, 5.3, 0.0, math.pi, 0.0]))
+    for name, goal in zip(NAMES, [(8.0, 0.0), (2.0, 0.0)], strict=True):
+        watchdog.GetInputPort(f"target_{name}").FixValue(
+            context, WaypointTarget(name, True, goal, None, True))
+    simulator = Simulator(watchdog, context)
+    simulator.AdvanceTo(duration)
+    return watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
+
+
+def test_a_missed_order_is_not_given_again():
+    # Nobody moves: each order ends missed after yield_time, and the next standstill gets
+    # the other robot first, then a robot's spot away from the one it missed.
+    history = _orders_for_robots_that_never_move(duration=100.0)
+    assert [order.robot for order in history[:3]] == ["r1", "r0", "r1"]
+    assert math.dist(history[0].point, history[2].point) > WatchdogParams().progress_distance
+    assert math.dist(history[1].point, history[3].point) > WatchdogParams().progress_distance
