@@ -83,13 +83,14 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
     or None: searched on a grid of ``SEARCH_STEP`` within ``reach`` of it, moving between
     neighbouring points (4-connected) where its centre may be: on the costmap's ``FREE``
     cells (beyond its inflation radius from walls, where the controller keeps a robot
-    anyway), no nearer another robot than ``clearance`` (surface to surface), or than it
-    is now. A spot is such a point at least ``wall_clearance`` from walls (the free points
-    eroded by the grid steps beyond the inflation radius), at least ``clearance`` (surface
-    to surface) from every other robot and person and from each of ``ways`` ((polyline
-    (P, 2), radius): the way a blocker of that radius will follow, e.g. from
-    where it stands to its target), and farther than ``avoid_radius`` from each of
-    ``avoid`` ((M, 2): spots it was sent to and did not reach).
+    anyway), no nearer another robot than ``clearance`` (surface to surface), except within
+    ``clearance`` of where it stands, and there no nearer than it is now. A spot is such a
+    point at least ``wall_clearance`` from walls (the free points eroded by the grid steps
+    beyond the inflation radius), at least ``clearance`` (surface to surface) from every
+    other robot and person and from each of ``ways`` ((polyline (P, 2), radius): the way a
+    blocker of that radius will follow, e.g. from where it stands to its target), and
+    farther than ``avoid_radius`` from each of ``avoid`` ((M, 2): spots it was sent to and
+    did not reach).
     Nearest: the fewest grid moves, ties in grid order."""
     n_side = int(reach / SEARCH_STEP)
     offsets = np.arange(-n_side, n_side + 1) * SEARCH_STEP
@@ -97,13 +98,16 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
     others = np.delete(np.arange(len(xy)), k)
     robot_gaps = (np.linalg.norm(points[..., None, :] - xy[others], axis=-1)
                   - radii[others] - radii[k])
-    # Passing another robot closer than ``clearance`` means squeezing by: only as close as
-    # it is now.
+    # Closer to another robot than ``clearance`` only while getting away from where it
+    # stands (within ``clearance`` of it), and no closer than now: sliding along a robot
+    # it is squeezed against is no way out (the controller keeps their distance).
     start_gaps = np.linalg.norm(xy[others] - xy[k], axis=-1) - radii[others] - radii[k]
+    moved = np.hypot(*np.moveaxis(points - xy[k], -1, 0))
     free = costmap.cost_at(points) == FREE
-    passable = (free
-                & (robot_gaps >= np.minimum(clearance, start_gaps) - 1e-9).all(axis=-1)
-                & (np.hypot(*np.moveaxis(points - xy[k], -1, 0)) <= reach))
+    squeezed = robot_gaps < clearance
+    passable = (free & (moved <= reach)
+                & (~squeezed | ((robot_gaps >= start_gaps - 1e-9)
+                                & (moved[..., None] <= clearance))).all(axis=-1))
     with np.errstate(invalid="ignore"):  # people absent from the run are NaN
         people_clear = ~((np.linalg.norm(points[..., None, :] - people_xy, axis=-1)
                           - people_radii - radii[k]) < clearance).any(axis=-1)

@@ -213,3 +213,18 @@ def test_a_missed_order_is_not_given_again():
     assert [order.robot for order in history[:3]] == ["r1", "r0", "r1"]
     assert math.dist(history[0].point, history[2].point) > WatchdogParams().progress_distance
     assert math.dist(history[1].point, history[3].point) > WatchdogParams().progress_distance
+
+
+@pytest.mark.parametrize("wall_y, way_out", [(1.2, False), (1.4, True)])
+def test_no_spot_past_a_blocker_it_would_have_to_slide_along(wall_y, way_out):
+    # A 2.2 m corridor (walls' faces at +-1.1 m): r1 stands 0.6 m ahead of r0 on the axis
+    # and will drive west through r0. Going round r1 means keeping its 0.16 m gap all the
+    # way past: no way out, so no spot. A 2.6 m corridor leaves room to pass.
+    obstacles = Obstacles((Box("south", (0.0, -wall_y), (20.0, 0.2)),
+                           Box("north", (0.0, wall_y), (20.0, 0.2))))
+    costmap = Costmap.from_obstacles(obstacles, (-10.0, 10.0, -1.6, 1.6))
+    xy = np.array([[0.0, 0.0], [0.6, 0.0]])
+    ways = [(np.array([[0.6, 0.0], [-5.0, 0.0]]), RADIUS)]
+    spot = back_off_spot(0, xy, np.full(2, RADIUS), ways, np.zeros((0, 2)), np.zeros(0),
+                         costmap, 4.0, 0.3, 0.8)
+    assert (spot is not None and spot[0] > 0.6) if way_out else spot is None
