@@ -53,19 +53,21 @@ PARAMS = "blocks.allocator.params."
 
 DRIFT_10 = {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": False,
             "drift_margin": 10.0}  # the earlier default: allocate again on a 10 s drift
+LOOP = {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": True,
+        "drift_margin": 3.0}  # learn, re-plan when late, re-time on a 3 s drift
 DEFAULT = "learn + re-plan when late, re-time on 3 s drift (default)"
 VARIANTS = {  # name -> allocator params set (every switch the defaults could change)
     "open loop": {"learn_travel_times": False, "replan_on_delay": False},
     "learn only": {"learn_travel_times": True, "replan_on_delay": False},
     "re-plan only, 10 s drift": DRIFT_10 | {"learn_travel_times": False},
     "learn + re-plan, 10 s drift": DRIFT_10,
-    "learn (q0.8) + re-plan, 10 s drift": DRIFT_10 | {"travel_time_estimator": "quantile"},
-    "learn (recent) + re-plan, 10 s drift": DRIFT_10 | {"travel_time_estimator": "recent"},
-    "learn + re-plan, 10 s drift, 5 s margin": DRIFT_10 | {"planning_margin": 5.0},
-    "learn + re-plan, 5 s drift every 5 s": DRIFT_10 | {"drift_margin": 5.0,
-                                                        "replan_interval": 5.0},
-    DEFAULT: {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": True,
-              "drift_margin": 3.0},
+    DEFAULT: LOOP,
+    "loop, quantile 0.8": LOOP | {"travel_time_estimator": "quantile"},
+    "loop, recent-weighted": LOOP | {"travel_time_estimator": "recent"},
+    "loop, 3 s margin": LOOP | {"planning_margin": 3.0},
+    "loop, 6 s margin": LOOP | {"planning_margin": 6.0},
+    "loop, earliest drop-offs": LOOP | {"earliest_drop_offs": True},
+    "loop, smt objective lateness": LOOP | {"objective": "lateness"},
 }
 
 
@@ -141,7 +143,7 @@ def main():
     output["variants"] |= {v: VARIANTS[v] for v in args.variants}
     workers = max(1, args.workers // len(args.variants))
     for case in args.cases:
-        with ThreadPoolExecutor(len(args.variants)) as pool:
+        with ThreadPoolExecutor(min(len(args.variants), args.workers)) as pool:
             runs = {variant: pool.submit(run_case, case, cases[case], VARIANTS[variant],
                                          workers) for variant in args.variants}
             results = {variant: figures(run.result()) for variant, run in runs.items()}

@@ -31,6 +31,11 @@ class FeedbackParams:
     docs/allocation.md); ``learn_travel_times`` and ``replan_on_delay`` false, with no
     margin, is the open loop (``OPEN_LOOP``): plans made only when batches arrive or robots
     break down, from the scenario's matrix.
+
+    ``earliest_drop_offs``: every allocation is improved by local search
+    (``allocation.local_search``: the fewest late tasks, then the least tardiness, then the
+    earliest drop-offs), so that a task planned on time has as much room for delays as the
+    search finds, whatever the allocator's own objective.
     """
 
     learn_travel_times: bool = True
@@ -44,6 +49,7 @@ class FeedbackParams:
     drift_margin: float = 3.0
     replan_interval: float = 10.0
     retime_on_drift: bool = True
+    earliest_drop_offs: bool = False
 
     def __post_init__(self):
         self.estimator()  # checks the estimator's fields
@@ -69,7 +75,7 @@ class FeedbackParams:
 
 
 OPEN_LOOP = FeedbackParams(learn_travel_times=False, replan_on_delay=False, planning_margin=0.0,
-                           retime_on_drift=False)
+                           retime_on_drift=False, earliest_drop_offs=False)
 
 
 def with_feedback(params_class: type) -> type:

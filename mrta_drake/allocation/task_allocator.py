@@ -19,6 +19,7 @@ from pydrake.systems.framework import LeafSystem
 
 from mrta_drake.allocation.drift import DRIFT, find_drift
 from mrta_drake.allocation.feedback_params import OPEN_LOOP, FeedbackParams
+from mrta_drake.allocation.local_search import improve_keeping_verdict
 from mrta_drake.allocation.problem import (
     UNKNOWN,
     Action,
@@ -268,6 +269,8 @@ class TaskAllocator(LeafSystem):
         in_service = [r for r in range(len(self._fleet)) if r not in out]
         if in_service:
             allocation = self._allocator.allocate(problem)
+            if feedback.earliest_drop_offs:
+                allocation = improve_keeping_verdict(problem, allocation)
         else:
             allocation = Allocation((), (), UNKNOWN, note="no robot in service")
         routes = dict(zip(in_service, range(len(in_service)), strict=True))
