@@ -51,23 +51,27 @@ SEEDS = list(range(200, 220))
 CHECK_SEEDS = list(range(220, 230))
 PARAMS = "blocks.allocator.params."
 
-DRIFT_10 = {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": False,
-            "drift_margin": 10.0}  # the earlier default: allocate again on a 10 s drift
-LOOP = {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": True,
-        "drift_margin": 3.0}  # learn, re-plan when late, re-time on a 3 s drift
-DEFAULT = "learn + re-plan when late, re-time on 3 s drift (default)"
+OFF = {"earliest_drop_offs": False}  # the switches a variant leaves off unless it sets them
+DRIFT_10 = OFF | {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": False,
+                  "drift_margin": 10.0}  # an earlier default: allocate again on a 10 s drift
+LOOP = OFF | {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": True,
+              "drift_margin": 3.0}  # learn, re-plan when late, re-time on a 3 s drift
+EARLIEST = LOOP | {"earliest_drop_offs": True}
+DEFAULT = "loop, earliest drop-offs (default)"
 VARIANTS = {  # name -> allocator params set (every switch the defaults could change)
-    "open loop": {"learn_travel_times": False, "replan_on_delay": False},
-    "learn only": {"learn_travel_times": True, "replan_on_delay": False},
+    "open loop": OFF | {"learn_travel_times": False, "replan_on_delay": False},
+    "learn only": OFF | {"learn_travel_times": True, "replan_on_delay": False},
     "re-plan only, 10 s drift": DRIFT_10 | {"learn_travel_times": False},
     "learn + re-plan, 10 s drift": DRIFT_10,
-    DEFAULT: LOOP,
+    "loop: learn + re-plan when late, re-time on 3 s drift": LOOP,
     "loop, quantile 0.8": LOOP | {"travel_time_estimator": "quantile"},
     "loop, recent-weighted": LOOP | {"travel_time_estimator": "recent"},
     "loop, 3 s margin": LOOP | {"planning_margin": 3.0},
     "loop, 6 s margin": LOOP | {"planning_margin": 6.0},
-    "loop, earliest drop-offs": LOOP | {"earliest_drop_offs": True},
     "loop, smt objective lateness": LOOP | {"objective": "lateness"},
+    DEFAULT: EARLIEST,
+    "loop, earliest drop-offs, 1 s drift": EARLIEST | {"drift_margin": 1.0},
+    "loop, earliest drop-offs, 3 s margin": EARLIEST | {"planning_margin": 3.0},
 }
 
 

@@ -138,8 +138,10 @@ class TaskAllocator(LeafSystem):
     ``drift.find_drift`` finds a drop-off turned late or moved by more than
     ``drift_margin``, at most ``replan_interval`` after the last allocation (a
     ``ReplanEvent``); with ``retime_on_drift`` a drift that turns nothing late only
-    re-times the plan (same routes, times predicted now, no event). Done and under-way
-    actions are kept as for a batch.
+    re-times the plan (same routes, times predicted now, no event); with
+    ``earliest_drop_offs`` every allocation is improved by local search
+    (``local_search.improve_keeping_verdict``). Done and under-way actions are kept as for
+    a batch.
 
     Args:
         stream: the task batches (``scenario_schema.TaskBatch`` or alike: ``arrival`` s,
