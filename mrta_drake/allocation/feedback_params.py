@@ -49,7 +49,7 @@ class FeedbackParams:
     quantile_window: int = 20
     prior_samples: float = 2.0
     planning_margin: float = 0.0
-    drift_margin: float = 3.0
+    drift_margin: float = 1.0
     replan_interval: float = 10.0
     retime_on_drift: bool = True
     earliest_drop_offs: bool = True
