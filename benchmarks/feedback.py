@@ -15,7 +15,7 @@ The cases below, each run with every variant of the allocator's feedback switche
   generated stream), 600 s.
 
 Each variant is one sweep (``mrta_drake.tools.sweep``: fresh processes), the variants'
-sweeps side by side sharing ``--workers`` processes, resumable from
+sweeps side by side with ``--workers`` processes in all, resumable from
 ``benchmarks/results/feedback_runs/``. Per case and variant: tasks
 completed, on time and late; broken promises (tasks planned on time at their last
 allocation that missed their deadline); drop-off and leg prediction errors pooled over the
@@ -23,6 +23,7 @@ runs (median and p90 of the absolute error, mean signed error); re-plans on drif
 
     python benchmarks/feedback.py                 # everything (hours on 2 shared cores)
     python benchmarks/feedback.py --seeds 4 --variants "open loop" "learn only"
+    python benchmarks/feedback.py --cases two_floor paper --variants "open loop"
 
 Prints the tables and writes benchmarks/results/feedback.json, keeping the variants and
 cases an earlier invocation wrote there and this one did not run.
@@ -51,21 +52,27 @@ SEEDS = list(range(200, 220))
 CHECK_SEEDS = list(range(220, 230))
 PARAMS = "blocks.allocator.params."
 
-DRIFT_10 = {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": False,
-            "drift_margin": 10.0}  # the earlier default: allocate again on a 10 s drift
-DEFAULT = "learn + re-plan when late, re-time on 3 s drift (default)"
+OFF = {"earliest_drop_offs": False}  # the switches a variant leaves off unless it sets them
+DRIFT_10 = OFF | {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": False,
+                  "drift_margin": 10.0}  # an earlier default: allocate again on a 10 s drift
+LOOP = OFF | {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": True,
+              "drift_margin": 3.0}  # learn, re-plan when late, re-time on a 3 s drift
+EARLIEST = LOOP | {"earliest_drop_offs": True}
+DEFAULT = "default: loop, earliest drop-offs, re-time on 1 s drift"
 VARIANTS = {  # name -> allocator params set (every switch the defaults could change)
-    "open loop": {"learn_travel_times": False, "replan_on_delay": False},
-    "learn only": {"learn_travel_times": True, "replan_on_delay": False},
+    "open loop": OFF | {"learn_travel_times": False, "replan_on_delay": False},
+    "learn only": OFF | {"learn_travel_times": True, "replan_on_delay": False},
     "re-plan only, 10 s drift": DRIFT_10 | {"learn_travel_times": False},
     "learn + re-plan, 10 s drift": DRIFT_10,
-    "learn (q0.8) + re-plan, 10 s drift": DRIFT_10 | {"travel_time_estimator": "quantile"},
-    "learn (recent) + re-plan, 10 s drift": DRIFT_10 | {"travel_time_estimator": "recent"},
-    "learn + re-plan, 10 s drift, 5 s margin": DRIFT_10 | {"planning_margin": 5.0},
-    "learn + re-plan, 5 s drift every 5 s": DRIFT_10 | {"drift_margin": 5.0,
-                                                        "replan_interval": 5.0},
-    DEFAULT: {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": True,
-              "drift_margin": 3.0},
+    "loop: learn + re-plan when late, re-time on 3 s drift": LOOP,
+    "loop, quantile 0.8": LOOP | {"travel_time_estimator": "quantile"},
+    "loop, recent-weighted": LOOP | {"travel_time_estimator": "recent"},
+    "loop, 3 s margin": LOOP | {"planning_margin": 3.0},
+    "loop, 6 s margin": LOOP | {"planning_margin": 6.0},
+    "loop, smt objective lateness": LOOP | {"objective": "lateness"},
+    "loop, earliest drop-offs": EARLIEST,
+    "loop, earliest drop-offs, 3 s margin": EARLIEST | {"planning_margin": 3.0},
+    DEFAULT: EARLIEST | {"drift_margin": 1.0},
 }
 
 
@@ -141,7 +148,7 @@ def main():
     output["variants"] |= {v: VARIANTS[v] for v in args.variants}
     workers = max(1, args.workers // len(args.variants))
     for case in args.cases:
-        with ThreadPoolExecutor(len(args.variants)) as pool:
+        with ThreadPoolExecutor(min(len(args.variants), args.workers)) as pool:
             runs = {variant: pool.submit(run_case, case, cases[case], VARIANTS[variant],
                                          workers) for variant in args.variants}
             results = {variant: figures(run.result()) for variant, run in runs.items()}

@@ -27,10 +27,18 @@ class FeedbackParams:
     ``replan_interval`` (s). With ``retime_on_drift`` a drift that turns no drop-off planned
     on time late only re-times the plan (the same routes, the completion times predicted
     now) instead of allocating again, at any check (re-timing changes no route, so
-    ``replan_interval`` does not limit it). All three are on by default (measured better:
-    docs/allocation.md); ``learn_travel_times`` and ``replan_on_delay`` false, with no
+    ``replan_interval`` does not limit it).
+
+    ``earliest_drop_offs``: every allocation is improved by local search
+    (``allocation.local_search``: the fewest late tasks, then the least tardiness, then the
+    earliest drop-offs), so that a task planned on time has as much room for delays as the
+    search finds, whatever the allocator's own objective.
+
+    ``learn_travel_times``, ``replan_on_delay``, ``retime_on_drift`` and
+    ``earliest_drop_offs`` are on by default (measured better: docs/allocation.md);
+    ``learn_travel_times``, ``replan_on_delay`` and ``earliest_drop_offs`` false, with no
     margin, is the open loop (``OPEN_LOOP``): plans made only when batches arrive or robots
-    break down, from the scenario's matrix.
+    break down, from the scenario's matrix, as the allocator answers them.
     """
 
     learn_travel_times: bool = True
@@ -41,9 +49,10 @@ class FeedbackParams:
     quantile_window: int = 20
     prior_samples: float = 2.0
     planning_margin: float = 0.0
-    drift_margin: float = 3.0
+    drift_margin: float = 1.0
     replan_interval: float = 10.0
     retime_on_drift: bool = True
+    earliest_drop_offs: bool = True
 
     def __post_init__(self):
         self.estimator()  # checks the estimator's fields
@@ -69,7 +78,7 @@ class FeedbackParams:
 
 
 OPEN_LOOP = FeedbackParams(learn_travel_times=False, replan_on_delay=False, planning_margin=0.0,
-                           retime_on_drift=False)
+                           retime_on_drift=False, earliest_drop_offs=False)
 
 
 def with_feedback(params_class: type) -> type:

@@ -15,9 +15,10 @@ Items already on board (a robot's ``carrying``) stay with their carrier; their d
 only within the route, by 2-opt. Capacity holds in every route tried.
 """
 
+import dataclasses
 from dataclasses import dataclass
 
-from mrta_drake.allocation.problem import Action, Allocation, AllocationProblem
+from mrta_drake.allocation.problem import FEASIBLE, Action, Allocation, AllocationProblem
 from mrta_drake.errors import InputError
 from mrta_drake.payloads import DROPOFF, PICKUP
 
@@ -55,6 +56,20 @@ def improve(problem: AllocationProblem, allocation: Allocation,
     if improved.rank(problem) < allocation.rank(problem):
         return improved
     return allocation
+
+
+def improve_keeping_verdict(problem: AllocationProblem, allocation: Allocation,
+                            params: LocalSearchParams = LocalSearchParams()) -> Allocation:
+    """``allocation`` with the routes ``improve`` finds, keeping the allocator's status,
+    conflict, note, optimality, solve time and work (local search never adds a late task or
+    tardiness, so what the allocator proved still holds); ``FEASIBLE`` once nothing is
+    late."""
+    improved = improve(problem, allocation, params)
+    if improved is allocation:
+        return allocation
+    status = FEASIBLE if not improved.late_tasks else allocation.status
+    return dataclasses.replace(allocation, routes=improved.routes, times=improved.times,
+                               late_tasks=improved.late_tasks, status=status)
 
 
 class _Routes:

@@ -19,6 +19,7 @@ from pydrake.systems.framework import LeafSystem
 
 from mrta_drake.allocation.drift import DRIFT, find_drift
 from mrta_drake.allocation.feedback_params import OPEN_LOOP, FeedbackParams
+from mrta_drake.allocation.local_search import improve_keeping_verdict
 from mrta_drake.allocation.problem import (
     UNKNOWN,
     Action,
@@ -137,8 +138,10 @@ class TaskAllocator(LeafSystem):
     ``drift.find_drift`` finds a drop-off turned late or moved by more than
     ``drift_margin``, at most ``replan_interval`` after the last allocation (a
     ``ReplanEvent``); with ``retime_on_drift`` a drift that turns nothing late only
-    re-times the plan (same routes, times predicted now, no event). Done and under-way
-    actions are kept as for a batch.
+    re-times the plan (same routes, times predicted now, no event); with
+    ``earliest_drop_offs`` every allocation is improved by local search
+    (``local_search.improve_keeping_verdict``). Done and under-way actions are kept as for
+    a batch.
 
     Args:
         stream: the task batches (``scenario_schema.TaskBatch`` or alike: ``arrival`` s,
@@ -268,6 +271,8 @@ class TaskAllocator(LeafSystem):
         in_service = [r for r in range(len(self._fleet)) if r not in out]
         if in_service:
             allocation = self._allocator.allocate(problem)
+            if feedback.earliest_drop_offs:
+                allocation = improve_keeping_verdict(problem, allocation)
         else:
             allocation = Allocation((), (), UNKNOWN, note="no robot in service")
         routes = dict(zip(in_service, range(len(in_service)), strict=True))

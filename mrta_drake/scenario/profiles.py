@@ -45,6 +45,7 @@ PAPER_SWITCHES = (
     Switch("blocks.allocator.params.append_only", True, "smt"),
     Switch("blocks.allocator.params.learn_travel_times", False, "smt"),
     Switch("blocks.allocator.params.replan_on_delay", False, "smt"),
+    Switch("blocks.allocator.params.earliest_drop_offs", False, "smt"),
     Switch("blocks.allocator.params.defer_hopeless", False, "smt"),
     Switch("blocks.planner.params.cost_resting_robots", False, "grid_astar"),
     Switch("blocks.waypoints.params.door_wait", False, "roadway"),

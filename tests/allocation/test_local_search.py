@@ -1,9 +1,15 @@
 """Local search: never worse than its start, valid, deterministic, and it does improve."""
 
+from dataclasses import replace
+
 import pytest
 
-from mrta_drake.allocation import GreedyAllocator, verify_allocation
-from mrta_drake.allocation.local_search import LocalSearchParams, improve
+from mrta_drake.allocation import INFEASIBLE, GreedyAllocator, verify_allocation
+from mrta_drake.allocation.local_search import (
+    LocalSearchParams,
+    improve,
+    improve_keeping_verdict,
+)
 from mrta_drake.errors import InputError
 from tests.allocation.brute_force import brute_force
 from tests.allocation.test_allocation_random import SEEDS, random_problem
@@ -56,3 +62,16 @@ def test_no_rounds_keeps_the_start():
     problem = tight_problem(0, num_tasks=14, num_robots=3)
     greedy = GreedyAllocator().allocate(problem)
     assert improve(problem, greedy, LocalSearchParams(max_rounds=0)) is greedy
+
+
+def test_improving_keeps_the_allocators_verdict():
+    problem = tight_problem(0, num_tasks=14, num_robots=3)
+    greedy = GreedyAllocator().allocate(problem)
+    proven = replace(greedy, status=INFEASIBLE, conflict=(3, 5), note="proven", work=7)
+    kept = improve_keeping_verdict(problem, proven)
+    improved = improve(problem, greedy)
+    assert improved.late_tasks  # still late: the verdict stands
+    assert (kept.routes, kept.times, kept.late_tasks) == (
+        improved.routes, improved.times, improved.late_tasks)
+    assert (kept.status, kept.conflict, kept.note, kept.work) == (INFEASIBLE, (3, 5), "proven", 7)
+    assert kept.rank(problem) < proven.rank(problem)

@@ -204,3 +204,19 @@ def test_the_open_loop_keeps_a_drifting_plan():
     simulator, allocator, _ = simulate(stream, [0], GreedyAllocator(), 10.0)
     simulator.AdvanceTo(100.0)
     assert [type(event) for event in allocator("events")] == [AllocationEvent]
+
+
+@pytest.mark.parametrize("feedback, drops", [
+    (OPEN_LOOP, {0: 43.0, 1: 54.0}),
+    (replace(OPEN_LOOP, earliest_drop_offs=True), {0: 42.0, 1: 32.0})])
+def test_earliest_drop_offs_hand_a_task_to_the_robot_that_drops_it_first(feedback, drops):
+    # Robot 0 (at 0) takes task A (0 -> 4). Task B (4 -> 3) adds only 12 s to robot 0's
+    # route (picked up on the way at 4, A dropped at 43 s, B at 54 s) but 32 s to idle robot
+    # 1's (at 2: B dropped at 32 s), so cheapest insertion chains it behind A; the local
+    # search hands it to robot 1 and A is dropped at 42 s.
+    stream = (TaskBatch(0.0, (TaskConfig(0, 4, 100.0), TaskConfig(4, 3, 200.0))),)
+    simulator, allocator, _ = simulate(stream, [0, 2], GreedyAllocator(), feedback=feedback)
+    simulator.AdvanceTo(0.5)
+    event = allocator("events")[-1]
+    assert dict(event.predicted) == pytest.approx(drops)
+    assert event.status == FEASIBLE

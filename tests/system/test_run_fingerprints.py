@@ -20,7 +20,8 @@ FINGERPRINTS = {
 
 
 OPEN_LOOP = {"blocks.allocator.params.learn_travel_times": False,
-             "blocks.allocator.params.replan_on_delay": False}
+             "blocks.allocator.params.replan_on_delay": False,
+             "blocks.allocator.params.earliest_drop_offs": False}
 
 
 def run_fingerprint(name: str, overrides: dict) -> str:
