@@ -293,8 +293,9 @@ class Relocations:
 class BackOff:
     """An order of the deadlock watchdog: ``robot`` drives to ``point`` (x, y, world frame,
     m) and stands there, instead of following its target, until ``until`` (s); ordered at
-    ``issued`` (s) to make way for ``blockers`` (robot names; the group stalled since
-    ``stalled_since``, s); ``arrived`` (s) once it reached the spot."""
+    ``issued`` (s) to make way for ``blockers`` (robot names, or people's when it stood
+    with people only; stalled since ``stalled_since``, s); ``arrived`` (s) once it reached
+    the spot."""
 
     robot: str
     point: tuple[float, float]

@@ -113,7 +113,9 @@ class DeadlockWatchdog(LeafSystem):
        ``standstills.back_off_spot`` finds a spot clear of the others' ways is ordered
        there; every member's anchor starts again, so the group gets another
        ``standstill_time`` before the next order. A group with no spot for anyone is tried
-       again at the next update.
+       again at the next update. A stalled robot in no group but with people within
+       ``block_gap`` of it backs off the same way, to a spot off their ways (a person
+       waiting for a robot to pass and the robot waiting for the person).
     4. An order holds until ``yield_time`` after its robot reached its spot (within
        ``progress_distance``), or after the order if it has not reached it by then: then
        it is a miss, and its robot counts as stalled since the order. Robots with fewer
@@ -188,6 +190,15 @@ class DeadlockWatchdog(LeafSystem):
             backing.add(order.robot)
             for k in group:
                 anchors[k] = _restarted(anchors[k], now, self._robots[k] == order.robot)
+        grouped = {k for group in groups for k in group}
+        for k in np.flatnonzero(stalled):
+            if k in grouped or self._robots[k] in backing:
+                continue
+            order = self._make_way_for_people(k, anchors[k], states, context, now, misses)
+            if order is not None:
+                active, history = active + (order,), history + (order,)
+                backing.add(order.robot)
+                anchors[k] = None
         orders = (old.orders if (active, history) == (old.orders.active, old.orders.history)
                   else BackOffOrders(active, history))
         if tuple(anchors) == old.anchors and orders is old.orders and misses == old.misses:
@@ -249,6 +260,48 @@ class DeadlockWatchdog(LeafSystem):
                 return BackOff(self._robots[k], spot, now, now + p.yield_time,
                                tuple(self._robots[j] for j in blockers), since)
         return None
+
+
+    def _make_way_for_people(self, k, anchor, states, context, now, misses
+                             ) -> BackOff | None:
+        """The back-off of robot ``k``, stalled alone with people within ``block_gap`` of
+        it, to a spot off each such person's way (from the person on through where the
+        robot stands, ``search_reach`` long), or None: a person who waits for the robot
+        to pass and a robot that waits for the person would stand there for good."""
+        if not self._humans.HasValue(context):
+            return None
+        humans: HumanStates = self._humans.Eval(context)
+        people = np.asarray(humans.positions).reshape(-1, 2)
+        radii = np.asarray(humans.radii).reshape(-1)
+        xy = states[:, :2]
+        with np.errstate(invalid="ignore"):  # people absent from the run are NaN
+            near = np.flatnonzero(np.linalg.norm(people - xy[k], axis=-1) - radii
+                                  - self._radii[k] <= self._params.block_gap)
+        broken = (self._disturbances.Eval(context).broken
+                  if self._disturbances.HasValue(context) else ())
+        if len(near) == 0 or k in broken:
+            return None
+        p = self._params
+        ways = [(_way_through(people[j], xy[k], p.search_reach), radii[j]) for j in near]
+        missed = np.array([m.point for m in misses if m.robot == self._robots[k]],
+                          dtype=float).reshape(-1, 2)
+        spot = back_off_spot(k, xy, self._radii, ways, people, radii, self._costmap,
+                             p.search_reach, p.spot_clearance, p.wall_clearance,
+                             avoid=missed, avoid_radius=p.progress_distance)
+        if spot is None:
+            return None
+        return BackOff(self._robots[k], spot, now, now + p.yield_time,
+                       tuple(humans.names[j] for j in near), anchor.since)
+
+
+def _way_through(start, through, length: float) -> np.ndarray:
+    """(2, 2) the straight way from ``start`` on through ``through``, ``length`` long
+    (m; just ``start`` and ``through`` when they coincide)."""
+    start, through = np.asarray(start, dtype=float), np.asarray(through, dtype=float)
+    step = through - start
+    norm = float(np.hypot(*step))
+    end = through if norm < 1e-9 else start + step * (length / norm)
+    return np.array([start, end])
 
 
 def _way(xy, target: WaypointTarget) -> np.ndarray:

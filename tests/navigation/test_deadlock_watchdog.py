@@ -23,7 +23,13 @@ from mrta_drake.navigation.standstills import (
     next_anchor,
     yield_order,
 )
-from mrta_drake.payloads import Breakdown, Disturbances, WaypointTarget
+from mrta_drake.payloads import (
+    Breakdown,
+    Disturbances,
+    HumanStates,
+    WaypointTarget,
+    frozen_array,
+)
 from mrta_drake.robots.unicycle_robots import UnicycleRobots
 from mrta_drake.scenario.loading import load_scenario
 from mrta_drake.stack.blocks import resolve_block
@@ -187,20 +193,24 @@ def test_the_paper_profile_turns_the_watchdog_off():
     assert params.enabled is False
 
 
-def _orders_for_robots_that_never_move(duration: float):
-    """The watchdog's orders when two robots stand nose to nose in an open room, each with
-    its goal behind the other, and never move (whatever they are told)."""
+def _orders_for_robots_that_never_move(duration: float, states=(4.7, 0.0, 0.0, 0.0, 5.3,
+                                                                  0.0, math.pi, 0.0),
+                                       goals=((8.0, 0.0), (2.0, 0.0)), people=None):
+    """The watchdog's orders for two robots in an open room that never move (whatever they
+    are told), by default nose to nose, each with its goal behind the other (a goal None:
+    no active target); ``people``: ``HumanStates`` standing there."""
     obstacles = Obstacles((Box("south", (5.0, -4.1), (10.0, 0.2)),
                            Box("north", (5.0, 4.1), (10.0, 0.2))))
     watchdog = DeadlockWatchdog(NAMES, [RADIUS, RADIUS],
                                 Costmap.from_obstacles(obstacles, (0.0, 10.0, -4.0, 4.0)),
                                 rate_hz=2.0)
     context = watchdog.CreateDefaultContext()
-    watchdog.GetInputPort("robot_state").FixValue(
-        context, np.array([4.7, 0.0, 0.0, 0.0, 5.3, 0.0, math.pi, 0.0]))
-    for name, goal in zip(NAMES, [(8.0, 0.0), (2.0, 0.0)], strict=True):
+    watchdog.GetInputPort("robot_state").FixValue(context, np.array(states))
+    for name, goal in zip(NAMES, goals, strict=True):
         watchdog.GetInputPort(f"target_{name}").FixValue(
-            context, WaypointTarget(name, True, goal, None, True))
+            context, WaypointTarget(name, goal is not None, goal, None, True))
+    if people is not None:
+        watchdog.GetInputPort("human_states").FixValue(context, people)
     simulator = Simulator(watchdog, context)
     simulator.AdvanceTo(duration)
     return watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
@@ -228,3 +238,19 @@ def test_no_spot_past_a_blocker_it_would_have_to_slide_along(wall_y, way_out):
     spot = back_off_spot(0, xy, np.full(2, RADIUS), ways, np.zeros((0, 2)), np.zeros(0),
                          costmap, 4.0, 0.3, 0.8)
     assert (spot is not None and spot[0] > 0.6) if way_out else spot is None
+
+
+@pytest.mark.parametrize("with_person", [True, False])
+def test_a_robot_stalled_by_a_person_backs_off_the_persons_way(with_person):
+    # r0 heads east to (8, 0) with a nurse standing 0.6 m ahead, waiting for it; r1 is far
+    # off and idle. The nurse will walk on through where r0 stands: r0 steps off that line.
+    nurse = HumanStates(("nurse",), frozen_array(np.array([[5.6, 0.0]])),
+                        frozen_array(np.zeros((1, 2))), frozen_array(np.array([0.25])))
+    history = _orders_for_robots_that_never_move(
+        duration=20.0, states=(5.0, 0.0, 0.0, 0.0, 1.0, 3.0, 0.0, 0.0),
+        goals=((8.0, 0.0), None), people=nurse if with_person else None)
+    if not with_person:
+        assert history == ()  # standing alone is no standstill to resolve
+        return
+    assert [(order.robot, order.blockers) for order in history] == [("r0", ("nurse",))]
+    assert abs(history[0].point[1]) >= RADIUS + 0.25 + WatchdogParams().spot_clearance
