@@ -40,7 +40,7 @@ class WatchdogParams:
     (surface to surface). The robot chosen to yield drives to the nearest spot within
     ``search_reach`` at least ``spot_clearance`` from every other robot and person and from
     its blockers' ways to their targets, its centre ``wall_clearance`` from walls, and
-    stands there for ``yield_time``. An order *missed* when its robot did not reach the
+    stands there for ``yield_time``. An order is *missed* when its robot did not reach the
     spot in that time; for ``retry_window`` after a miss, the robot is asked to yield only
     after robots that missed fewer orders, and never to a spot within
     ``progress_distance`` of the one it missed. ``enabled`` off: no watchdog in the diagram
