@@ -40,7 +40,8 @@ class WatchdogParams:
     (surface to surface). The robot chosen to yield drives to the nearest spot within
     ``search_reach`` at least ``spot_clearance`` from every other robot and person and from
     its blockers' ways to their targets, its centre ``wall_clearance`` from walls, and
-    stands there for ``yield_time``. An order is *missed* when its robot did not reach the
+    stands there for ``yield_time``; never to a spot within ``progress_distance`` of where
+    it stands (that makes no way). An order is *missed* when its robot did not reach the
     spot in that time; for ``retry_window`` after a miss, the robot is asked to yield only
     after robots that missed fewer orders, and never to a spot within
     ``progress_distance`` of the one it missed. ``enabled`` off: no watchdog in the diagram
@@ -242,8 +243,7 @@ class DeadlockWatchdog(LeafSystem):
         stalled_here = [k for k in group if stalled[k]]
         broken = (self._disturbances.Eval(context).broken
                   if self._disturbances.HasValue(context) else ())
-        missed_spots = {k: np.array([m.point for m in misses if m.robot == self._robots[k]],
-                                    dtype=float).reshape(-1, 2) for k in group}
+        missed_spots = {k: self._spots_to_avoid(k, xy[k], misses) for k in group}
         for k in sorted(yield_order(group, idle, stalled, self._priorities),
                         key=lambda k: len(missed_spots[k])):
             if stalled_here == [k] or k in broken:
@@ -261,6 +261,12 @@ class DeadlockWatchdog(LeafSystem):
                                tuple(self._robots[j] for j in blockers), since)
         return None
 
+
+    def _spots_to_avoid(self, k: int, xy, misses: tuple[BackOff, ...]) -> np.ndarray:
+        """(M, 2) where robot ``k`` at ``xy`` must not be sent: where it stands (that makes
+        no way) and the spots it missed."""
+        return np.array([xy] + [m.point for m in misses if m.robot == self._robots[k]],
+                        dtype=float).reshape(-1, 2)
 
     def _make_way_for_people(self, k, anchor, states, context, now, misses
                              ) -> BackOff | None:
@@ -283,11 +289,10 @@ class DeadlockWatchdog(LeafSystem):
             return None
         p = self._params
         ways = [(_way_through(people[j], xy[k], p.search_reach), radii[j]) for j in near]
-        missed = np.array([m.point for m in misses if m.robot == self._robots[k]],
-                          dtype=float).reshape(-1, 2)
         spot = back_off_spot(k, xy, self._radii, ways, people, radii, self._costmap,
                              p.search_reach, p.spot_clearance, p.wall_clearance,
-                             avoid=missed, avoid_radius=p.progress_distance)
+                             avoid=self._spots_to_avoid(k, xy[k], misses),
+                             avoid_radius=p.progress_distance)
         if spot is None:
             return None
         return BackOff(self._robots[k], spot, now, now + p.yield_time,

@@ -254,3 +254,13 @@ def test_a_robot_stalled_by_a_person_backs_off_the_persons_way(with_person):
         return
     assert [(order.robot, order.blockers) for order in history] == [("r0", ("nurse",))]
     assert abs(history[0].point[1]) >= RADIUS + 0.25 + WatchdogParams().spot_clearance
+
+
+def test_a_robot_is_never_sent_to_where_it_stands():
+    # r1, idle, stands just behind r0 and already clear of r0's way east: the nearest spot
+    # clear of it is where r1 stands, which makes no way; it is sent farther.
+    history = _orders_for_robots_that_never_move(
+        duration=20.0, states=(5.0, 0.0, 0.0, 0.0, 4.45, 0.55, 0.0, 0.0),
+        goals=((8.0, 0.0), None))
+    assert history[0].robot == "r1"
+    assert math.dist(history[0].point, (4.45, 0.55)) > WatchdogParams().progress_distance
