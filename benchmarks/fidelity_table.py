@@ -94,14 +94,14 @@ def main() -> None:
     parser.add_argument("out", type=pathlib.Path, help="folder for the sweeps and the JSON")
     parser.add_argument("--workers", type=int, default=2, help="processes (default 2)")
     parser.add_argument("--only", nargs="+", metavar="NAME",
-                        help="run only these configurations (default: all)")
+                        help="run only these configurations, in this order (default: all)")
     args = parser.parse_args()
     chosen = configurations()
     unknown = set(args.only or ()) - set(chosen)
     if unknown:
         parser.error(f"unknown configuration(s) {sorted(unknown)}; one of {sorted(chosen)}")
     if args.only:
-        chosen = {name: fields for name, fields in chosen.items() if name in args.only}
+        chosen = {name: chosen[name] for name in args.only}
     table = args.out / "fidelity.json"
     results = json.loads(table.read_text())["configurations"] if table.exists() else {}
     for name, fields in chosen.items():
