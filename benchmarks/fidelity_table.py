@@ -13,7 +13,7 @@ robot-robot / robot-wall / robot-human (m, over the runs), the CBF slack-in-use 
 summed: the time some barrier row was relaxed) and the CPU time (s, summed).
 
     nice -n 5 python benchmarks/fidelity_table.py OUT --workers 2
-    python benchmarks/fidelity_table.py OUT --only defaults door_wait   # some configurations
+    python benchmarks/fidelity_table.py OUT --only defaults waypoints.door_wait   # these alone
 """
 
 import argparse
@@ -34,10 +34,16 @@ HEADER = ("| configuration | runs | done / on time / released | deadlock episode
 
 def configurations() -> dict[str, dict]:
     """Configuration name -> the scenario fields it sets: the defaults, each switch alone
-    (named by its field's last part) and the paper profile."""
-    switches = {switch.field.rsplit(".", 1)[-1]: {switch.field: switch.value}
+    (named by its field without ``blocks.`` and ``params.``, e.g. ``watchdog.enabled``) and
+    the paper profile."""
+    switches = {short_name(switch.field): {switch.field: switch.value}
                 for switch in PAPER_SWITCHES}
     return {"defaults": {}, **switches, "profile_paper": {"profile": "paper"}}
+
+
+def short_name(field: str) -> str:
+    """A scenario field's name without ``blocks.`` and ``.params``."""
+    return field.removeprefix("blocks.").replace(".params.", ".")
 
 
 def run_configuration(fields: dict, out: pathlib.Path, workers: int) -> list[dict]:
@@ -71,7 +77,7 @@ def figures(summaries: list[dict]) -> dict:
 
 def row(name: str, fields: dict, result: dict) -> str:
     """One Markdown row of the table."""
-    label = ", ".join(f"`{key.rsplit('.', 1)[-1]}: {value}`" for key, value in fields.items())
+    label = ", ".join(f"`{short_name(key)}: {value}`" for key, value in fields.items())
     contacts = " / ".join(str(n) for n in result["contacts"].values())
     clearances = " / ".join(f"{d:.2f}" for d in result["min_clearance"].values())
     return (f"| {label or name} | {result['runs']} | {result['completed']} / "
