@@ -3,8 +3,9 @@
 Runs the fidelity sweep (``scenarios/sweeps/hospital_fidelity_seeds.yaml``: the busy
 six-robot hospital, seeds 300-319, 300 s) once with this project's defaults, once per
 switch of ``profile: paper`` with that switch alone at the paper's value, and once with
-``profile: paper`` (every switch), each into ``OUT/<configuration>/`` (a sweep folder: runs
-already done are reused, so a stopped run resumes). Then writes ``OUT/fidelity.json`` (per
+``profile: paper`` (every switch), each into ``RUNS/<configuration>/`` (a sweep folder: runs
+already done are reused, so a stopped run resumes; default
+``benchmarks/results/fidelity_runs``). Then writes ``benchmarks/results/fidelity.json`` (per
 configuration its fields, the commit measured and its figures; configurations measured
 before are kept) and prints one Markdown row per
 configuration, over the seeds: tasks done / on time / released (summed), deadlock episodes
@@ -12,8 +13,8 @@ configuration, over the seeds: tasks done / on time / released (summed), deadloc
 robot-robot / robot-wall / robot-human (m, over the runs), the CBF slack-in-use time (s,
 summed: the time some barrier row was relaxed) and the CPU time (s, summed).
 
-    nice -n 5 python benchmarks/fidelity_table.py OUT --workers 2
-    python benchmarks/fidelity_table.py OUT --only defaults waypoints.door_wait   # these alone
+    nice -n 5 python benchmarks/fidelity_table.py [--runs RUNS] [--workers 2]
+    python benchmarks/fidelity_table.py --only defaults waypoints.door_wait   # these alone
 """
 
 import argparse
@@ -27,6 +28,7 @@ from mrta_drake.tools.sweep import load_sweep, run_sweep
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 SPEC = ROOT / "scenarios/sweeps/hospital_fidelity_seeds.yaml"
+RESULTS = ROOT / "benchmarks" / "results"
 HEADER = ("| configuration | runs | done / on time / released | deadlock episodes | "
           "contacts r-r / r-wall / r-human | min clearance r-r / r-wall / r-human (m) | "
           "slack in use (s) | CPU (s) |\n|---|---|---|---|---|---|---|---|")
@@ -46,16 +48,18 @@ def short_name(field: str) -> str:
     return field.removeprefix("blocks.").replace(".params.", ".")
 
 
-def run_configuration(fields: dict, out: pathlib.Path, workers: int) -> list[dict]:
+def run_configuration(fields: dict, out: pathlib.Path, workers: int) -> tuple[list[dict], int]:
     """The fidelity sweep with ``fields`` set in every run (into ``out``): its summaries
-    (the runs that failed are left out and reported)."""
+    (the runs that failed are left out and reported) and how many runs it made (not
+    reused)."""
     spec = load_sweep(str(SPEC))
     spec = dataclasses.replace(spec, fixed=spec.fixed | fields)
     result = run_sweep(spec, str(out), workers=workers)
     for row in result.rows:
         if row["status"] != "ok":
             print(f"{out.name}: seed {row['seed']} failed: {row['error']}")
-    return [json.loads(path.read_text()) for path in sorted(out.glob("runs/*/summary.json"))]
+    summaries = [json.loads(path.read_text()) for path in sorted(out.glob("runs/*/summary.json"))]
+    return summaries, result.ran
 
 
 def figures(summaries: list[dict]) -> dict:
@@ -77,7 +81,7 @@ def figures(summaries: list[dict]) -> dict:
 
 def row(name: str, fields: dict, result: dict) -> str:
     """One Markdown row of the table."""
-    label = ", ".join(f"`{short_name(key)}: {value}`" for key, value in fields.items())
+    label = ", ".join(f"`{short_name(key)}: {_as_yaml(value)}`" for key, value in fields.items())
     contacts = " / ".join(str(n) for n in result["contacts"].values())
     clearances = " / ".join(f"{d:.2f}" for d in result["min_clearance"].values())
     return (f"| {label or name} | {result['runs']} | {result['completed']} / "
@@ -86,8 +90,13 @@ def row(name: str, fields: dict, result: dict) -> str:
             f"{result['cpu_time']:.0f} |")
 
 
+def _as_yaml(value) -> str:
+    """A switch's value as YAML writes it (``false``, not ``False``)."""
+    return json.dumps(value) if isinstance(value, bool) else str(value)
+
+
 def commit() -> str:
-    """The commit measured (with ``+changes`` when the work tree differs from it)."""
+    """The commit checked out (with ``+changes`` when the work tree differs from it)."""
     def git(*args):
         return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True,
                               check=True).stdout.strip()
@@ -97,7 +106,10 @@ def commit() -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("out", type=pathlib.Path, help="folder for the sweeps and the JSON")
+    parser.add_argument("--runs", type=pathlib.Path, default=RESULTS / "fidelity_runs",
+                        help="folder for the sweeps (default benchmarks/results/fidelity_runs)")
+    parser.add_argument("--json", type=pathlib.Path, default=RESULTS / "fidelity.json",
+                        help="the figures (default benchmarks/results/fidelity.json)")
     parser.add_argument("--workers", type=int, default=2, help="processes (default 2)")
     parser.add_argument("--only", nargs="+", metavar="NAME",
                         help="run only these configurations, in this order (default: all)")
@@ -108,11 +120,12 @@ def main() -> None:
         parser.error(f"unknown configuration(s) {sorted(unknown)}; one of {sorted(chosen)}")
     if args.only:
         chosen = {name: chosen[name] for name in args.only}
-    table = args.out / "fidelity.json"
+    table = args.json
     results = json.loads(table.read_text())["configurations"] if table.exists() else {}
     for name, fields in chosen.items():
-        summaries = run_configuration(fields, args.out / name, args.workers)
-        results[name] = {"fields": fields, "commit": commit(), **figures(summaries)}
+        summaries, ran = run_configuration(fields, args.runs / name, args.workers)
+        measured = commit() if ran or name not in results else results[name]["commit"]
+        results[name] = {"fields": fields, "commit": measured, **figures(summaries)}
         table.write_text(json.dumps({"spec": str(SPEC.relative_to(ROOT)),
                                      "configurations": results}, indent=2))
     print(f"{table}; commits {sorted({r['commit'] for r in results.values()})}")
