@@ -48,7 +48,8 @@ class CoordinationParams:
     ``arrival_radius`` (m): a robot this near the end of its stop-at-end path is done and
     leads no cluster (a queue slot or room point too near a wall can be unreachable by a few
     centimetres). A robot stands when its |v| < ``stall_speed`` (m/s): a cluster leader
-    standing ``stall_time`` s while active passes the lead on (``clusters.stall_times_of``),
+    standing ``stall_time`` s while active passes the lead on (``clusters.stall_times_of``;
+    not with ``stalled_leader_hands_on`` off, as in the paper),
     and a standing robot blocked by a barrier turns along it (``steering``).
     """
 
@@ -61,6 +62,7 @@ class CoordinationParams:
     arrival_radius: float = 0.5
     stall_time: float = 3.0
     stall_speed: float = 0.05
+    stalled_leader_hands_on: bool = True
 
     def __post_init__(self):
         require_choice(self, "mode", COORDINATION_MODES)

@@ -228,8 +228,7 @@ class ClusterCbfController(LeafSystem):
         robots = TickRobots(
             states, np.ascontiguousarray(shared, dtype=float),
             np.ascontiguousarray(self._rule(self._priorities, distances), dtype=float),
-            active, np.zeros(n, dtype=bool) if stall_times is None
-            else np.asarray(stall_times) >= p.coordination.stall_time, ~alone, slowed)
+            active, self._stalled(stall_times), ~alone, slowed)
         hits, mask = self._rays(states)
         if d.blockages:
             hits, mask = rays_with_blockages(states, hits, mask, d.blockages, p.sensing)
@@ -275,6 +274,15 @@ class ClusterCbfController(LeafSystem):
             return None
         views = {i: d.seen_by(states, i) for i in d.cut_off}
         return [np.delete(views.get(group[0], shared), list(group), axis=0) for group in groups]
+
+    def _stalled(self, stall_times) -> np.ndarray:
+        """(N,) whether each robot has stood ``stall_time`` as a blocked leader and so hands
+        the lead on (never with ``stalled_leader_hands_on`` off; ``stall_times`` None: none
+        has)."""
+        c = self._params.coordination
+        if stall_times is None or not c.stalled_leader_hands_on:
+            return np.zeros(self._n, dtype=bool)
+        return np.asarray(stall_times) >= c.stall_time
 
     def _path_arrays(self, paths: FleetPaths) -> PathArrays:
         # Paths change at the planner's rate, not every tick; payloads are immutable, so the

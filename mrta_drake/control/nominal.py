@@ -20,7 +20,8 @@ Beyond the paper:
 - with ``stop_at_end`` the desired speed is capped by the braking profile
   ``sqrt(2 brake_accel s)`` (s: remaining path length) with its deceleration fed forward, and
   the robot brakes once within ``goal_tolerance`` of the end: it comes to rest on the end
-  (within ~1 cm with the default robots) instead of overshooting and circling it;
+  (within ~1 cm with the default robots) instead of overshooting and circling it
+  (``braking_profile``; off, the desired speed is the paper's ``min(k_x dist, max_speed)``);
 - passing (``pass_offset`` > 0): when a body (another robot, a human) stands in the lane to
   the local goal (within ``pass_clearance`` of the line, closer than ``pass_range`` and before
   the path end), the robot heads for the point ``pass_offset`` to the right of the nearest such
@@ -69,6 +70,7 @@ class NominalParams:
     pass_range: float = 4.0  # m, how far ahead bodies are checked
     heading_speed_factor: bool = False  # desired speed x cos(heading error), as in the paper
     corner_steering: bool = True  # a standing robot blocked by a barrier turns along it
+    braking_profile: bool = True  # cap the speed to stop at a path end (not in the paper)
 
     def __post_init__(self):
         require_positive(self, "k_x", "k_v", "k_theta", "lookahead", "heading_gate",
@@ -87,7 +89,7 @@ class NominalParams:
                          self.heading_gate_cluster, self.max_speed, self.k_slow,
                          self.slow_accel, self.goal_tolerance, self.brake_accel,
                          self.pass_offset, self.pass_clearance, self.pass_range,
-                         float(self.heading_speed_factor)])
+                         float(self.heading_speed_factor), float(self.braking_profile)])
 
 
 def slow_down(speed, params: NominalParams) -> np.ndarray:
@@ -152,7 +154,7 @@ def slow_down_input(speed, gains):
 # Indices into ``NominalParams.gains``.
 (_K_X, _K_V, _K_THETA, _LOOKAHEAD, _GATE, _GATE_CLUSTER, _MAX_SPEED, _K_SLOW, _SLOW_ACCEL,
  _GOAL_TOLERANCE, _BRAKE_ACCEL, _PASS_OFFSET, _PASS_CLEARANCE, _PASS_RANGE,
- _HEADING_SPEED_FACTOR) = range(15)
+ _HEADING_SPEED_FACTOR, _BRAKING_PROFILE) = range(16)
 
 
 @compiled_helper
@@ -258,7 +260,7 @@ def _track(x, y, theta, v, gx, gy, is_end, has_stop, remaining, heading_gate, ga
         return slow_down_input(v, gains)
     heading_error = wrap_angle(math.atan2(dy, dx) - theta)
     v_des, feedforward = min(gains[_K_X] * dist, gains[_MAX_SPEED]), 0.0
-    if has_stop:
+    if has_stop and gains[_BRAKING_PROFILE] > 0.0:
         # The braking profile to the stop; it governs the final approach, where k_x dist
         # would ask for more than max_accel. Its deceleration is fed forward so the speed
         # does not lag behind it.

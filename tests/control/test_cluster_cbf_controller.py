@@ -190,6 +190,33 @@ def test_heading_speed_factor_scales_the_desired_speed_by_cos_heading_error():
     assert scaled[1] == plain[1]
 
 
+def test_without_the_braking_profile_the_desired_speed_is_k_x_dist_to_the_end():
+    # 0.4 m before the end of a stop-at-end path at 1 m/s, the end is the local goal: the
+    # braking profile sets the desired speed sqrt(2 brake_accel 0.4 m) and feeds its
+    # deceleration forward; the paper's nominal asks for k_x 0.4 m alone.
+    path = RobotPath("r", PATH_OK, frozen_array([[0.0, 0.0], [0.4, 0.0]]), stop_at_end=True)
+    state = np.array([0.0, 0.0, 0.0, 1.0])
+    params = NominalParams()
+    braked = nominal_control(state, path, params)
+    plain = nominal_control(state, path, NominalParams(braking_profile=False))
+    v_stop = math.sqrt(2.0 * params.brake_accel * 0.4)
+    assert braked[0] == pytest.approx(params.k_v * (v_stop - 1.0) - params.brake_accel)
+    assert plain[0] == pytest.approx(params.k_v * (params.k_x * 0.4 - 1.0))
+
+
+@pytest.mark.parametrize("hands_on", [True, False])
+def test_a_stalled_leader_hands_the_lead_on_only_with_the_switch(hands_on):
+    # Two robots 1 m apart in one cluster, both with somewhere to go; robot 0 leads by
+    # priority and has stood 3 s (the stall time) as the blocked leader.
+    params = CbfParams(coordination=CoordinationParams(stalled_leader_hands_on=hands_on))
+    controller = ClusterCbfController(["r0", "r1"], None, params, rate_hz=20.0)
+    states = np.array([[0.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]])
+    fleet = FleetPaths(tuple(RobotPath(name, PATH_OK, frozen_array([[x, 0.0], [x, 5.0]]))
+                             for name, x in (("r0", 0.0), ("r1", 1.0))))
+    plan = controller.plan(states, fleet, stall_times=np.array([3.0, 0.0]))
+    assert plan.clusters == (((1, 0),) if hands_on else ((0, 1),))
+
+
 @pytest.mark.parametrize("start,velocity", [((5.0, -5.0), (0.0, 1.0)),
                                             ((5.0, -3.0), (0.0, 0.5)),
                                             ((4.0, 2.0), (0.0, -0.8))])
