@@ -8,7 +8,10 @@ s), the number of robots and the run's duration (s):
    (``LEG_SHARE``), so that the leg to its pickup and a wait for the task before it fit
    too, and the last batch (2.) can still arrive after 0 s. The task locations used are
    the largest set whose legs both ways all fit (a building whose locations are far
-   apart, e.g. a campus, uses a neighbourhood of them);
+   apart, e.g. a campus, uses a neighbourhood of them); with several levels, the set
+   spanning the most levels first, so that tasks ride the lifts (a clinic whose levels are
+   far apart through its lifts would otherwise keep its tasks on one level), and each
+   level as likely as the next to hold a pickup or a drop-off;
    fewer than two: the run is too short for this building (``InputError``).
 2. **When**: a task takes at most ``2 x longest leg + 2 x service time`` (to the pickup,
    then to the drop-off) among those locations, ``2 x mean leg + 2 x service time`` on
@@ -24,6 +27,7 @@ The tasks themselves stay a seeded draw (``tasks.generate`` with the scenario's 
 """
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import networkx as nx
@@ -39,23 +43,29 @@ BATCH_SIZE = (1, 2)  # tasks per batch, uniform
 @dataclass(frozen=True)
 class StreamSize:
     """A servable stream: batches arriving at ``times`` (s), before ``end`` (s), between
-    the task locations ``locations`` (indices into the travel-time matrix); ``names``:
-    theirs, given by the caller when they are not all of them."""
+    the task locations ``locations`` (indices into the travel-time matrix), each drawn as
+    a pickup or drop-off with its weight in ``weights`` (each level of the building alike:
+    1 / the locations used on its level); ``names``: theirs, given by the caller when they
+    are not all of them or not all alike."""
 
     times: tuple[float, ...]
     end: float
     locations: tuple[int, ...]
+    weights: tuple[float, ...]
     names: tuple[str, ...] = ()
 
 
 def size_stream(times: np.ndarray, robots: int, duration: float, service_time: float,
-                source: str | None = None) -> StreamSize:
+                source: str | None = None, levels: Sequence[str] | None = None
+                ) -> StreamSize:
     """The stream for ``robots`` robots over ``duration`` s given the travel times
-    ``times`` (n, n) s between task locations (module docstring); ``source`` names the
-    building in errors."""
+    ``times`` (n, n) s between task locations (module docstring); ``levels``: each
+    location's level, when the building has several; ``source`` names the building in
+    errors."""
     times = np.asarray(times, dtype=float)
     limit = LEG_SHARE * duration
-    chosen = _largest_neighbourhood(times, limit)
+    levels = levels or [""] * len(times)
+    chosen = _largest_neighbourhood(times, limit, levels)
     if len(chosen) < 2:
         raise InputError(source, "--duration", f"{duration:g} s is too short for tasks in "
                          f"this building: no two task locations are within {limit:g} s of "
@@ -71,23 +81,27 @@ def size_stream(times: np.ndarray, robots: int, duration: float, service_time: f
     batches = max(1, math.floor(UTILISATION * robots * (duration - longest_task)
                                 / (mean_task * 0.5 * sum(BATCH_SIZE))))
     times = tuple(float(math.floor(end * k / max(1, batches - 1))) for k in range(batches))
-    return StreamSize(times=times, end=float(end), locations=tuple(chosen))
+    used = [levels[i] for i in chosen]
+    weights = tuple(round(1.0 / used.count(level), 6) for level in used)
+    return StreamSize(times=times, end=float(end), locations=tuple(chosen), weights=weights)
 
 
-def _largest_neighbourhood(times: np.ndarray, limit: float) -> list[int]:
-    """The largest set of locations whose legs both ways take at most ``limit`` s (ties:
-    the one with the shortest legs, then the lowest indices)."""
+def _largest_neighbourhood(times: np.ndarray, limit: float, levels: Sequence[str]
+                           ) -> list[int]:
+    """Of the sets of locations whose legs both ways take at most ``limit`` s, the one
+    spanning the most ``levels`` (one per location), then the largest (ties: the one with
+    the shortest legs, then the lowest indices)."""
     n = len(times)
     near = nx.Graph()
     near.add_nodes_from(range(n))
     near.add_edges_from((i, j) for i in range(n) for j in range(i + 1, n)
                         if max(times[i, j], times[j, i]) <= limit)
     best: list[int] = []
-    best_key = (0, -math.inf)
+    best_key = (0, 0, -math.inf)
     for clique in nx.find_cliques(near):
         clique = sorted(clique)
         total = sum(times[i, j] for i in clique for j in clique)
-        key = (len(clique), -total)
+        key = (len({levels[i] for i in clique}), len(clique), -total)
         if key > best_key or (key == best_key and clique < best):
             best, best_key = clique, key
     return best

@@ -170,14 +170,17 @@ def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: Floor
 
 
 def servable_stream(roadways: RoadwaysConfig, locations: list[LocationConfig],
-                    options: ImportOptions, robots: int, source: str) -> StreamSize:
+                    options: ImportOptions, robots: int, source: str,
+                    levels: list[str] | None = None) -> StreamSize:
     """The task stream ``robots`` robots can serve in ``options.duration`` between
-    ``locations`` on ``roadways`` (``scenario.stream_sizing``), from the allocator's default
-    estimate of the travel times (lift rides included)."""
+    ``locations`` (on ``levels``, one per location, when several) on ``roadways``
+    (``scenario.stream_sizing``), from the allocator's default estimate of the travel
+    times (lift rides included)."""
     tasks = TasksConfig()
     estimate = Roadways(roadways, locations, source).travel_time_estimate(tasks.estimate_speed)
-    stream = size_stream(estimate, robots, options.duration, tasks.service_time, source)
-    if len(stream.locations) == len(locations):
+    stream = size_stream(estimate, robots, options.duration, tasks.service_time, source,
+                         levels)
+    if len(stream.locations) == len(locations) and len(set(stream.weights)) == 1:
         return stream
     return dataclasses.replace(stream, names=tuple(locations[i].name
                                                    for i in stream.locations))
@@ -301,9 +304,9 @@ def _generate(options: ImportOptions, robots: int, stream: StreamSize | None) ->
                 "batch_size": [1, 2], "slack": [2.0, 4.0]}
     block = {"times": list(stream.times), "batch_size": list(BATCH_SIZE),
              "slack": [2.0, 4.0]}
-    if stream.names:  # a neighbourhood of the task locations
-        block["pickup_weights"] = dict.fromkeys(stream.names, 1.0)
-        block["dropoff_weights"] = dict.fromkeys(stream.names, 1.0)
+    if stream.names:  # a neighbourhood of the task locations, or levels made alike
+        block["pickup_weights"] = dict(zip(stream.names, stream.weights))
+        block["dropoff_weights"] = dict(zip(stream.names, stream.weights))
     return block
 
 

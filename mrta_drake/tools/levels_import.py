@@ -64,7 +64,8 @@ def write_all_levels(building: Building, out_dir: str, options: ImportOptions,
     roadways = _write_navigation(os.path.join(out_dir, "navigation.yaml"), building,
                                  options.graph, levels)
     scenario = os.path.join(out_dir, "scenario.yaml")
-    stream = servable_stream(roadways, levels.locations, options, len(starts), building.source)
+    stream = servable_stream(roadways, levels.locations, options, len(starts), building.source,
+                             [levels.layout.level_of(loc.point[:2]) for loc in levels.locations])
     write_scenario(scenario, os.path.basename(building.source), "", options,
                     [[round(float(v), 3) for v in s] for s in starts], humans,
                     wall_safety(levels.roadways, levels.floor_plan), stream)

@@ -41,3 +41,17 @@ def test_too_short_a_run_is_one_line():
     assert str(error.value).startswith("far.building.yaml: --duration: ")
     with pytest.raises(InputError, match="and a mean task"):  # long services
         size_stream(uniform(3, 12.0), robots=2, duration=60.0, service_time=10.0)
+
+
+def test_several_levels_span_the_most_levels_alike():
+    # Four locations near each other on L1, one on L2 that only two of them reach in time
+    # (through a lift): the stream spans both levels, each level alike.
+    points = np.array([[0, 0], [10, 0], [0, 10], [10, 10], [80, 0]], dtype=float)
+    times = np.linalg.norm(points[:, None] - points[None], axis=-1) / 0.6
+    levels = ["L1", "L1", "L1", "L1", "L2"]
+    one_level = size_stream(times, robots=6, duration=600.0, service_time=1.0)
+    assert one_level.locations == (0, 1, 2, 3)
+    assert one_level.weights == (0.25,) * 4
+    stream = size_stream(times, robots=6, duration=600.0, service_time=1.0, levels=levels)
+    assert stream.locations == (1, 3, 4)
+    assert stream.weights == (0.5, 0.5, 1.0)
