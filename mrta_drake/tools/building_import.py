@@ -305,8 +305,8 @@ def _generate(options: ImportOptions, robots: int, stream: StreamSize | None) ->
     block = {"times": list(stream.times), "batch_size": list(BATCH_SIZE),
              "slack": [2.0, 4.0]}
     if stream.names:  # a neighbourhood of the task locations, or levels made alike
-        block["pickup_weights"] = dict(zip(stream.names, stream.weights))
-        block["dropoff_weights"] = dict(zip(stream.names, stream.weights))
+        block["pickup_weights"] = dict(zip(stream.names, stream.weights, strict=True))
+        block["dropoff_weights"] = dict(zip(stream.names, stream.weights, strict=True))
     return block
 
 
