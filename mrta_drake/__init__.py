@@ -19,6 +19,8 @@ _PUBLIC = {
     "GreedyAllocator": "mrta_drake.allocation",
     "TaskAllocator": "mrta_drake.allocation.task_allocator",
     "FixedSequenceAllocator": "mrta_drake.allocation.fixed_sequence_allocator",
+    "FleetWaypoints": "mrta_drake.navigation.waypoint_generator",
+    "WaypointPolicy": "mrta_drake.navigation.waypoint_generator",
     "WaypointGenerator": "mrta_drake.navigation.waypoint_generator",
     "RoomQueues": "mrta_drake.navigation.room_queues",
     "PlannerService": "mrta_drake.navigation.planner_service",

@@ -119,7 +119,7 @@ class RobotProgress:
 
 
 class RobotMode(IntEnum):
-    """What a robot is doing. A ``WaypointGenerator`` takes each stop through these phases;
+    """What a robot is doing. A ``WaypointPolicy`` takes each stop through these phases;
     a ``RunRecorder`` infers one of the first four for each robot at each sample from the
     ports (its ``mode_array``), so it counts a robot entering a room as ``DRIVE`` and one
     parking or waiting as ``IDLE``."""

@@ -8,7 +8,7 @@ your own:
    it (a bad field is one clear ``InputError`` line naming file, field and value).
 2. ``add_stack(builder, scenario)`` adds the world (a ``MultibodyPlant`` + ``SceneGraph``
    holding the hospital, robots and people) and every block of the scenario to your
-   ``DiagramBuilder`` as named subsystems (``allocator``, ``waypoints_<robot>``,
+   ``DiagramBuilder`` as named subsystems (``allocator``, ``waypoints``,
    ``room_queues``, ``planner``, ``controller``, ``robots``, ``humans``, ``recorder``) and
    connects them. It returns a ``Stack``: handles to each block.
 3. Before ``builder.Build()`` you may add and connect anything. Here: ``SpeedMonitor``, a

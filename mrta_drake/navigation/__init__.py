@@ -1,2 +1,3 @@
 """Navigation: one-way roadways, the costmap and grid planner, and the blocks that use them
-(``PlannerService``, ``WaypointGenerator``, ``RoomQueues``)."""
+(``PlannerService``, ``FleetWaypoints`` and its ``WaypointPolicy`` per robot,
+``RoomQueues``)."""

@@ -1,4 +1,4 @@
-"""Turns one robot's plan into waypoints: roadway legs, room queues, entries and service."""
+"""Turns each robot's plan into waypoints: roadway legs, room queues, entries and service."""
 
 import math
 from collections.abc import Sequence
@@ -95,26 +95,77 @@ class _Outputs:
     lift_request: LiftRequest
 
 
-class _Robots:
-    """The robots' states read from the ``robot_state`` port when first needed (a parked
-    or idle robot's update mostly needs none): ``states`` (N, 4) ``[x, y, theta, v]`` and
-    ``xy``, robot ``index``'s position; world frame, m."""
+class WaypointInputs:
+    """What the waypoint policies read at one update, read once for all of them: the time
+    ``t`` (s), ``plan`` (``FleetPlan``), ``queues`` (``QueueState``), ``disturbances``
+    (``Disturbances``), and, read from their ports only when first needed (a parked or idle
+    robot's update mostly needs neither), ``states``: (N, 4) ``[x, y, theta, v]`` per robot
+    in ``robot_names`` order (world frame, m, rad, m/s), and ``lifts`` (``LiftState``)."""
 
-    def __init__(self, port, context, index: int):
-        self._port, self._context, self._index = port, context, index
+    def __init__(self, ports: "_InputPorts", context):
+        self._ports, self._context = ports, context
+        self.t = context.get_time()
+        self.plan = ports.plan.Eval(context)
+        self.queues = ports.queue_state.Eval(context)
+        self.disturbances = (ports.disturbances.Eval(context)
+                             if ports.disturbances.HasValue(context) else NO_DISTURBANCES)
         self._states: np.ndarray | None = None
-        self._xy: tuple[float, float] | None = None
+        self._lifts: LiftState | None = None
 
     @property
     def states(self) -> np.ndarray:
         if self._states is None:
-            self._states = self._port.Eval(self._context).reshape(-1, ROBOT_STATE_SIZE)
+            self._states = self._ports.robot_state.Eval(self._context).reshape(
+                -1, ROBOT_STATE_SIZE)
         return self._states
+
+    @property
+    def lifts(self) -> LiftState:
+        if self._lifts is None:
+            port = self._ports.lift_state
+            self._lifts = port.Eval(self._context) if port.HasValue(self._context) \
+                else LiftState()
+        return self._lifts
+
+
+@dataclass(frozen=True)
+class _InputPorts:
+    """The input ports of a waypoints system (``_declare_inputs``)."""
+
+    plan: object
+    robot_state: object
+    queue_state: object
+    lift_state: object
+    disturbances: object
+
+
+def _declare_inputs(system: LeafSystem, robots: int) -> _InputPorts:
+    """Declares the waypoints inputs ``plan``, ``robot_state`` (4 x ``robots``),
+    ``queue_state``, ``lift_state`` and ``disturbances`` on ``system``."""
+    return _InputPorts(
+        system.DeclareAbstractInputPort("plan", Value[object](FleetPlan(()))),
+        system.DeclareVectorInputPort("robot_state", BasicVector(ROBOT_STATE_SIZE * robots)),
+        system.DeclareAbstractInputPort("queue_state", Value[object](QueueState())),
+        system.DeclareAbstractInputPort("lift_state", Value[object](LiftState())),
+        system.DeclareAbstractInputPort("disturbances", Value[object](Disturbances())))
+
+
+class _Robots:
+    """The fleet's ``states`` (from ``WaypointInputs``) and ``xy``, robot ``index``'s
+    position (world frame, m), read when first needed."""
+
+    def __init__(self, inputs: WaypointInputs, index: int):
+        self._inputs, self._index = inputs, index
+        self._xy: tuple[float, float] | None = None
+
+    @property
+    def states(self) -> np.ndarray:
+        return self._inputs.states
 
     @property
     def xy(self) -> tuple[float, float]:
         if self._xy is None:
-            self._xy = _point(self.states[self._index])
+            self._xy = _point(self._inputs.states[self._index])
         return self._xy
 
 
@@ -165,38 +216,20 @@ def _back_along(points, distance: float) -> tuple[float, float]:
     return points[0]
 
 
-class WaypointGenerator(LeafSystem):
-    """Drives robot ``robot_names[index]`` through its plan's stops, one waypoint at a time.
+class WaypointPolicy:
+    """Drives robot ``robot_names[index]`` through its plan's stops, one waypoint at a time:
+    the per-robot behaviour the waypoints systems (``FleetWaypoints``, one for the fleet, or
+    ``WaypointGenerator``, one per robot) call at each of their updates. Plain Python, no
+    Drake system: ``initial_state()`` is the robot's state at the start (an immutable
+    value), ``update(state, inputs)`` the state after one update from ``inputs``
+    (``WaypointInputs``; the same object when nothing changes) and ``outputs(state)`` the
+    payloads made from a state (``target``: ``WaypointTarget``, world frame, m;
+    ``queue_request``: ``QueueRequest``; ``progress``: ``RobotProgress``, visit times are
+    simulation times, s; ``lift_request``: ``LiftRequest``).
 
-    .. pydrake_system::
+    This robot's ``RobotPlan`` is the one of the fleet plan named after it.
 
-        name: WaypointGenerator
-        input_ports:
-        - plan
-        - robot_state
-        - queue_state
-        - lift_state (optional)
-        - disturbances (optional)
-        output_ports:
-        - target
-        - queue_request
-        - progress
-        - lift_request
-
-    Inputs:
-      ``plan``: abstract ``FleetPlan``; this robot's ``RobotPlan`` is the one named after it.
-      ``robot_state``: vector 4N, ``[x, y, theta, v]`` per robot in ``robot_names`` order,
-      world frame, m, rad, m/s.
-      ``queue_state``: abstract ``QueueState`` from ``RoomQueues``.
-      ``lift_state``: abstract ``LiftState`` from ``LiftBank`` (a building with lifts).
-    Outputs (from the state; no direct feedthrough):
-      ``target``: abstract ``WaypointTarget``, world frame, m.
-      ``queue_request``: abstract ``QueueRequest``.
-      ``lift_request``: abstract ``LiftRequest``.
-      ``progress``: abstract ``RobotProgress``; visit times are simulation times, s.
-
-    ``rate_hz`` times a second an unrestricted update takes the current stop through these
-    phases:
+    Each update (``update``) takes the current stop through these phases:
 
     - drive: follow ``roadways.leg`` from the last location (or, away from any location, a
       route from the nearest roadway node) to the tail slot of the stop's queue; waypoints
@@ -268,65 +301,25 @@ class WaypointGenerator(LeafSystem):
         roadways: Roadways,
         start_location: int | None = None,
         params: WaypointParams = WaypointParams(),
-        *,
-        rate_hz: float,
     ):
-        super().__init__()
-        robot = robot_names[index]
-        self._robot = robot
+        self._robot = robot_names[index]
         self._index = index
         self._roadways = roadways
         self._params = params
-        self._state_index = self.DeclareAbstractState(
-            Value[object](_Drive(last_location=start_location))
-        )
-        self._plan = self.DeclareAbstractInputPort("plan", Value[object](FleetPlan(())))
-        self._robot_state = self.DeclareVectorInputPort(
-            "robot_state", BasicVector(ROBOT_STATE_SIZE * len(robot_names))
-        )
-        self._queue_state = self.DeclareAbstractInputPort(
-            "queue_state", Value[object](QueueState())
-        )
-        self._lift_state = self.DeclareAbstractInputPort("lift_state", Value[object](LiftState()))
-        self._disturbances = self.DeclareAbstractInputPort(
-            "disturbances", Value[object](Disturbances())
-        )
+        self._start_location = start_location
         # The outputs of the state last read: most updates keep the state object as it is.
         self._last_outputs: _Outputs | None = None
-        state_ticket = {self.abstract_state_ticket(self._state_index)}
-        for name, payload, calc in (
-            ("target", WaypointTarget(robot), self._calc_target),
-            ("queue_request", QueueRequest(robot), self._calc_queue_request),
-            ("progress", RobotProgress(robot, last_location=start_location), self._calc_progress),
-            ("lift_request", LiftRequest(robot), self._calc_lift_request),
-        ):
-            self.DeclareAbstractOutputPort(
-                name,
-                lambda payload=payload: Value[object](payload),
-                calc,
-                prerequisites_of_calc=state_ticket,
-            )
-        self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate_hz, 0.0, self._update)
+
+    @property
+    def robot(self) -> str:
+        return self._robot
+
+    def initial_state(self) -> _Drive:
+        return _Drive(last_location=self._start_location)
 
     # --- Outputs -----------------------------------------------------------------------------
 
-    def _drive(self, context) -> _Drive:
-        return context.get_abstract_state(self._state_index).get_value()
-
-    def _calc_target(self, context, output):
-        output.set_value(self._outputs(context).target)
-
-    def _calc_queue_request(self, context, output):
-        output.set_value(self._outputs(context).queue_request)
-
-    def _calc_progress(self, context, output):
-        output.set_value(self._outputs(context).progress)
-
-    def _calc_lift_request(self, context, output):
-        output.set_value(self._outputs(context).lift_request)
-
-    def _outputs(self, context) -> _Outputs:
-        s = self._drive(context)
+    def outputs(self, s: _Drive) -> _Outputs:
         outputs = self._last_outputs
         if outputs is None or outputs.drive is not s:
             outputs = self._last_outputs = _Outputs(
@@ -370,15 +363,13 @@ class WaypointGenerator(LeafSystem):
 
     # --- Update ------------------------------------------------------------------------------
 
-    def _update(self, context, state) -> EventStatus:
-        old = s = self._drive(context)
-        t = context.get_time()
-        robots = _Robots(self._robot_state, context, self._index)
-        queues = self._queue_state.Eval(context)
-        lifts = (self._lift_state.Eval(context) if self._roadways.has_lifts
-                 and self._lift_state.HasValue(context) else LiftState())
-        disturbances = (self._disturbances.Eval(context) if self._disturbances.HasValue(context)
-                        else NO_DISTURBANCES)
+    def update(self, s: _Drive, inputs: WaypointInputs) -> _Drive:
+        old = s
+        t = inputs.t
+        robots = _Robots(inputs, self._index)
+        queues = inputs.queues
+        lifts = inputs.lifts if self._roadways.has_lifts else LiftState()
+        disturbances = inputs.disturbances
         lanes, closed = self._roadways, ()
         if disturbances.blockages:
             lanes = self._roadways.closed([b.box for b in disturbances.blockages])
@@ -389,20 +380,17 @@ class WaypointGenerator(LeafSystem):
                                            for b in disturbances.breakdowns):
             s = _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0, since=None)
         else:
-            stops = self._stops(context)
+            stops = self._stops(inputs.plan)
             s = self._follow_plan(s, _first_to_do(stops, s.visits), robots, lanes, t)
             s = self._advance(s, robots, t, queues, stops, lanes, lifts)
         s = _changed(s, release=self._release(s, robots, queues))
         s = _changed(s, lanes=self._lanes(s, robots, queues))
         if s.stop is not None and (old.stop is None or old.stop.key != s.stop.key):
             s = replace(s, began=t)
-        if s is old:  # unchanged: Drake applies an instant's updates only if one changed
-            return EventStatus.DidNothing()
-        state.get_mutable_abstract_state(self._state_index).set_value(s)
-        return EventStatus.Succeeded()
+        return s
 
-    def _stops(self, context) -> tuple[Stop, ...]:
-        plans = self._plan.Eval(context).plans
+    def _stops(self, plan: FleetPlan) -> tuple[Stop, ...]:
+        plans = plan.plans
         if self._index < len(plans) and plans[self._index].robot == self._robot:
             return plans[self._index].stops
         return next((plan.stops for plan in plans if plan.robot == self._robot), ())
@@ -700,3 +688,134 @@ class WaypointGenerator(LeafSystem):
             ):
                 return queue.room
         return None
+
+
+_OUTPUTS = ("target", "queue_request", "progress", "lift_request")  # _Outputs' payloads
+
+
+def _model(payload):
+    """An output port's model value allocator: ``Value[object](payload)``."""
+    return lambda: Value[object](payload)
+
+
+class WaypointGenerator(LeafSystem):
+    """One robot's waypoints as a system of its own: ``rate_hz`` times a second an
+    unrestricted update calls the robot's ``WaypointPolicy`` (the behaviour is described
+    there). ``FleetWaypoints`` does the same for every robot in one system (the default);
+    this one is the per-robot waypoints kind ``roadway_per_robot``.
+
+    .. pydrake_system::
+
+        name: WaypointGenerator
+        input_ports:
+        - plan
+        - robot_state
+        - queue_state
+        - lift_state (optional)
+        - disturbances (optional)
+        output_ports:
+        - target
+        - queue_request
+        - progress
+        - lift_request
+
+    Inputs: see ``WaypointInputs`` (``robot_state``: vector 4N, ``[x, y, theta, v]`` per
+    robot in ``robot_names`` order, world frame, m, rad, m/s; the others abstract).
+    Outputs (from the state; no direct feedthrough): the policy's ``outputs``.
+    """
+
+    def __init__(
+        self,
+        robot_names: Sequence[str],
+        index: int,
+        roadways: Roadways,
+        start_location: int | None = None,
+        params: WaypointParams = WaypointParams(),
+        *,
+        rate_hz: float,
+    ):
+        super().__init__()
+        self._policy = WaypointPolicy(robot_names, index, roadways, start_location, params)
+        self._state_index = self.DeclareAbstractState(
+            Value[object](self._policy.initial_state()))
+        self._inputs = _declare_inputs(self, len(robot_names))
+        state_ticket = {self.abstract_state_ticket(self._state_index)}
+        initial = self._policy.outputs(self._policy.initial_state())
+        for name in _OUTPUTS:
+            self.DeclareAbstractOutputPort(
+                name, _model(getattr(initial, name)),
+                lambda context, output, name=name: output.set_value(
+                    getattr(self._policy.outputs(self._drive(context)), name)),
+                prerequisites_of_calc=state_ticket)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate_hz, 0.0, self._update)
+
+    def _drive(self, context) -> _Drive:
+        return context.get_abstract_state(self._state_index).get_value()
+
+    def _update(self, context, state) -> EventStatus:
+        old = self._drive(context)
+        s = self._policy.update(old, WaypointInputs(self._inputs, context))
+        if s is old:  # unchanged: Drake applies an instant's updates only if one changed
+            return EventStatus.DidNothing()
+        state.get_mutable_abstract_state(self._state_index).set_value(s)
+        return EventStatus.Succeeded()
+
+
+class FleetWaypoints(LeafSystem):
+    """Every robot's waypoints in one system: ``rate_hz`` times a second one unrestricted
+    update reads the inputs once (``WaypointInputs``) and calls each robot's policy in
+    robot order; each robot's state is an abstract state of its own, and its outputs
+    depend on it alone. ``policies`` (one per robot, in ``robot_names`` order) are
+    ``WaypointPolicy`` objects (the behaviour is described there) or any objects with the
+    same ``robot``, ``initial_state``, ``update`` and ``outputs`` (a state must be an
+    immutable value and ``update`` must return the very same object when nothing changes).
+
+    .. pydrake_system::
+
+        name: FleetWaypoints
+        input_ports:
+        - plan
+        - robot_state
+        - queue_state
+        - lift_state (optional)
+        - disturbances (optional)
+        output_ports:
+        - target_<robot>
+        - queue_request_<robot>
+        - progress_<robot>
+        - lift_request_<robot>
+
+    Inputs: see ``WaypointInputs`` (``robot_state``: vector 4N, ``[x, y, theta, v]`` per
+    robot, world frame, m, rad, m/s; the others abstract). Outputs (from the robot's state;
+    no direct feedthrough): per robot, its policy's ``outputs``.
+    """
+
+    def __init__(self, policies: Sequence[WaypointPolicy], *, rate_hz: float):
+        super().__init__()
+        self._policies = tuple(policies)
+        self._states = [self.DeclareAbstractState(Value[object](policy.initial_state()))
+                        for policy in self._policies]
+        self._inputs = _declare_inputs(self, len(self._policies))
+        for policy, index in zip(self._policies, self._states, strict=True):
+            initial = policy.outputs(policy.initial_state())
+            for name in _OUTPUTS:
+                self.DeclareAbstractOutputPort(
+                    f"{name}_{policy.robot}",
+                    _model(getattr(initial, name)),
+                    lambda context, output, name=name, policy=policy, index=index:
+                        output.set_value(getattr(policy.outputs(
+                            context.get_abstract_state(index).get_value()), name)),
+                    prerequisites_of_calc={self.abstract_state_ticket(index)})
+        self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate_hz, 0.0, self._update)
+
+    def _update(self, context, state) -> EventStatus:
+        inputs = WaypointInputs(self._inputs, context)
+        changed = False
+        for policy, index in zip(self._policies, self._states, strict=True):
+            old = context.get_abstract_state(index).get_value()
+            s = policy.update(old, inputs)
+            if s is not old:
+                state.get_mutable_abstract_state(index).set_value(s)
+                changed = True
+        # unchanged: Drake applies an instant's updates only if one changed
+        return EventStatus.Succeeded() if changed else EventStatus.DidNothing()

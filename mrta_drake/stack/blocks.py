@@ -9,7 +9,11 @@ must have the slot's ports (docs/architecture.md lists them):
 slot        inputs                                outputs
 =========== ===================================== ============================================
 allocator   progress_<robot> (RobotProgress)      plan (FleetPlan)
-waypoints   plan, robot_state, queue_state        target, queue_request, progress (per robot)
+waypoints   plan, robot_state, queue_state        target_<robot>, queue_request_<robot>,
+                                                  progress_<robot>, lift_request_<robot>
+                                                  (one system for the fleet; a ``per_robot``
+                                                  kind: target, queue_request, progress,
+                                                  lift_request of one system per robot)
 queues      request_<robot> (QueueRequest)        queue_state (QueueState)
 planner     robot_state, target_<robot>           paths (FleetPaths)
 controller  robot_state, paths, human_states      commands (2N), telemetry
@@ -116,13 +120,15 @@ class BuildContext:
 @dataclass(frozen=True)
 class BlockType:
     """An implementation of a block slot: its parameter dataclass and a factory
-    ``make(context, params) -> LeafSystem`` (for ``waypoints``: one system per robot,
-    ``make(context, params, robot_index)``). A robots block that steps the plant gives
-    ``physics(params) -> world.PlantPhysics``, how the world makes the plant."""
+    ``make(context, params) -> LeafSystem``. A waypoints block with ``per_robot`` set is
+    one system per robot, ``make(context, params, robot_index)``. A robots block that steps
+    the plant gives ``physics(params) -> world.PlantPhysics``, how the world makes the
+    plant."""
 
     params: type
     make: Callable
     physics: Callable | None = None
+    per_robot: bool = False
 
 
 NETWORK = "network"  # the slot whose kind and parameters are the ``communication:`` section
@@ -268,19 +274,39 @@ def _fixed_allocator() -> BlockType:
         ctx.robot_names, [r.route for r in ctx.scenario.robots]))
 
 
+def _waypoint_params(ctx: BuildContext, params):
+    """``params`` (``WaypointParams``) with the scenario's ``tasks.service_time``."""
+    if ctx.scenario.blocks.waypoints.params.get("service_time") is not None:
+        raise InputError(ctx.scenario.source, "blocks.waypoints.params.service_time",
+                         "set tasks.service_time instead (the allocator uses it too)")
+    return dataclasses.replace(params, service_time=ctx.scenario.tasks.service_time)
+
+
 def _roadway_waypoints() -> BlockType:
+    from mrta_drake.navigation.waypoint_generator import (
+        FleetWaypoints,
+        WaypointParams,
+        WaypointPolicy,
+    )
+
+    def make(ctx: BuildContext, params: WaypointParams):
+        params = _waypoint_params(ctx, params)
+        return FleetWaypoints([
+            WaypointPolicy(ctx.robot_names, k, ctx.roadways, location, params)
+            for k, location in enumerate(ctx.start_locations)], rate_hz=ctx.rates.waypoints)
+
+    return BlockType(WaypointParams, make)
+
+
+def _roadway_per_robot_waypoints() -> BlockType:
     from mrta_drake.navigation.waypoint_generator import WaypointGenerator, WaypointParams
 
     def make(ctx: BuildContext, params: WaypointParams, index: int):
-        if ctx.scenario.blocks.waypoints.params.get("service_time") is not None:
-            raise InputError(ctx.scenario.source, "blocks.waypoints.params.service_time",
-                             "set tasks.service_time instead (the allocator uses it too)")
-        params = dataclasses.replace(params, service_time=ctx.scenario.tasks.service_time)
         return WaypointGenerator(ctx.robot_names, index, ctx.roadways,
-                                 ctx.start_locations[index], params,
+                                 ctx.start_locations[index], _waypoint_params(ctx, params),
                                  rate_hz=ctx.rates.waypoints)
 
-    return BlockType(WaypointParams, make)
+    return BlockType(WaypointParams, make, per_robot=True)
 
 
 def _fifo_queues() -> BlockType:
@@ -390,6 +416,7 @@ register_block("allocator", "fixed", _fixed_allocator)
 register_block("allocator", "smt", _smt_allocator)
 register_block("allocator", "greedy", _greedy_allocator)
 register_block("waypoints", "roadway", _roadway_waypoints)
+register_block("waypoints", "roadway_per_robot", _roadway_per_robot_waypoints)
 register_block("queues", "fifo", _fifo_queues)
 register_block("lifts", "fifo", _fifo_lifts)
 register_block("watchdog", "back_off", _back_off_watchdog)

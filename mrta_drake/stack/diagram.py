@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.geometry import Meshcat, MeshcatVisualizer, MeshcatVisualizerParams, Role
-from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem, OutputPort
 
 from mrta_drake.errors import InputError
 from mrta_drake.robots.plant_stepping import add_plant_stepping
@@ -33,7 +33,9 @@ class Stack:
     ``disturbances`` is the schedule of a scenario with a ``disturbances:`` section;
     ``lifts`` the lift bank of a building run across levels; ``watchdog`` the deadlock
     watchdog unless the scenario turns it off; ``network`` the network of a
-    scenario whose ``communication:`` is not ideal."""
+    scenario whose ``communication:`` is not ideal. ``waypoints`` is the waypoints block:
+    one system for the fleet, or one per robot (a ``per_robot`` kind); ``waypoint_output``
+    finds a robot's output in either."""
 
     scenario: Scenario
     world: World
@@ -42,7 +44,7 @@ class Stack:
     planner: LeafSystem
     queues: LeafSystem
     allocator: LeafSystem
-    waypoint_generators: list[LeafSystem]
+    waypoints: list[LeafSystem]
     humans: LeafSystem | None
     recorder: RunRecorder
     visualizer: MeshcatVisualizer | None = None
@@ -53,6 +55,20 @@ class Stack:
     watchdog: LeafSystem | None = None
     network: LeafSystem | None = None
     extras: dict = field(default_factory=dict)
+
+    def waypoint_output(self, index: int, port: str) -> OutputPort:
+        """Robot ``index``'s waypoints output ``port`` (``target``, ``queue_request``,
+        ``progress`` or ``lift_request``)."""
+        return _waypoint_output(self.waypoints, self.scenario.robots[index].name, index, port)
+
+
+def _waypoint_output(systems: list[LeafSystem], robot: str, index: int,
+                     port: str) -> OutputPort:
+    """Robot ``index`` (named ``robot``)'s output ``port`` of the waypoints block
+    ``systems``: ``<port>_<robot>`` of the one fleet system, or ``port`` of its own."""
+    if len(systems) == 1 and systems[0].HasOutputPort(f"{port}_{robot}"):
+        return systems[0].GetOutputPort(f"{port}_{robot}")
+    return systems[index].GetOutputPort(port)
 
 
 def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat | None = None,
@@ -90,31 +106,40 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
     planner = builder.AddNamedSystem("planner", make("planner"))
     queues = builder.AddNamedSystem("room_queues", make("queues"))
     allocator = builder.AddNamedSystem("allocator", make("allocator"))
-    generators = [builder.AddNamedSystem(f"waypoints_{name}", make("waypoints", i))
-                  for i, name in enumerate(names)]
+    if resolve_block(scenario, "waypoints")[0].per_robot:
+        generators = [builder.AddNamedSystem(f"waypoints_{name}", make("waypoints", i))
+                      for i, name in enumerate(names)]
+    else:
+        generators = [builder.AddNamedSystem("waypoints", make("waypoints"))]
+
+    def waypoints(port: str) -> list[OutputPort]:
+        """Each robot's waypoints output ``port``, in robot order."""
+        return [_waypoint_output(generators, name, k, port) for k, name in enumerate(names)]
 
     state = robots.GetOutputPort("state")
     builder.Connect(controller.GetOutputPort("commands"), robots.GetInputPort("commands"))
     builder.Connect(state, controller.GetInputPort("robot_state"))
     builder.Connect(planner.GetOutputPort("paths"), controller.GetInputPort("paths"))
     builder.Connect(state, planner.GetInputPort("robot_state"))
-    for name, generator in zip(names, generators, strict=True):
+    for generator in generators:
         builder.Connect(allocator.GetOutputPort("plan"), generator.GetInputPort("plan"))
         builder.Connect(state, generator.GetInputPort("robot_state"))
         builder.Connect(queues.GetOutputPort("queue_state"),
                         generator.GetInputPort("queue_state"))
-        builder.Connect(generator.GetOutputPort("target"),
-                        planner.GetInputPort(f"target_{name}"))
-        builder.Connect(generator.GetOutputPort("queue_request"),
-                        queues.GetInputPort(f"request_{name}"))
-        builder.Connect(generator.GetOutputPort("progress"),
-                        allocator.GetInputPort(f"progress_{name}"))
-    lifts = _add_lifts(builder, ctx, make, robots, generators) if ctx.lifts else None
+    for name, target, request, progress in zip(names, waypoints("target"),
+                                               waypoints("queue_request"),
+                                               waypoints("progress"), strict=True):
+        builder.Connect(target, planner.GetInputPort(f"target_{name}"))
+        builder.Connect(request, queues.GetInputPort(f"request_{name}"))
+        builder.Connect(progress, allocator.GetInputPort(f"progress_{name}"))
+    lifts = (_add_lifts(builder, ctx, make, robots, generators, waypoints("lift_request"))
+             if ctx.lifts else None)
     if humans is not None:
         builder.Connect(state, humans.GetInputPort("robot_state"))
         builder.Connect(humans.GetOutputPort("human_states"),
                         controller.GetInputPort("human_states"))
-    watchdog = _add_watchdog(builder, scenario, make, state, generators, planner, humans)
+    watchdog = _add_watchdog(builder, scenario, make, state, waypoints("target"), planner,
+                             humans)
     human_positions = humans.GetOutputPort("plant_positions") if humans is not None else None
     contacts = None
     if robots_type.physics is None:
@@ -129,11 +154,10 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
     builder.Connect(planner.GetOutputPort("paths"), recorder.GetInputPort("paths"))
     builder.Connect(queues.GetOutputPort("queue_state"), recorder.GetInputPort("queue_state"))
     builder.Connect(allocator.GetOutputPort("plan"), recorder.GetInputPort("plan"))
-    for name, generator in zip(names, generators, strict=True):
-        builder.Connect(generator.GetOutputPort("progress"),
-                        recorder.GetInputPort(f"progress_{name}"))
-        builder.Connect(generator.GetOutputPort("target"),
-                        recorder.GetInputPort(f"target_{name}"))
+    for name, progress, target in zip(names, waypoints("progress"), waypoints("target"),
+                                      strict=True):
+        builder.Connect(progress, recorder.GetInputPort(f"progress_{name}"))
+        builder.Connect(target, recorder.GetInputPort(f"target_{name}"))
     if allocator.HasOutputPort("events"):
         builder.Connect(allocator.GetOutputPort("events"),
                         recorder.GetInputPort("allocator_events"))
@@ -203,8 +227,9 @@ def _add_network(builder: DiagramBuilder, make, state, controller: LeafSystem,
 
 
 def _add_lifts(builder: DiagramBuilder, ctx: BuildContext, make, robots: LeafSystem,
-               generators: list[LeafSystem]) -> LeafSystem:
-    """The lift bank, between the waypoint generators and the robots block."""
+               generators: list[LeafSystem], requests: list[OutputPort]) -> LeafSystem:
+    """The lift bank, between the waypoints block (its systems ``generators``, each
+    robot's ``lift_request`` output in ``requests``) and the robots block."""
     if not robots.HasInputPort("relocations"):
         raise InputError(ctx.scenario.source, "blocks.robots.kind",
                          f"{ctx.scenario.blocks.robots.kind!r} robots cannot ride lifts "
@@ -213,9 +238,9 @@ def _add_lifts(builder: DiagramBuilder, ctx: BuildContext, make, robots: LeafSys
     bank = builder.AddNamedSystem("lift_bank", make("lifts"))
     builder.Connect(robots.GetOutputPort("state"), bank.GetInputPort("robot_state"))
     builder.Connect(bank.GetOutputPort("relocations"), robots.GetInputPort("relocations"))
-    for name, generator in zip(ctx.robot_names, generators, strict=True):
-        builder.Connect(generator.GetOutputPort("lift_request"),
-                        bank.GetInputPort(f"request_{name}"))
+    for name, request in zip(ctx.robot_names, requests, strict=True):
+        builder.Connect(request, bank.GetInputPort(f"request_{name}"))
+    for generator in generators:
         builder.Connect(bank.GetOutputPort("lift_state"), generator.GetInputPort("lift_state"))
     return bank
 
@@ -250,18 +275,17 @@ def _add_levels_view(builder: DiagramBuilder, ctx: BuildContext, meshcat: Meshca
 
 
 def _add_watchdog(builder: DiagramBuilder, scenario: Scenario, make, state,
-                  generators: list[LeafSystem], planner: LeafSystem,
+                  targets: list[OutputPort], planner: LeafSystem,
                   humans: LeafSystem | None) -> LeafSystem | None:
-    """The deadlock watchdog, between the waypoint generators and the planner (None when
-    the scenario turns it off)."""
+    """The deadlock watchdog, between the waypoints block (each robot's ``target`` in
+    ``targets``) and the planner (None when the scenario turns it off)."""
     _, params = resolve_block(scenario, "watchdog")
     if not getattr(params, "enabled", True):
         return None
     watchdog = builder.AddNamedSystem("watchdog", make("watchdog"))
     builder.Connect(state, watchdog.GetInputPort("robot_state"))
-    for generator, name in zip(generators, scenario.robots, strict=True):
-        builder.Connect(generator.GetOutputPort("target"),
-                        watchdog.GetInputPort(f"target_{name.name}"))
+    for target, robot in zip(targets, scenario.robots, strict=True):
+        builder.Connect(target, watchdog.GetInputPort(f"target_{robot.name}"))
     if humans is not None and watchdog.HasInputPort("human_states"):
         builder.Connect(humans.GetOutputPort("human_states"),
                         watchdog.GetInputPort("human_states"))

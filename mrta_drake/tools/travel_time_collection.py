@@ -182,9 +182,8 @@ def _drive(scenario: Scenario, route: list[int], time_limit: float):
     stack = build_diagram(scenario)
     simulator = Simulator(stack.diagram)
     simulator.Initialize()
-    generator = stack.waypoint_generators[0]
-    progress = generator.GetOutputPort("progress")
-    context = generator.GetMyContextFromRoot(simulator.get_context())
+    progress = stack.waypoint_output(0, "progress")
+    context = progress.get_system().GetMyContextFromRoot(simulator.get_context())
     service = scenario.tasks.service_time
     done, left_at = 0, 0.0  # visits seen; when the robot completed the last one, s
     try:

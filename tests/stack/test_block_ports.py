@@ -32,10 +32,12 @@ LIFTS_SCENARIO = ROOT / "scenarios/two_floor_6_robots.yaml"
 ROBOT = "<robot>"
 OPTIONAL = " (optional)"
 # The name in the diagram of the (first) system of each block slot.
-SYSTEM_OF_SLOT = {"allocator": "allocator", "waypoints": "waypoints_robot1",
+SYSTEM_OF_SLOT = {"allocator": "allocator", "waypoints": "waypoints",
                   "queues": "room_queues", "planner": "planner", "controller": "controller",
                   "robots": "robots", "humans": "humans", "lifts": "lift_bank",
                   "watchdog": "watchdog"}
+# A kind that is one system per robot: the name of the first robot's.
+SYSTEM_OF_KIND = {("waypoints", "roadway_per_robot"): "waypoints_robot1"}
 # The blocks add_stack adds itself: (name in the diagram, the robots kind it needs).
 STACK_BLOCKS = [("recorder", None), ("meshcat_overlay", None), ("disturbances", None),
                 ("contacts", "physics"), ("human_bodies", "physics")]
@@ -49,7 +51,8 @@ def _cases():
     for slot in (f.name for f in dataclasses.fields(BlocksConfig)):
         for kind in block_kinds(slot):
             swapped = None if kind == getattr(defaults, slot).kind else kind
-            cases.append(pytest.param(SYSTEM_OF_SLOT[slot], slot, swapped,
+            system = SYSTEM_OF_KIND.get((slot, kind), SYSTEM_OF_SLOT[slot])
+            cases.append(pytest.param(system, slot, swapped,
                                       id=f"{slot}-{kind}"))
     cases += [pytest.param(NETWORK, NETWORK, kind, id=f"{NETWORK}-{kind}")
               for kind in block_kinds(NETWORK)]

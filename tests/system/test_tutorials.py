@@ -36,7 +36,7 @@ def test_every_tutorial_is_listed_in_the_readme():
 def test_01_hand_built_diagram_has_every_block_and_our_monitor(tmp_path, capsys):
     shown = tutorial(1).main(["--duration", "3", "--out", str(tmp_path)])
     for block in ("allocator", "room_queues", "planner", "controller", "robots", "humans",
-                  "recorder", "waypoints_robot1", "speed_monitor"):
+                  "recorder", "waypoints", "speed_monitor"):
         assert block in shown["systems"]
     assert shown["feeds"] == {"controller.robot_state": "robots.state",
                               "controller.paths": "planner.paths",
