@@ -132,6 +132,7 @@ class RobotMode(IntEnum):
     PARK = 5  # no stop to do: wait on a free parking spot of the last location
     WAIT = 6  # blockages leave no lane to the stop: stand still until they change
     LIFT = 7  # at a lift on the way: queue for it, drive into the cabin, ride to the next level
+    HOME = 8  # no stop to do, no parking spot at the last location: back to the start spot
 
 
 # --- Waypoints: waypoint generator -> planner, controller -----------------------------------

@@ -342,6 +342,21 @@ class Roadways:
                 return (place.exit_node, n)
         return None
 
+    def leg_to_spot(self, from_location: int, xy) -> np.ndarray:
+        """The polyline (k, 2) out of ``from_location`` (its point, its entry backwards, its
+        exit node) along the lanes, without lift rides, to the roadway node nearest ``xy``
+        it leads to, then ``xy`` (a robot's start spot, m)."""
+        start = self.place(from_location)
+        xy = np.asarray(xy, dtype=float)
+        graph = self.graph
+        ground = nx.subgraph_view(graph, filter_edge=lambda a, b: not graph.edges[a, b].get(
+            "lift", False))
+        reached = nx.single_source_dijkstra_path(ground, start.exit_node, weight="length")
+        nearest = min(reached, key=lambda n: (float(np.linalg.norm(self.node_position(n) - xy)),
+                                              str(n)))
+        return _without_repeats([start.point, *start.entry[::-1],
+                                 *(self.node_position(n) for n in reached[nearest]), xy])
+
     def route_from_point(self, xy, to_location: int) -> np.ndarray | None:
         """The polyline (k, 2) from the roadway node nearest ``xy`` that leads to
         ``to_location`` (for a robot that is not at a location, e.g. at the start), skipping

@@ -45,7 +45,8 @@ class WaypointParams:
     door_clearance: float = 1.0  # a holder waits at its slot while another robot moves this
     # close to the room's entry path or point
     door_wait: bool = True  # that wait at all (off: the holder enters at once, as in the paper)
-    parking: bool = True  # a robot with nothing to do parks off the point (off: it stays there)
+    parking: bool = True  # a robot with nothing to do parks off the point: on a parking spot
+    # of the location, or where it has none, back on its start spot (off: it stays there)
     lift_request_distance: float = 4.0  # ask for a lift this close to its cabin's point
     lift_wait_distance: float = 3.0  # wait for it this far back along the route from the
     # cabin's point, one more metre per robot ahead in its queue
@@ -269,8 +270,11 @@ class WaypointPolicy:
     the exit node of the queue it waited in, or out of the room it entered. A completed stop
     is never redone. Without stops the robot parks (unless ``parking`` is off): at a location
     with parking spots it drives to the first one no other robot is within
-    ``parking_clearance`` of (park), off the point; elsewhere the target is inactive and it
-    stands still.
+    ``parking_clearance`` of (park), off the point; at a location without any (a dead end
+    of an imported building, where an idle robot would box in the next one), it drives back
+    along the lanes to ``home``, its start spot (world frame, m; home: asking for
+    single-file segments on the way as when driving), and waits there; elsewhere, or with
+    no home (it started on a location), the target is inactive and it stands still.
     A parked robot given a stop starts it as if standing on the location's point.
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
@@ -301,8 +305,10 @@ class WaypointPolicy:
         roadways: Roadways,
         start_location: int | None = None,
         params: WaypointParams = WaypointParams(),
+        home: tuple[float, float] | None = None,
     ):
         self._robot = robot_names[index]
+        self._home = home
         self._index = index
         self._roadways = roadways
         self._params = params
@@ -340,6 +346,11 @@ class WaypointPolicy:
         if s.phase == RobotMode.PARK:
             parking = _point(self._roadways.place(s.last_location).parking[s.index])
             return WaypointTarget(self._robot, True, parking, None, True)
+        if s.phase == RobotMode.HOME and not s.lanes.hold:
+            last = len(s.route) - 1
+            return WaypointTarget(self._robot, True, s.route[s.index],
+                                  s.route[s.index + 1] if s.index < last else None,
+                                  s.index == last)
         if s.stop is None or s.phase == RobotMode.WAIT or s.waiting or s.lanes.hold:
             return WaypointTarget(self._robot)
         if s.phase == RobotMode.LIFT:
@@ -398,13 +409,15 @@ class WaypointPolicy:
     def _follow_plan(self, s: _Drive, stop: Stop | None, robots: _Robots, lanes: Roadways,
                      t: float) -> _Drive:
         if stop is None:
-            if s.phase == RobotMode.PARK:
+            if s.phase in (RobotMode.PARK, RobotMode.HOME):
                 return s
             place = None if s.last_location is None else self._roadways.place(s.last_location)
-            if (not self._params.parking or place is None or not len(place.parking)
+            if (not self._params.parking or place is None
                     or _distance(robots.xy, place.point) > self._params.reach_tolerance):
                 return _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0,
                                 since=None)
+            if not len(place.parking):
+                return self._go_home(s, place, lanes)
             others = np.delete(robots.states[:, :2], self._index, axis=0)
             return replace(s, phase=RobotMode.PARK, stop=None, route=(), since=None,
                            index=self._free_parking(place, others))
@@ -430,6 +443,16 @@ class WaypointPolicy:
             def route(roadways):
                 return _points_or_none(roadways.leg(old.id, stop.location))
         return self._drive_to(s, stop, route, lanes, t)
+
+    def _go_home(self, s: _Drive, place, lanes: Roadways) -> _Drive:
+        """With nothing to do at ``place``, which has no parking spot: back along the lanes
+        to the start spot (home), unless there is none (a robot that started on a
+        location) or it is by the point; else stand (idle)."""
+        if self._home is None or _distance(self._home, place.point) <= \
+                self._params.reach_tolerance:
+            return _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0, since=None)
+        route = _points(lanes.leg_to_spot(place.id, self._home))
+        return replace(s, phase=RobotMode.HOME, stop=None, route=route, index=0, since=None)
 
     def _drive_to(self, s: _Drive, stop: Stop, route, lanes: Roadways, t: float) -> _Drive:
         """Drive to ``stop`` along ``route(lanes)`` (a function of the roadways: waypoints,
@@ -536,7 +559,8 @@ class WaypointPolicy:
     def _advance(self, s: _Drive, robots: _Robots, t: float, queues: QueueState,
                  stops: tuple[Stop, ...], lanes: Roadways, lifts: LiftState) -> _Drive:
         if s.stop is None:
-            return s
+            return _changed(s, index=self._reached(s, robots.xy)) \
+                if s.phase == RobotMode.HOME else s
         xy = robots.xy
         params = self._params
         place = self._roadways.place(s.stop.location)
@@ -587,9 +611,11 @@ class WaypointPolicy:
         return s
 
     def _lanes(self, s: _Drive, robots: _Robots, queues: QueueState) -> Need:
-        """The single-file segments the robot needs on its route (only while driving it or
-        entering a room), holding back until the room queues grant them all."""
-        if s.phase not in (RobotMode.DRIVE, RobotMode.ENTER) or not self._roadways.segment_count:
+        """The single-file segments the robot needs on its route (only while driving it,
+        entering a room or driving home), holding back until the room queues grant them
+        all."""
+        if (s.phase not in (RobotMode.DRIVE, RobotMode.ENTER, RobotMode.HOME)
+                or not self._roadways.segment_count):
             return NOTHING
         wanted = need(self._roadways, s.route, s.index, robots.xy, self._params.single_file)
         if wanted.hold and queues.holds_segments(self._robot, wanted.segments):
@@ -731,11 +757,13 @@ class WaypointGenerator(LeafSystem):
         roadways: Roadways,
         start_location: int | None = None,
         params: WaypointParams = WaypointParams(),
+        home: tuple[float, float] | None = None,
         *,
         rate_hz: float,
     ):
         super().__init__()
-        self._policy = WaypointPolicy(robot_names, index, roadways, start_location, params)
+        self._policy = WaypointPolicy(robot_names, index, roadways, start_location, params,
+                                      home)
         self._state_index = self.DeclareAbstractState(
             Value[object](self._policy.initial_state()))
         self._inputs = _declare_inputs(self, len(robot_names))

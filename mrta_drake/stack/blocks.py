@@ -81,6 +81,14 @@ class BuildContext:
         """(N, 3) [x, y, theta] start poses."""
         return np.array([(list(r.start) + [0.0])[:3] for r in self.scenario.robots])
 
+    def home(self, index: int) -> tuple[float, float] | None:
+        """Robot ``index``'s start spot (x, y), m, where it waits with nothing to do when
+        its last location has no parking spot; None when it started on a location."""
+        if self.start_locations[index] is not None:
+            return None
+        x, y = self.robot_starts[index][:2]
+        return (float(x), float(y))
+
     @property
     def obstacles(self):
         return self.floor_plan.obstacles
@@ -292,7 +300,7 @@ def _roadway_waypoints() -> BlockType:
     def make(ctx: BuildContext, params: WaypointParams):
         params = _waypoint_params(ctx, params)
         return FleetWaypoints([
-            WaypointPolicy(ctx.robot_names, k, ctx.roadways, location, params)
+            WaypointPolicy(ctx.robot_names, k, ctx.roadways, location, params, ctx.home(k))
             for k, location in enumerate(ctx.start_locations)], rate_hz=ctx.rates.waypoints)
 
     return BlockType(WaypointParams, make)
@@ -304,7 +312,7 @@ def _roadway_per_robot_waypoints() -> BlockType:
     def make(ctx: BuildContext, params: WaypointParams, index: int):
         return WaypointGenerator(ctx.robot_names, index, ctx.roadways,
                                  ctx.start_locations[index], _waypoint_params(ctx, params),
-                                 rate_hz=ctx.rates.waypoints)
+                                 ctx.home(index), rate_hz=ctx.rates.waypoints)
 
     return BlockType(WaypointParams, make, per_robot=True)
 

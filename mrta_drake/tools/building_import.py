@@ -6,9 +6,13 @@
 - ``DIR/navigation.yaml``: the derived locations and one-way roadways, in the format of
   ``models/hospital/navigation.yaml``, to edit by hand;
 - ``DIR/scenario.yaml``: the world (``kind: rmf_building``), ``robots`` robots on the
-  level's chargers, then parking spots, spawn points, task locations and other lane nodes
-  (each clear of walls and of the others), ``people`` people walking the level's human
-  lanes (else visitors between random lane nodes), and a seeded generated task stream
+  level's chargers, then parking spots and spawn points that are not task locations, then
+  the other lane nodes away from the task locations and their queues (the most open
+  first), then the task locations, flagged ones first (each clear of walls and of the
+  others; a robot waits back on its start spot when it has nothing to do where no parking
+  spot is), ``people``
+  people walking the level's human lanes (else visitors between random lane nodes), and a
+  seeded generated task stream
   between the task locations. Where lanes pass nearer walls than the controller's
   default wall safety distance (0.6 m), as through the demos' 0.9 m doors, the scenario sets
   the controller's ``safety_distances.wall`` to the lanes' least clearance less 6 cm (at
@@ -48,6 +52,7 @@ PEOPLE_GAP = 1.0  # m between a person's first point and any robot start
 WALL_SAFETY = SafetyDistances().wall  # m, the controller's default safety distance to walls
 WALL_SAFETY_MARGIN = 0.06  # m kept between that distance and the lanes' clearance
 START_ORDER = ("is_charger", "is_parking_spot", "spawn_robot_name")
+QUEUE_BERTH = 2.0  # m: a start spot off a task location keeps this far from its point and queue
 
 
 @dataclass(frozen=True)
@@ -143,16 +148,17 @@ def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: Floor
     """``count`` start poses [x, y, theta] on the level's lane nodes (see the module
     docstring), each facing along its first lane."""
     lines = navigation.centre_lines
-    ranked = []
-    for rank, flag in enumerate(START_ORDER):
-        ranked += [(rank, lines.vertex_node[i]) for i, v in enumerate(level.vertices)
-                   if i in lines.vertex_node and (v.flag(flag) or (
-                       flag == "spawn_robot_name" and v.params.get(flag)))]
-    ranked += [(len(START_ORDER), loc.name) for loc in navigation.locations]
-    ranked += [(len(START_ORDER) + 1, node) for node in lines.nodes]
+    tasks = {loc.name for loc in navigation.locations}
+    flagged = []
+    for flag in START_ORDER:
+        flagged += [lines.vertex_node[i] for i, v in enumerate(level.vertices)
+                    if i in lines.vertex_node and (v.flag(flag) or (
+                        flag == "spawn_robot_name" and v.params.get(flag)))]
+    ranked = ([n for n in flagged if n not in tasks] + _open_nodes(navigation, floor_plan, tasks)
+              + [n for n in flagged if n in tasks] + [loc.name for loc in navigation.locations])
     chosen: list[list[float]] = []
     seen = set()
-    for _, node in ranked:
+    for node in ranked:
         if node in seen:
             continue
         seen.add(node)
@@ -167,6 +173,22 @@ def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: Floor
             return chosen
     raise InputError(None, "--robots", f"{count} robots do not fit: the level's lane nodes "
                      f"give {len(chosen)} free start spots")
+
+
+def _open_nodes(navigation: BuildingNavigation, floor_plan: FloorPlan, tasks: set[str]
+                ) -> list[str]:
+    """The lane nodes that are not task locations, at least ``QUEUE_BERTH`` m from every
+    location's point and queue slots, widest open space (clearance to walls) first: where a
+    robot waiting there (at the start, or back home with nothing to do) leaves the rooms and
+    their queues free."""
+    lines = navigation.centre_lines
+    busy = np.array([p for loc in navigation.locations for p in (loc.point, *loc.queue)],
+                    dtype=float).reshape(-1, 2)
+    nodes = [n for n in lines.nodes if n not in tasks and (not len(busy) or np.min(
+        np.linalg.norm(busy - np.asarray(lines.nodes[n], dtype=float), axis=1)) >= QUEUE_BERTH)]
+    clearance = floor_plan.obstacles.signed_distance(
+        np.array([lines.nodes[n] for n in nodes], dtype=float).reshape(-1, 2))
+    return [nodes[k] for k in np.argsort(-clearance, kind="stable")]
 
 
 def servable_stream(roadways: RoadwaysConfig, locations: list[LocationConfig],

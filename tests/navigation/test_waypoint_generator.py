@@ -96,18 +96,20 @@ class ScriptedPlan(LeafSystem):
 class World:
     """Robots ``r0, r1, ...`` starting on the points of ``starts`` (location ids)."""
 
-    def __init__(self, starts, plan_source, start_known=True, params=None, parking=False):
+    def __init__(self, starts, plan_source, start_known=True, params=None, parking=False,
+                 homes=None):
+        """``homes``: start spots (x, y) off the locations instead, one per robot."""
         self.roadways = roadways = loop_world(parking)
         self.robots = [f"r{i}" for i in range(len(starts))]
         builder = DiagramBuilder()
         plan = builder.AddSystem(plan_source)
         queues = builder.AddSystem(RoomQueues(self.robots, roadways.location_ids, rate_hz=10.0))
-        fake = builder.AddSystem(FakeRobots([roadways.place(s).point for s in starts]))
+        fake = builder.AddSystem(FakeRobots(homes or [roadways.place(s).point for s in starts]))
         self.generators = []
         for i, (robot, start) in enumerate(zip(self.robots, starts, strict=True)):
             generator = builder.AddSystem(WaypointGenerator(
                 self.robots, i, roadways, start if start_known else None,
-                params or WaypointParams(), rate_hz=10.0,
+                params or WaypointParams(), None if homes is None else homes[i], rate_hz=10.0,
             ))
             builder.Connect(plan.GetOutputPort("plan"), generator.GetInputPort("plan"))
             builder.Connect(fake.GetOutputPort("state"), generator.GetInputPort("robot_state"))
@@ -296,6 +298,28 @@ def test_without_parking_a_robot_done_at_a_room_stays_on_the_point_and_frees_the
     assert world.distance(positions, 0, B) < 1.0
     assert not targets[0].active
     assert final.room(B).holder is None
+
+
+def test_a_robot_done_at_a_room_without_parking_drives_back_to_its_start_spot():
+    # r0 starts on the eastbound lane, off every location, and serves B, which has no
+    # parking spot: it leaves B's point (freeing the room) along the lanes, back home.
+    home = (10.0, 0.0)
+    world = World([None], fixed([B]), start_known=False, homes=[home])
+    world.run(until=120.0)
+    assert [v.location for v in world.progress(0).visits] == [B]
+    served = world.progress(0).visits[0].time
+    _, final, positions, targets = world.log[-1]
+    np.testing.assert_allclose(positions[0], home, atol=0.05)
+    assert targets[0].active and targets[0].stop_at_current and targets[0].current == home
+    assert final.room(B).holder is None
+    # Out along the lanes: never through the rooms' walls between B's point and home.
+    after = [p[0] for t, _, p, _ in world.log if t > served]
+    assert min(p[1] for p in after) >= -0.05 and max(p[0] for p in after) <= 30.05
+    # Without a home (a robot that started on a location), it stays by the point.
+    stays = World([C], fixed([B]), parking=False)
+    stays.run(until=60.0)
+    _, _, positions, targets = stays.log[-1]
+    assert stays.distance(positions, 0, B) < 1.0 and not targets[0].active
 
 
 def fleet(*routes) -> FleetPlan:

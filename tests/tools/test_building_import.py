@@ -26,10 +26,11 @@ def test_import_writes_a_scenario_that_loads(tmp_path):
     assert (tmp_path / "one_level.building.yaml").read_text() == ONE_LEVEL.read_text()
     scenario = load_scenario(tmp_path / "scenario.yaml")
     assert scenario.world.kind == "rmf_building" and scenario.world.level == "L1"
-    # The charger first, then the parking spot (the false flag is no parking spot).
+    # The charger first; no lane node here is 2 m from every task location and queue slot,
+    # so then the parking spot park_1, a task location too (the false flag is no parking
+    # spot), then the first task location.
     starts = [robot.start[:2] for robot in scenario.robots]
-    assert starts[:2] == [[1.5, -6.0], [14.5, -6.0]]
-    assert len(starts) == 3
+    assert starts == [[1.5, -6.0], [14.5, -6.0], [4.0, -2.0]]
     # People walk the human lane; tasks run between the four task locations.
     for walker in scenario.humans.walkers:
         assert all(point[1] == pytest.approx(-4.9) for point in walker.waypoints)
@@ -38,6 +39,17 @@ def test_import_writes_a_scenario_that_loads(tmp_path):
     assert tasks and {t.pickup for t in tasks} | {t.dropoff for t in tasks} <= {0, 1, 2, 3}
     # The pantry door (1.2 m) leaves lanes 0.6 m from its jambs: the controller is told.
     assert scenario.blocks.controller.params == {"safety_distances": {"wall": 0.54}}
+
+
+def test_robots_start_off_the_task_locations_where_lane_nodes_allow(tmp_path):
+    building = BUILDINGS / "cartesian.building.yaml"
+    import_building(str(building), str(tmp_path), ImportOptions(robots=3))
+    scenario = load_scenario(tmp_path / "scenario.yaml")
+    busy = np.array([p for loc in scenario.locations for p in (loc.point, *loc.queue)])
+    gaps = [np.linalg.norm(busy - robot.start[:2], axis=1).min() for robot in scenario.robots]
+    # The parking spot, then the one lane node 2 m from every point and queue slot, and
+    # only then a task location.
+    assert gaps[1] >= 2.0 and gaps[2] == 0.0
 
 
 def test_the_task_stream_is_sized_to_be_served_in_the_run(tmp_path):
