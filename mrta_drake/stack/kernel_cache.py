@@ -109,7 +109,7 @@ def signature_types(signature: str) -> tuple:
     """The numba argument types spelled ``signature`` (``str`` of a numba signature)."""
     from numba.core import types
 
-    return eval(signature, {**vars(types), "bool": types.boolean})  # noqa: S307: our manifest
+    return eval(signature, {**vars(types), "bool": types.boolean})  # our own manifest's spelling
 
 
 def compile_kernels(kernels) -> None:
