@@ -113,11 +113,13 @@ def signature_types(signature: str) -> tuple:
 
 
 def compile_kernels(kernels) -> None:
-    """Compiles (or loads from the cache) every signature of ``kernels``."""
+    """Compiles (or loads from the cache) every signature of ``kernels`` not compiled yet (a
+    kernel given its signatures in its decorator compiled them as its module was imported)."""
     for kernel in kernels:
         dispatcher = kernel.dispatcher
-        for signature in kernel.signatures:
-            dispatcher.compile(signature_types(signature))
+        for signature in map(signature_types, kernel.signatures):
+            if signature not in dispatcher.signatures:
+                dispatcher.compile(signature)
 
 
 class Compilation:
