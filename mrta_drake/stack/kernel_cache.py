@@ -13,8 +13,9 @@ argument types change: ``tests/stack/test_kernel_cache.py`` says when).
 nothing compiled) and estimates how long compiling the missing ones will take, so that the
 CLI can say so before the run starts. ``Compilation`` starts a second process
 that compiles the later half of the missing kernels (by compile time) into the shared cache
-while this one compiles the earlier half (``compile_kernels``) and loads the scenario; the
-run then loads everything from the cache. Numba writes each cache entry whole, and a kernel
+while this one loads the scenario and builds the diagram (compiling what that calls) and
+then compiles the rest of the earlier half (``compile_kernels``); the run then loads
+everything from the cache. Numba writes each cache entry whole, and a kernel
 compiled twice (a helper both halves call) is the same machine code, so nothing depends on
 which process compiled what.
 """

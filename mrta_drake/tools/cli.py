@@ -115,18 +115,20 @@ def main(argv=None) -> int:
 
 
 def _run(args) -> int:
+    compiling = _start_compiling()  # first: a second process may start compiling at once
+    try:
+        return _run_scenario(args, compiling)
+    finally:
+        compiling.cancel()  # when the run failed before it was done
+
+
+def _run_scenario(args, compiling) -> int:
     from mrta_drake.results.report import format_summary
     from mrta_drake.scenario.loading import load_scenario
     from mrta_drake.stack.simulate import simulate
 
-    compiling = _start_compiling()
-    try:
-        scenario = load_scenario(args.scenario,
-                                 overrides=None if args.seed is None else {"seed": args.seed})
-    except BaseException:
-        compiling.cancel()
-        raise
-    compiling.finish()
+    scenario = load_scenario(args.scenario,
+                             overrides=None if args.seed is None else {"seed": args.seed})
     _check_writable("--out", args.out, folder=True)
     _check_writable("--record", args.record)
     meshcat = None
@@ -140,7 +142,7 @@ def _run(args) -> int:
     result = simulate(scenario, duration=args.duration, meshcat=meshcat,
                       record_html=args.record, out_dir=args.out,
                       progress=not args.quiet and sys.stderr.isatty(), realtime_rate=realtime,
-                      plots=args.plots)
+                      plots=args.plots, before_run=compiling.finish)
     print(format_summary(result.summary))
     if args.record:
         print(f"replay written to {args.record}")
