@@ -31,6 +31,10 @@ import sys
 
 MANIFEST = pathlib.Path(__file__).with_name("kernel_signatures.json")
 QUICKSTART = ("scenarios/hospital_6_robots.yaml", "--duration", "60")
+# CPU s the second process spends besides compiling its kernels (starting Python, importing
+# numba and the kernels' modules, compiling numba's own helpers and the shared ones again):
+# its CPU time less its kernels' in the quickstart, on the benchmark host (docs/benchmarks.md).
+CHILD_START_S = 3.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -148,11 +152,14 @@ class Compilation:
 
     @staticmethod
     def estimate(kernels: tuple[EntryKernel, ...]) -> float:
-        """Estimated wall s of compiling ``kernels``: the larger half's CPU s when two
-        processes compile, else the sum (0.0 for none)."""
-        if processes() == 1:
+        """Estimated wall s of compiling ``kernels``: the sum of their CPU s in one process;
+        with two, the larger half's, the second's with ``CHILD_START_S`` more (0.0 for
+        none)."""
+        if processes() == 1 or not kernels:
             return sum(k.cpu_s for k in kernels)
-        return max(sum(k.cpu_s for k in half) for half in split(kernels))
+        here, there = split(kernels)
+        return max(sum(k.cpu_s for k in here),
+                   sum(k.cpu_s for k in there) + (CHILD_START_S if there else 0.0))
 
     def finish(self) -> None:
         """Compiles this process's half and waits for the child's."""
