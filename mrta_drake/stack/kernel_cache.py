@@ -101,7 +101,8 @@ def split(kernels: tuple[EntryKernel, ...]) -> tuple[tuple[EntryKernel, ...],
 
 def processes() -> int:
     """How many processes compile at once: 2 when this process may use 2 cores or more."""
-    return 2 if len(os.sched_getaffinity(0)) >= 2 else 1
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return 2 if (cores or 1) >= 2 else 1
 
 
 def cold_kernel_seconds() -> float:
