@@ -27,7 +27,9 @@ on a shared machine) and wall-clock time; each figure is the best of ``--repeats
 First, the quickstart command (``mrta-sim run scenarios/hospital_6_robots.yaml --duration
 60``) runs twice in fresh processes, timed whole (start-up included): with an empty
 ``NUMBA_CACHE_DIR`` (the first run after installing, which compiles the kernels) and then
-warm (``--no-first-run`` skips it). Each row names its scenario variant.
+warm (``--no-first-run`` skips it), each with the load average of the minute before it ended
+and the compile time the command announced. Each row, and the quickstart, names its scenario
+variant.
 
 A warm-up run and one CBF-QP solve first load the compiled (numba) kernels from their cache.
 A fixed calibration workload (``calibration``), timed before and after the runs, records how
@@ -54,6 +56,7 @@ import math
 import os
 import pathlib
 import platform
+import re
 import resource
 import subprocess
 import sys
@@ -199,7 +202,9 @@ def quickstart(cache: str) -> dict:
     if done.returncode:
         raise SystemExit(f"quickstart failed: {done.stderr.strip()}")
     cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
-    return {"wall_s": wall, "cpu_s": cpu, "announced": "compiling kernels" in done.stderr}
+    announced = re.search(r"compiling kernels, once, ~(\d+) s", done.stderr)
+    return {"wall_s": wall, "cpu_s": cpu, "load_average": os.getloadavg()[0],
+            "announced_s": int(announced.group(1)) if announced else None}
 
 
 def first_run() -> dict:
@@ -209,9 +214,13 @@ def first_run() -> dict:
         warm = quickstart(cache)
     for label, row in (("cold", cold), ("warm", warm)):
         row["goal_wall_s"] = QUICKSTART_GOALS[label]
+        said = "nothing" if row["announced_s"] is None else f"~{row['announced_s']} s"
         print(f"quickstart {label:<5} wall {row['wall_s']:6.1f} s  CPU {row['cpu_s']:6.1f} s"
-              f"  (goal <= {row['goal_wall_s']:.0f} s wall)", flush=True)
-    return {"command": "mrta-sim " + " ".join(QUICKSTART), "cold": cold, "warm": warm}
+              f"  (goal <= {row['goal_wall_s']:.0f} s wall; announced {said}; load average "
+              f"{row['load_average']:.1f})", flush=True)
+    return {"command": "mrta-sim " + " ".join(QUICKSTART),
+            "variant": "the scenario as written: " + variant(6, 1, "kinematic"),
+            "cold": cold, "warm": warm}
 
 
 def run(robots: int, backend: str, duration: float, seed: int, folder: str,

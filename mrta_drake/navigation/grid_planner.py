@@ -12,11 +12,14 @@ costs no more than the grid path it replaces, and resampled into world-frame poi
 start inside the inscribed zone (moved out by ``snap_radius``) has a first leg within it.
 
 Search, landmark distances, shortcutting and resampling run in Numba-compiled kernels. A
-``GridPlanner`` keeps per-query scratch arrays and its answers on the current costmap: it is
-not thread-safe.
+``GridPlanner`` computes its landmark distances in a thread of its own (the compiled search
+releases the GIL), so that the caller goes on building while it runs; the first query or
+costmap change waits for it. It keeps per-query scratch arrays and its answers on the current
+costmap: it is not thread-safe.
 """
 
 import math
+import threading
 from dataclasses import dataclass
 
 import numba
@@ -106,7 +109,12 @@ class GridPlanner:
         self._heap_item = np.empty(max(n, 16), dtype=np.int64)
         self._query = 0
         self._landmark = np.zeros((n, 0))  # no landmarks while computing them
-        self._landmark = self._landmark_distances(params.landmarks)
+        # The landmark searches (~0.5 s on the hospital floor) run in a thread, the compiled
+        # search without the GIL, while the caller goes on building; the first query waits.
+        self._landmarks_done = None
+        self._landmark_thread = threading.Thread(
+            target=self._compute_landmarks, args=(params.landmarks,), daemon=True)
+        self._landmark_thread.start()
 
     @property
     def costmap(self) -> Costmap:
@@ -124,6 +132,7 @@ class GridPlanner:
         Only the cells whose cost differs from the current costmap's are looked at (the
         others passed the check before), and the components are found again only if one of
         them changed traversability."""
+        self._wait_for_landmarks()
         base = self._landmark_costmap
         if costmap.shape != base.shape:
             raise ValueError("the new costmap must cover the planner's grid")
@@ -219,6 +228,30 @@ class GridPlanner:
         return int(ii.flat[k]), int(jj.flat[k])
 
     def _search(self, start: int, goal: int) -> bool:
+        """Runs A* from ``start`` to ``goal`` into the scratch arrays, once the landmark
+        distances are there; True if ``goal`` was reached."""
+        self._wait_for_landmarks()
+        return self._run_search(start, goal)
+
+    def _wait_for_landmarks(self) -> None:
+        """Waits for the landmark thread (which reads the factors, the components and the
+        scratch arrays); raises what stopped it."""
+        if self._landmark_thread is not None:
+            self._landmark_thread.join()
+            self._landmark_thread = None
+            if self._landmarks_done is not True:
+                raise self._landmarks_done
+
+    def _compute_landmarks(self, count: int) -> None:
+        """The landmark thread: sets the landmark distances and ``_landmarks_done`` (True, or
+        the exception that stopped it, raised by the first query)."""
+        try:
+            self._landmark = self._landmark_distances(count)
+            self._landmarks_done = True
+        except Exception as error:  # handed to the caller's thread
+            self._landmarks_done = error
+
+    def _run_search(self, start: int, goal: int) -> bool:
         """Runs A* (or, with ``goal`` < 0, Dijkstra over the whole component) into the
         scratch arrays; True if ``goal`` was reached."""
         rows, cols = self._costmap.shape
@@ -243,10 +276,10 @@ class GridPlanner:
             return np.zeros((n, 0))
         landmark = np.zeros((n, count))
         main = np.flatnonzero(self._component.ravel() == sizes.argmax())
-        self._search(int(main[0]), -1)
+        self._run_search(int(main[0]), -1)
         nearest = self._closed_distances()[main]
         for k in range(count):
-            self._search(int(main[np.argmax(nearest)]), -1)
+            self._run_search(int(main[np.argmax(nearest)]), -1)
             distance = self._closed_distances()
             landmark[:, k] = np.where(np.isfinite(distance), distance, 0.0)
             nearest = np.minimum(nearest, distance[main]) if k else distance[main]
@@ -276,7 +309,7 @@ def _neighbour(k, i, j):
     return i + 1, j + 1, _SQRT2
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _search(factor, rows, cols, start, goal, landmark, g, parent, stamp, query, heap_key,
             heap_item):
     """A* from cell index ``start`` to ``goal`` over cells of finite ``factor``; with

@@ -1,29 +1,65 @@
-"""Whether numba's on-disk cache already holds the stack's compiled kernels.
+"""Whether numba's on-disk cache already holds the stack's compiled kernels, and compiling them
+in two processes at once when it does not.
 
 The first run after installing (or with an empty ``NUMBA_CACHE_DIR``, or after a kernel's source
 changed) compiles the kernels, which takes tens of seconds once; later runs load them from the
-cache in well under a second. ``cold_kernel_seconds`` looks at the cache index of each entry
-kernel of the default stack (one small file read each, nothing compiled) and estimates how long
-compiling the missing ones will take, so that the CLI can say so before the run starts.
+cache in well under a second. The entry kernels of the quickstart's stack (those Python calls;
+they compile the helpers they call), their argument types and the CPU s each took to compile
+are listed in ``kernel_signatures.json``, in the order the quickstart first calls them,
+written by ``python -m mrta_drake.stack.kernel_cache record`` (run it again when a kernel's
+argument types change: ``tests/stack/test_kernel_cache.py`` says when).
+
+``cold_kernel_seconds`` reads the cache index of each entry kernel (one small file read each,
+nothing compiled) and estimates how long compiling the missing ones will take, so that the
+CLI can say so before the run starts. ``Compilation`` starts a second process
+that compiles the later half of the missing kernels (by compile time) into the shared cache
+while this one loads the scenario and builds the diagram (compiling what that calls) and
+then compiles the rest of the earlier half (``compile_kernels``); the run then loads
+everything from the cache. Numba writes each cache entry whole, and a kernel
+compiled twice (a helper both halves call) is the same machine code, so nothing depends on
+which process compiled what.
 """
 
+import dataclasses
 import importlib
+import json
+import os
+import pathlib
 import pickle
+import subprocess
+import sys
 
-# Entry kernels of the default stack (module, function) and the CPU s of compiling each with
-# everything it calls: the quickstart's ~31 s of compiling split as numba's compile events
-# shared it out, on the benchmark host (docs/benchmarks.md).
-ENTRY_KERNELS = {
-    ("mrta_drake.control.tick_kernel", "plan_tick"): 6.7,
-    ("mrta_drake.control.tick_qps", "_group_rows"): 6.1,
-    ("mrta_drake.control.qp_solver", "_prepare"): 2.0,
-    ("mrta_drake.control.wall_rays", "_wall_hits"): 0.8,
-    ("mrta_drake.navigation.grid_planner", "_path_points"): 3.0,
-    ("mrta_drake.navigation.grid_planner", "_search"): 1.2,
-    ("mrta_drake.robots.unicycle_robots", "_step"): 0.3,
-    ("mrta_drake.world.obstacles", "closest_points_of"): 1.5,
-    ("mrta_drake.humans.social_force_humans", "_step_people"): 9.9,
-}
+MANIFEST = pathlib.Path(__file__).with_name("kernel_signatures.json")
+QUICKSTART = ("scenarios/hospital_6_robots.yaml", "--duration", "60")
+# CPU s the second process spends besides compiling its kernels (starting Python, importing
+# numba and the kernels' modules, compiling numba's own helpers and the shared ones again):
+# its CPU time less its kernels' in the quickstart, on the benchmark host (docs/benchmarks.md).
+CHILD_START_S = 3.0
+
+
+@dataclasses.dataclass(frozen=True)
+class EntryKernel:
+    """An entry kernel: ``module``'s ``njit(cache=True)`` function ``name``, the argument
+    types it is called with (numba's spelling of each signature) and the CPU s compiling it
+    (with every helper it compiled first) took on the benchmark host."""
+
+    module: str
+    name: str
+    cpu_s: float
+    signatures: tuple[str, ...]
+
+    @property
+    def dispatcher(self):
+        return getattr(importlib.import_module(self.module), self.name)
+
+
+def _read_manifest(path: pathlib.Path) -> tuple[EntryKernel, ...]:
+    kernels = json.loads(path.read_text(encoding="utf-8"))["kernels"]
+    return tuple(EntryKernel(k["module"], k["name"], k["cpu_s"], tuple(k["signatures"]))
+                 for k in kernels)
+
+
+ENTRY_KERNELS = _read_manifest(MANIFEST)
 
 
 def is_cached(dispatcher) -> bool:
@@ -39,11 +75,158 @@ def is_cached(dispatcher) -> bool:
         return False
 
 
+def missing_kernels() -> tuple[EntryKernel, ...]:
+    """The entry kernels the cache lacks, in the manifest's order."""
+    return tuple(k for k in ENTRY_KERNELS if not is_cached(k.dispatcher))
+
+
+def split(kernels: tuple[EntryKernel, ...]) -> tuple[tuple[EntryKernel, ...],
+                                                     tuple[EntryKernel, ...]]:
+    """``kernels`` in two halves of about equal compile time: the one compiled here and the
+    one for a second process. Kernels of one package (``mrta_drake.control``, ...) share
+    helpers, which each process compiles for itself, so a package's kernels stay together;
+    the package of the first kernel (the first the run calls, as the scenario loads) stays
+    here, the others go, largest first, to the half with less so far."""
+    packages: dict[str, list[EntryKernel]] = {}
+    for kernel in kernels:
+        packages.setdefault(kernel.module.rpartition(".")[0], []).append(kernel)
+    groups = list(packages.values())
+    halves = ([*groups[0]], []) if groups else ([], [])
+    for group in sorted(groups[1:], key=lambda g: -sum(k.cpu_s for k in g)):
+        min(halves, key=lambda h: sum(k.cpu_s for k in h)).extend(group)
+    order = {kernel: i for i, kernel in enumerate(kernels)}
+    here, there = (tuple(sorted(h, key=order.__getitem__)) for h in halves)
+    return here, there
+
+
+def processes() -> int:
+    """How many processes compile at once: 2 when this process may use 2 cores or more."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return 2 if (cores or 1) >= 2 else 1
+
+
 def cold_kernel_seconds() -> float:
-    """Estimated CPU seconds of compiling the entry kernels missing from the cache (0.0 when
-    the cache is warm)."""
-    total = 0.0
-    for (module, name), seconds in ENTRY_KERNELS.items():
-        if not is_cached(getattr(importlib.import_module(module), name)):
-            total += seconds
-    return total
+    """Estimated wall s of compiling the entry kernels missing from the cache (0.0 when the
+    cache is warm): see ``Compilation.seconds``."""
+    return Compilation.estimate(missing_kernels())
+
+
+def signature_types(signature: str) -> tuple:
+    """The numba argument types spelled ``signature`` (``str`` of a numba signature)."""
+    from numba.core import types
+
+    return eval(signature, {**vars(types), "bool": types.boolean})  # our own manifest's spelling
+
+
+def compile_kernels(kernels) -> None:
+    """Compiles (or loads from the cache) every signature of ``kernels`` not compiled yet (a
+    kernel given its signatures in its decorator compiled them as its module was imported)."""
+    for kernel in kernels:
+        dispatcher = kernel.dispatcher
+        for signature in map(signature_types, kernel.signatures):
+            if signature not in dispatcher.signatures:
+                dispatcher.compile(signature)
+
+
+class Compilation:
+    """Compiling ``kernels`` (entry kernels missing from the cache) before a run: on 2 cores
+    or more, the later half (``split``) starts at once in a child process, compiling into the
+    shared cache (its output discarded: a kernel it fails to compile is compiled by the run,
+    as without it); ``finish`` compiles the earlier half here and waits for the child."""
+
+    def __init__(self, kernels: tuple[EntryKernel, ...]):
+        self.seconds = self.estimate(kernels)
+        if processes() == 1:
+            self._here, there = kernels, ()
+        else:
+            self._here, there = split(kernels)
+        self._child = None
+        if there:
+            package_root = str(pathlib.Path(__file__).resolve().parents[2])
+            env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+                [package_root, *filter(None, [os.environ.get("PYTHONPATH")])]))
+            self._child = subprocess.Popen(
+                [sys.executable, "-m", "mrta_drake.stack.kernel_cache", "compile",
+                 json.dumps([dataclasses.asdict(k) for k in there])],
+                env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL)
+
+    @staticmethod
+    def estimate(kernels: tuple[EntryKernel, ...]) -> float:
+        """Estimated wall s of compiling ``kernels``: the sum of their CPU s in one process;
+        with two, the larger half's, the second's with ``CHILD_START_S`` more (0.0 for
+        none)."""
+        if processes() == 1 or not kernels:
+            return sum(k.cpu_s for k in kernels)
+        here, there = split(kernels)
+        return max(sum(k.cpu_s for k in here),
+                   sum(k.cpu_s for k in there) + (CHILD_START_S if there else 0.0))
+
+    def finish(self) -> None:
+        """Compiles this process's half and waits for the child's."""
+        compile_kernels(self._here)
+        if self._child is not None:
+            self._child.wait()
+
+    def cancel(self) -> None:
+        """Stops the child (the run will not happen)."""
+        if self._child is not None:
+            self._child.kill()
+            self._child.wait()
+
+
+def _record(out: pathlib.Path) -> None:
+    """Runs the quickstart here with numba's cache in an empty folder and writes the entry
+    kernels it compiled (in order, with their signatures and compile CPU s) to ``out``."""
+    import tempfile
+    import time
+
+    with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as results:
+        os.environ["NUMBA_CACHE_DIR"] = cache
+        from numba.core import event
+
+        from mrta_drake.tools import cli
+
+        entries, open_ = {}, []
+
+        class Listener(event.Listener):
+            def on_start(self, ev):
+                open_.append(time.process_time())
+
+            def on_end(self, ev):
+                seconds = time.process_time() - open_.pop()
+                function = ev.data["dispatcher"].py_func
+                if not open_ and function.__module__.startswith("mrta_drake."):
+                    key = (function.__module__, function.__name__)
+                    entries[key] = entries.get(key, 0.0) + seconds
+
+        event.register("numba:compile", Listener())
+        cli.main(["run", *QUICKSTART, "--out", results, "--no-plots"])
+    kernels = []
+    for (module, name), seconds in entries.items():
+        dispatcher = getattr(importlib.import_module(module), name)
+        kernels.append({"module": module, "name": name, "cpu_s": round(seconds, 2),
+                        "signatures": [str(s) for s in dispatcher.signatures]})
+    out.write_text(json.dumps({"command": "python -m mrta_drake.stack.kernel_cache record",
+                               "run": "mrta-sim run " + " ".join(QUICKSTART),
+                               "kernels": kernels}, indent=1) + "\n", encoding="utf-8")
+
+
+def main(argv=None) -> int:
+    """``record``: rewrite the manifest (see the module docstring); ``compile KERNELS``:
+    compile the entry kernels KERNELS, a JSON list of ``EntryKernel`` fields (what
+    ``Compilation``'s child runs)."""
+    argv = sys.argv[1:] if argv is None else argv
+    if argv == ["record"]:
+        _record(MANIFEST)
+        return 0
+    if len(argv) == 2 and argv[0] == "compile":
+        compile_kernels(EntryKernel(**k) for k in json.loads(argv[1]))
+        return 0
+    print("usage: python -m mrta_drake.stack.kernel_cache record | compile KERNELS",
+          file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

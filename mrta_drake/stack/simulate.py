@@ -3,6 +3,7 @@
 import json
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -32,16 +33,21 @@ class SimulationResult:
 def simulate(scenario: Scenario, *, duration: float | None = None,
              meshcat: Meshcat | None = None, record_html: str | None = None,
              out_dir: str | None = None, progress: bool = False,
-             realtime_rate: float = 0.0, plots: bool = True) -> SimulationResult:
+             realtime_rate: float = 0.0, plots: bool = True,
+             before_run: Callable[[], None] | None = None) -> SimulationResult:
     """Run ``scenario`` for ``duration`` s (default: the scenario's), headless unless a
     ``meshcat`` is given. ``record_html`` writes a self-contained replay page;
     ``out_dir`` receives timeline.csv and events.jsonl as the run goes and summary.json
     (and, with ``plots``, the PNG plots of ``mrta_drake.results.plots``) at the end; ``progress``
-    shows a progress bar; ``realtime_rate`` > 0 paces the run."""
+    shows a progress bar; ``realtime_rate`` > 0 paces the run. ``before_run`` is called once
+    the diagram is built, before the simulator initializes (the CLI finishes compiling the
+    kernels there: ``kernel_cache.Compilation``)."""
     duration = scenario.duration if duration is None else duration
     if record_html and meshcat is None:
         meshcat = Meshcat()
     stack = build_diagram(scenario, meshcat=meshcat, out_dir=out_dir)
+    if before_run is not None:
+        before_run()
     simulator = Simulator(stack.diagram)
     simulator.set_target_realtime_rate(realtime_rate)
     if record_html:

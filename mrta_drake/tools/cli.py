@@ -115,6 +115,14 @@ def main(argv=None) -> int:
 
 
 def _run(args) -> int:
+    compiling = _start_compiling()  # first: a second process may start compiling at once
+    try:
+        return _run_scenario(args, compiling)
+    finally:
+        compiling.cancel()  # when the run failed before it was done
+
+
+def _run_scenario(args, compiling) -> int:
     from mrta_drake.results.report import format_summary
     from mrta_drake.scenario.loading import load_scenario
     from mrta_drake.stack.simulate import simulate
@@ -131,11 +139,10 @@ def _run(args) -> int:
         meshcat = Meshcat()
         print(f"Meshcat: {meshcat.web_url()}", flush=True)
         realtime = args.realtime or 1.0
-    _announce_compiling()
     result = simulate(scenario, duration=args.duration, meshcat=meshcat,
                       record_html=args.record, out_dir=args.out,
                       progress=not args.quiet and sys.stderr.isatty(), realtime_rate=realtime,
-                      plots=args.plots)
+                      plots=args.plots, before_run=compiling.finish)
     print(format_summary(result.summary))
     if args.record:
         print(f"replay written to {args.record}")
@@ -144,14 +151,17 @@ def _run(args) -> int:
     return 0
 
 
-def _announce_compiling() -> None:
-    """Says once, on stderr, that the kernels are being compiled when numba's cache lacks
-    them (the first run after installing)."""
-    from mrta_drake.stack.kernel_cache import cold_kernel_seconds
+def _start_compiling():
+    """When numba's cache lacks the stack's entry kernels (the first run after installing),
+    says so once on stderr, with the estimated time, and starts compiling them
+    (``kernel_cache.Compilation``); warm, nothing is said or started."""
+    from mrta_drake.stack import kernel_cache
 
-    seconds = cold_kernel_seconds()
-    if seconds > 0:
-        print(f"compiling kernels, once, ~{seconds:.0f} s", file=sys.stderr, flush=True)
+    compilation = kernel_cache.Compilation(kernel_cache.missing_kernels())
+    if compilation.seconds > 0:
+        print(f"compiling kernels, once, ~{compilation.seconds:.0f} s", file=sys.stderr,
+              flush=True)
+    return compilation
 
 
 def _validate(args) -> int:

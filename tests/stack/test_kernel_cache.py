@@ -1,48 +1,88 @@
-"""kernel_cache: a kernel counts as cached only once numba has compiled and saved it, and the
-CLI announces compiling only then."""
+"""kernel_cache: a kernel counts as cached only once numba has compiled and saved it, the CLI
+announces compiling only then, a second process compiles its half into the shared cache, and
+the manifest lists the argument types the quickstart's stack calls its kernels with."""
 
-import importlib.util
+import importlib
 import sys
 
 import pytest
 
+from mrta_drake.scenario.loading import load_scenario
 from mrta_drake.stack import kernel_cache
+from mrta_drake.stack.kernel_cache import EntryKernel
+from mrta_drake.stack.simulate import simulate
 from mrta_drake.tools import cli
 
 KERNEL = "import numba\n\n\n@numba.njit(cache=True)\ndef twice(x):\n    return 2 * x\n"
 
 
 @pytest.fixture
-def fresh_kernel(tmp_path, monkeypatch):
-    """A module with one never compiled ``njit(cache=True)`` kernel, ``twice``, registered
-    as the only entry kernel (5 s to compile)."""
-    name = f"fresh_kernel_{tmp_path.name}"
-    path = tmp_path / f"{name}.py"
-    path.write_text(KERNEL)
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, name, module)
-    spec.loader.exec_module(module)
-    monkeypatch.setattr(kernel_cache, "ENTRY_KERNELS", {(name, "twice"): 5.0})
-    return module
+def fresh_kernels(tmp_path, monkeypatch):
+    """Two packages, ``fresh_a_*`` and ``fresh_b_*``, each with a module ``kernels`` holding
+    one never compiled ``njit(cache=True)`` kernel, ``twice``, registered as the entry
+    kernels (5 s and 4 s to compile), importable here and in a child process."""
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("PYTHONPATH", str(tmp_path))
+    modules, entries = [], []
+    for package, seconds in ((f"fresh_a_{tmp_path.name}", 5.0),
+                             (f"fresh_b_{tmp_path.name}", 4.0)):
+        (tmp_path / package).mkdir()
+        (tmp_path / package / "__init__.py").write_text("")
+        (tmp_path / package / "kernels.py").write_text(KERNEL)
+        modules.append(importlib.import_module(f"{package}.kernels"))
+        entries.append(EntryKernel(f"{package}.kernels", "twice", seconds, ("(int64,)",)))
+    monkeypatch.setattr(kernel_cache, "ENTRY_KERNELS", tuple(entries))
+    yield modules
+    for module in modules:
+        sys.modules.pop(module.__name__, None)
 
 
-def test_a_kernel_is_cached_once_compiled(fresh_kernel):
-    assert not kernel_cache.is_cached(fresh_kernel.twice)
-    assert kernel_cache.cold_kernel_seconds() == 5.0
-    assert fresh_kernel.twice(2) == 4
-    assert kernel_cache.is_cached(fresh_kernel.twice)
+def test_a_kernel_is_cached_once_compiled(fresh_kernels):
+    first, second = fresh_kernels
+    assert not kernel_cache.is_cached(first.twice)
+    two = 4.0 + kernel_cache.CHILD_START_S  # the second's half and its start-up
+    assert kernel_cache.cold_kernel_seconds() == (two if kernel_cache.processes() == 2
+                                                  else 9.0)
+    assert first.twice(2) == 4
+    assert kernel_cache.is_cached(first.twice)
+    assert kernel_cache.missing_kernels() == kernel_cache.ENTRY_KERNELS[1:]
+    assert kernel_cache.cold_kernel_seconds() == 4.0
+    assert second.twice(2) == 4
     assert kernel_cache.cold_kernel_seconds() == 0.0
 
 
-def test_the_cli_announces_a_cold_cache_only(fresh_kernel, capsys):
-    cli._announce_compiling()
-    assert capsys.readouterr().err == "compiling kernels, once, ~5 s\n"
-    fresh_kernel.twice(1)
-    cli._announce_compiling()
+def test_the_halves_keep_a_package_together_and_the_first_kernel_here():
+    here, there = kernel_cache.split(kernel_cache.ENTRY_KERNELS)
+    assert here[0] == kernel_cache.ENTRY_KERNELS[0]
+    assert sorted(here + there, key=kernel_cache.ENTRY_KERNELS.index) == list(
+        kernel_cache.ENTRY_KERNELS)
+    packages = [{k.module.rpartition(".")[0] for k in half} for half in (here, there)]
+    assert not packages[0] & packages[1]
+
+
+def test_the_cli_announces_a_cold_cache_and_compiles_in_two_processes(fresh_kernels, capsys):
+    first, second = fresh_kernels
+    compilation = cli._start_compiling()
+    seconds = round(4.0 + kernel_cache.CHILD_START_S) if kernel_cache.processes() == 2 else 9
+    assert capsys.readouterr().err == f"compiling kernels, once, ~{seconds} s\n"
+    compilation.finish()
+    assert kernel_cache.is_cached(first.twice) and kernel_cache.is_cached(second.twice)
+    if kernel_cache.processes() == 2:  # the child compiled it: not compiled in this process
+        assert second.twice.signatures == []
+    cli._start_compiling().finish()
     assert capsys.readouterr().err == ""
 
 
-def test_every_entry_kernel_exists():
-    for (module, name) in kernel_cache.ENTRY_KERNELS:
-        assert hasattr(importlib.import_module(module), name), (module, name)
+def test_every_signature_of_the_manifest_reads_back():
+    for kernel in kernel_cache.ENTRY_KERNELS:
+        for signature in kernel.signatures:
+            assert str(kernel_cache.signature_types(signature)) == signature
+
+
+def test_the_manifest_lists_what_the_quickstart_calls():
+    """If this fails, a kernel's argument types changed: run ``python -m
+    mrta_drake.stack.kernel_cache record`` (it rewrites ``kernel_signatures.json``)."""
+    simulate(load_scenario(kernel_cache.QUICKSTART[0]), duration=10.0, plots=False)
+    for kernel in kernel_cache.ENTRY_KERNELS:
+        called = {str(s) for s in kernel.dispatcher.signatures}
+        assert called <= set(kernel.signatures), (kernel.module, kernel.name)
