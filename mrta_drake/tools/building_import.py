@@ -7,10 +7,9 @@
   ``models/hospital/navigation.yaml``, to edit by hand;
 - ``DIR/scenario.yaml``: the world (``kind: rmf_building``), ``robots`` robots on the
   level's chargers, then parking spots and spawn points that are not task locations, then
-  the other lane nodes away from the task locations and their queues (the most open
-  first), then the task locations, flagged ones first (each clear of walls and of the
-  others; a robot waits back on its start spot when it has nothing to do where no parking
-  spot is), ``people``
+  the other spots where a robot is least in the way (``robot_starts``), each clear of walls
+  and of the others (a robot waits back on its start spot when it has nothing to do where
+  no parking spot is), ``people``
   people walking the level's human lanes (else visitors between random lane nodes), and a
   seeded generated task stream
   between the task locations. Where lanes pass nearer walls than the controller's
@@ -26,6 +25,7 @@ import dataclasses
 import math
 import os
 import shutil
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -53,6 +53,8 @@ WALL_SAFETY = SafetyDistances().wall  # m, the controller's default safety dista
 WALL_SAFETY_MARGIN = 0.06  # m kept between that distance and the lanes' clearance
 START_ORDER = ("is_charger", "is_parking_spot", "spawn_robot_name")
 QUEUE_BERTH = 2.0  # m: a start spot off a task location keeps this far from its point and queue
+ROUTE_BERTH = 1.0  # m: a leg this near a start spot passes it
+LIFT_BERTH = 5.0  # m: a start spot keeps this far from a lift's cabin (its riders wait 3 m back)
 
 
 @dataclass(frozen=True)
@@ -144,9 +146,14 @@ def _write_level(building: Building, level_name: str, out_dir: str, options: Imp
 
 
 def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: FloorPlan,
-                 count: int) -> list[list[float]]:
-    """``count`` start poses [x, y, theta] on the level's lane nodes (see the module
-    docstring), each facing along its first lane."""
+                 count: int, lifts: Sequence[tuple[float, float]] = ()) -> list[list[float]]:
+    """``count`` start poses [x, y, theta] on the level's lane nodes, each facing along its
+    first lane, in this order: chargers, parking spots and spawn points that are not task
+    locations; lane nodes away from the task locations and their queues that no leg between
+    them passes; task locations with parking spots (a robot with nothing to do parks off the
+    point); the other lane nodes away from the task locations, fewest legs passing first;
+    the other task locations; last, the other lane nodes within ``LIFT_BERTH`` m of the
+    ``lifts``' cabins (x, y, m) on this level, where riders wait."""
     lines = navigation.centre_lines
     tasks = {loc.name for loc in navigation.locations}
     flagged = []
@@ -154,8 +161,15 @@ def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: Floor
         flagged += [lines.vertex_node[i] for i, v in enumerate(level.vertices)
                     if i in lines.vertex_node and (v.flag(flag) or (
                         flag == "spawn_robot_name" and v.params.get(flag)))]
-    ranked = ([n for n in flagged if n not in tasks] + _open_nodes(navigation, floor_plan, tasks)
-              + [n for n in flagged if n in tasks] + [loc.name for loc in navigation.locations])
+    by_lift = {n for n in lines.nodes if len(lifts) and np.min(np.linalg.norm(
+        np.asarray(lifts, dtype=float) - lines.nodes[n], axis=1)) < LIFT_BERTH}
+    open_nodes = [(n, k) for n, k in _open_nodes(navigation, floor_plan, tasks)
+                  if n not in by_lift]
+    task_nodes = [n for n in flagged if n in tasks] + [loc.name for loc in navigation.locations]
+    parking = {loc.name for loc in navigation.locations if loc.parking}
+    ranked = ([n for n in flagged if n not in tasks]
+              + [n for n, k in open_nodes if k == 0] + [n for n in task_nodes if n in parking]
+              + [n for n, k in open_nodes if k > 0] + task_nodes + sorted(by_lift, key=str))
     chosen: list[list[float]] = []
     seen = set()
     for node in ranked:
@@ -176,19 +190,42 @@ def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: Floor
 
 
 def _open_nodes(navigation: BuildingNavigation, floor_plan: FloorPlan, tasks: set[str]
-                ) -> list[str]:
+                ) -> list[tuple[str, int]]:
     """The lane nodes that are not task locations, at least ``QUEUE_BERTH`` m from every
-    location's point and queue slots, widest open space (clearance to walls) first: where a
-    robot waiting there (at the start, or back home with nothing to do) leaves the rooms and
-    their queues free."""
+    location's point and queue slots: where a robot waiting there (at the start, or back
+    home with nothing to do) leaves the rooms and their queues free; each with the number
+    of legs between task locations that pass it (within ``ROUTE_BERTH`` m), fewest first (a
+    robot waiting there is least in the way), then the widest open space (clearance to
+    walls)."""
     lines = navigation.centre_lines
     busy = np.array([p for loc in navigation.locations for p in (loc.point, *loc.queue)],
                     dtype=float).reshape(-1, 2)
     nodes = [n for n in lines.nodes if n not in tasks and (not len(busy) or np.min(
         np.linalg.norm(busy - np.asarray(lines.nodes[n], dtype=float), axis=1)) >= QUEUE_BERTH)]
-    clearance = floor_plan.obstacles.signed_distance(
-        np.array([lines.nodes[n] for n in nodes], dtype=float).reshape(-1, 2))
-    return [nodes[k] for k in np.argsort(-clearance, kind="stable")]
+    points = np.array([lines.nodes[n] for n in nodes], dtype=float).reshape(-1, 2)
+    clearance = floor_plan.obstacles.signed_distance(points)
+    traffic = _legs_passing(navigation, points)
+    return [(nodes[k], int(traffic[k])) for k in np.lexsort((-clearance, traffic))]
+
+
+def _legs_passing(navigation: BuildingNavigation, points: np.ndarray) -> np.ndarray:
+    """How many legs between two task locations pass within ``ROUTE_BERTH`` m of each of
+    ``points`` (k, 2), m."""
+    roadways = Roadways(navigation.roadways, navigation.locations)
+    counts = np.zeros(len(points), dtype=int)
+    ids = roadways.location_ids
+    for a in ids:
+        for b in ids:
+            leg = None if a == b else roadways.leg(a, b)
+            if leg is None or len(leg) < 2 or not len(points):
+                continue
+            start, step = leg[:-1], np.diff(leg, axis=0)
+            rel = points[:, None, :] - start[None]
+            t = np.clip((rel * step).sum(axis=2) / np.maximum((step * step).sum(axis=1), 1e-12),
+                        0.0, 1.0)
+            gaps = np.linalg.norm(rel - t[..., None] * step, axis=2).min(axis=1)
+            counts += gaps <= ROUTE_BERTH
+    return counts
 
 
 def servable_stream(roadways: RoadwaysConfig, locations: list[LocationConfig],

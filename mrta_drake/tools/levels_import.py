@@ -51,7 +51,8 @@ def write_all_levels(building: Building, out_dir: str, options: ImportOptions,
         if not shares[name]:
             continue
         level_starts = robot_starts(building.levels[name], navigation, world.floor_plan,
-                                    shares[name])
+                                    shares[name], [lift.xy for lift in building.lifts.values()
+                                                   if name in lift.level_doors])
         for group, entries in people_section(building.levels[name], navigation, level_starts,
                                       people[name], rng).items():
             humans.setdefault(group, []).extend(

@@ -47,9 +47,12 @@ def test_robots_start_off_the_task_locations_where_lane_nodes_allow(tmp_path):
     scenario = load_scenario(tmp_path / "scenario.yaml")
     busy = np.array([p for loc in scenario.locations for p in (loc.point, *loc.queue)])
     gaps = [np.linalg.norm(busy - robot.start[:2], axis=1).min() for robot in scenario.robots]
-    # The parking spot, then the one lane node 2 m from every point and queue slot, and
-    # only then a task location.
-    assert gaps[1] >= 2.0 and gaps[2] == 0.0
+    # The parking spot; then east_shelf, a task location with parking spots (a robot with
+    # nothing to do parks off its point) before the lane node 2 m from every point and
+    # queue slot that legs between the task locations pass; west_bench (no parking) last.
+    shelf = next(loc for loc in scenario.locations if loc.name == "east_shelf")
+    assert scenario.robots[1].start[:2] == shelf.point
+    assert gaps[2] >= 2.0
 
 
 def test_the_task_stream_is_sized_to_be_served_in_the_run(tmp_path):
