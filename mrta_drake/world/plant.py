@@ -65,12 +65,14 @@ class PlantPhysics:
     colliding as a ``robot_shape`` ("sphere" of their radius at half their height, or
     "cylinder", their full body).
 
-    The plant's output ports are not sampled: it steps in a discrete update, after the
-    instant's unrestricted updates (the blocks' ticks), from the forces those give; its
-    ``state`` output is its state, and its contact results are those of the step it takes
-    next from there (the ``ContactRecorder`` reads them after each step). A sampled plant
-    steps in an unrestricted update, which marks the whole diagram's state changed and
-    copies it at every step: 15-20 % of a 6-robot stack's CPU time (docs/benchmarks.md)."""
+    The plant's output ports are not sampled: it steps in a discrete update, at the same
+    instant as the blocks' discrete updates (the controller's, the people's), so every
+    block that ticks at an instant reads the plant's state at that instant; its ``state``
+    output is its state, and its contact results are those of the step it takes next from
+    there (the ``ContactRecorder`` reads them after each step). A sampled plant steps in
+    an unrestricted update, before the instant's discrete updates (which then read the
+    state after its step), and that marks the whole diagram's state changed and copies it
+    at every step: 15-20 % of a 6-robot stack's CPU time (docs/benchmarks.md)."""
 
     time_step: float
     robot_mass: float
