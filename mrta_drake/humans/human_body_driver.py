@@ -1,5 +1,6 @@
 """People's bodies in a stepped ``MultibodyPlant``, moved where their block puts them."""
 
+import numba
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import BasicVector, LeafSystem
@@ -47,7 +48,6 @@ class HumanBodyDriver(LeafSystem):
         self._q = np.array([j.position_start() + offsets for j in joints]).reshape(-1, 3)
         self._v = np.array([nq + j.velocity_start() + offsets for j in joints]).reshape(-1, 3)
         self._f = self._v - nq
-        self._nv = nv
         self._mass_matrix = np.array(
             [[b.default_mass(), b.default_mass(), b.default_rotational_inertia().get_moments()[2]]
              for b in bodies]).reshape(-1, 3)
@@ -57,10 +57,21 @@ class HumanBodyDriver(LeafSystem):
         self.DeclareVectorOutputPort("generalized_force", BasicVector(nv), self._calc_forces)
 
     def _calc_forces(self, context, output: BasicVector) -> None:
-        x = self._plant_state.Eval(context)
-        target = self._positions.Eval(context).reshape(self._m, PLANAR_POSITION_SIZE)
-        error = target - x[self._q]
-        error[:, 2] = -np.mod(-error[:, 2] + np.pi, 2.0 * np.pi) + np.pi
-        forces = np.zeros(self._nv)
-        forces[self._f] = self._mass_matrix * (error / self._h - x[self._v]) / self._h
-        output.SetFromVector(forces)
+        _deadbeat_forces(self._plant_state.Eval(context), self._positions.Eval(context),
+                         self._q, self._v, self._f, self._mass_matrix, self._h,
+                         output.get_mutable_value())
+
+
+@numba.njit(cache=True)
+def _deadbeat_forces(x, targets, q, v, f, mass_matrix, h, forces):
+    """``HumanBodyDriver``'s forces into ``forces`` (the plant's nv): from the plant state
+    ``x`` [q; v], the targets (3M) [x, y, theta] per person, the people's indices ``q``,
+    ``v`` (M, 3) in ``x`` and ``f`` (M, 3) in ``forces``, their ``mass_matrix`` diagonals
+    (M, 3) (kg, kg, kg m^2) and the step ``h`` (s); every other entry of ``forces`` zero."""
+    forces[:] = 0.0
+    for i in range(len(q)):
+        for k in range(3):
+            error = targets[3 * i + k] - x[q[i, k]]
+            if k == 2:  # the heading error, wrapped to (-pi, pi]
+                error = -np.mod(-error + np.pi, 2.0 * np.pi) + np.pi
+            forces[f[i, k]] = mass_matrix[i, k] * (error / h - x[v[i, k]]) / h

@@ -2,6 +2,7 @@
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import BasicVector, LeafSystem
@@ -85,7 +86,6 @@ class PhysicsRobots(LeafSystem):
 
     def __init__(self, plant: MultibodyPlant, robot_models, params: PhysicsRobotParams):
         super().__init__()
-        self._params = params
         self._n = len(robot_models)
         nq, nv = plant.num_positions(), plant.num_velocities()
         joints = [plant.get_joint(plant.GetJointIndices(m)[0]) for m in robot_models]
@@ -100,6 +100,11 @@ class PhysicsRobots(LeafSystem):
         self._mass = np.array([b.default_mass() for b in bodies])
         self._inertia = np.array([b.default_rotational_inertia().get_moments()[2]
                                   for b in bodies])
+        self._limits = np.array([params.max_reverse_speed, params.max_speed,
+                                 params.max_yaw_rate, params.response_time,
+                                 params.max_traction_force, params.max_traction_torque,
+                                 params.lateral_damping, params.max_lateral_force])
+        self._no_commands = np.zeros(ROBOT_COMMAND_SIZE * self._n)
         self.robot_names = tuple(plant.GetModelInstanceName(m) for m in robot_models)
         self._commands = self.DeclareVectorInputPort("commands", ROBOT_COMMAND_SIZE * self._n)
         self._plant_state = self.DeclareVectorInputPort("plant_state", nq + nv)
@@ -124,26 +129,10 @@ class PhysicsRobots(LeafSystem):
         return x[self._q], x[self._v]
 
     def _calc_forces(self, context, output: BasicVector) -> None:
-        p = self._params
-        pose, velocity = self._read(context)
-        if self._commands.HasValue(context):
-            u = self._commands.Eval(context).reshape(self._n, ROBOT_COMMAND_SIZE)
-        else:
-            u = np.zeros((self._n, ROBOT_COMMAND_SIZE))
-        v_cmd = np.clip(u[:, 0], -p.max_reverse_speed, p.max_speed)
-        omega_cmd = np.clip(u[:, 1], -p.max_yaw_rate, p.max_yaw_rate)
-        c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
-        forward = c * velocity[:, 0] + s * velocity[:, 1]
-        sideways = -s * velocity[:, 0] + c * velocity[:, 1]
-        push = np.clip(self._mass * (v_cmd - forward) / p.response_time,
-                       -p.max_traction_force, p.max_traction_force)
-        grip = np.clip(-p.lateral_damping * sideways, -p.max_lateral_force,
-                       p.max_lateral_force)
-        turn = np.clip(self._inertia * (omega_cmd - velocity[:, 2]) / p.response_time,
-                       -p.max_traction_torque, p.max_traction_torque)
-        forces = np.zeros(self._nv)
-        forces[self._f] = np.column_stack([c * push - s * grip, s * push + c * grip, turn])
-        output.SetFromVector(forces)
+        commands = (self._commands.Eval(context) if self._commands.HasValue(context)
+                    else self._no_commands)
+        _drive_forces(self._plant_state.Eval(context), commands, self._q, self._v, self._f,
+                      self._mass, self._inertia, self._limits, output.get_mutable_value())
 
     def _calc_state(self, context, output: BasicVector) -> None:
         pose, velocity = self._read(context)
@@ -153,3 +142,37 @@ class PhysicsRobots(LeafSystem):
 
     def _calc_plant_positions(self, context, output: BasicVector) -> None:
         output.SetFromVector(self._read(context)[0].ravel())
+
+
+@numba.njit(cache=True)
+def _clip(value, low, high):
+    """``np.clip`` of one float, to the bit: NaN is kept, and so is ``value`` when it equals
+    a bound (+0.0 clipped to [-0.0, 1] stays +0.0)."""
+    value = low if value < low else value
+    return high if value > high else value
+
+
+@numba.njit(cache=True)
+def _drive_forces(x, commands, q, v, f, mass, inertia, limits, forces):
+    """``PhysicsRobots``' drive forces into ``forces`` (the plant's nv): from the plant state
+    ``x`` [q; v], the commands (2N) [v, omega] per robot (m/s, rad/s), the robots' indices
+    ``q``, ``v`` (N, 3) in ``x`` and ``f`` (N, 3) in ``forces``, masses (kg), yaw inertias
+    (kg m^2) and ``limits`` [max_reverse_speed, max_speed, max_yaw_rate, response_time,
+    max_traction_force, max_traction_torque, lateral_damping, max_lateral_force]
+    (``PhysicsRobotParams``); every other entry of ``forces`` zero."""
+    max_reverse, max_speed, max_yaw, response = limits[0], limits[1], limits[2], limits[3]
+    max_push, max_turn, damping, max_grip = limits[4], limits[5], limits[6], limits[7]
+    forces[:] = 0.0
+    for i in range(len(q)):
+        c, s = np.cos(x[q[i, 2]]), np.sin(x[q[i, 2]])
+        vx, vy, omega = x[v[i, 0]], x[v[i, 1]], x[v[i, 2]]
+        forward = c * vx + s * vy
+        sideways = -s * vx + c * vy
+        v_cmd = _clip(commands[2 * i], -max_reverse, max_speed)
+        omega_cmd = _clip(commands[2 * i + 1], -max_yaw, max_yaw)
+        push = _clip(mass[i] * (v_cmd - forward) / response, -max_push, max_push)
+        grip = _clip(-damping * sideways, -max_grip, max_grip)
+        forces[f[i, 0]] = c * push - s * grip
+        forces[f[i, 1]] = s * push + c * grip
+        forces[f[i, 2]] = _clip(inertia[i] * (omega_cmd - omega) / response, -max_turn,
+                                max_turn)

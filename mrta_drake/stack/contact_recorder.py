@@ -27,8 +27,12 @@ class _Pair:
 
 
 class ContactRecorder(LeafSystem):
-    """Notes the plant's point contacts at every plant step (publish events only: it never
-    changes the run).
+    """Notes the plant's point contacts after every plant step (publish events only: it
+    never changes the run): the pairs in contact in the state the step reached and their
+    penetration, with the contact forces of the plant's next step from that state (the
+    plant's output ports are not sampled, ``world.plant.PlantPhysics``; the blocks whose
+    outputs drive the plant, the controller and the people, update at the next step's
+    instant together with the plant, so that step uses the inputs read here).
 
     .. pydrake_system::
 

@@ -63,7 +63,16 @@ class PlantPhysics:
     """How ``build_world`` makes a plant that is stepped: discrete, ``time_step`` s, SAP
     contact solver, point contact; robots of ``robot_mass`` kg (a solid cylinder's inertia)
     colliding as a ``robot_shape`` ("sphere" of their radius at half their height, or
-    "cylinder", their full body)."""
+    "cylinder", their full body).
+
+    The plant's output ports are not sampled: it steps in a discrete update, at the same
+    instant as the blocks' discrete updates (the controller's, the people's), so every
+    block that ticks at an instant reads the plant's state at that instant; its ``state``
+    output is its state, and its contact results are those of the step it takes next from
+    there (the ``ContactRecorder`` reads them after each step). A sampled plant steps in
+    an unrestricted update, before the instant's discrete updates (which then read the
+    state after its step), and that marks the whole diagram's state changed and copies it
+    at every step: 15-20 % of a 6-robot stack's CPU time (docs/benchmarks.md)."""
 
     time_step: float
     robot_mass: float
@@ -155,7 +164,7 @@ def build_world(builder, floor_plan: FloorPlan, robots=(), humans=(),
     else:
         plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(
             time_step=physics.time_step, contact_model="point",
-            discrete_contact_approximation="sap"), builder)
+            discrete_contact_approximation="sap", use_sampled_output_ports=False), builder)
     _add_obstacles(plant, floor_plan)
     robot_mass = ROBOT_MASS if physics is None else physics.robot_mass
     robot_shape = "cylinder" if physics is None else physics.robot_shape

@@ -173,3 +173,15 @@ def test_people_bodies_follow_the_humans_block_in_the_hospital():
     np.testing.assert_allclose(bodies[:, :2], targets[:, :2], atol=1e-6)
     turn = np.angle(np.exp(1j * (bodies[:, 2] - targets[:, 2])))
     np.testing.assert_allclose(turn, 0.0, atol=1e-6)
+
+
+def test_the_compiled_clip_is_numpys_to_the_bit():
+    from mrta_drake.robots.physics_robots import _clip
+
+    values = [-2.0, -1.0, -0.0, 0.0, 0.5, 1.0, 3.0, np.inf, -np.inf, np.nan]
+    for low, high in [(-1.0, 1.0), (-0.0, 1.5), (0.0, 0.0), (-0.0, -0.0), (0.0, 2.0)]:
+        for value in values:
+            expected = np.clip(value, low, high)
+            got = _clip(value, low, high)
+            assert np.array_equal(got, expected, equal_nan=True), (value, low, high)
+            assert np.signbit(got) == np.signbit(expected), (value, low, high)
