@@ -784,10 +784,16 @@ class FleetWaypoints(LeafSystem):
         - queue_request_<robot>
         - progress_<robot>
         - lift_request_<robot>
+        - fleet_targets
+        - fleet_queue_requests
+        - fleet_progress
 
     Inputs: see ``WaypointInputs`` (``robot_state``: vector 4N, ``[x, y, theta, v]`` per
-    robot, world frame, m, rad, m/s; the others abstract). Outputs (from the robot's state;
-    no direct feedthrough): per robot, its policy's ``outputs``.
+    robot, world frame, m, rad, m/s; the others abstract). Outputs (from the robots' states;
+    no direct feedthrough): per robot, its policy's ``outputs``; and the ``fleet_`` outputs,
+    each one tuple of every robot's ``target``, ``queue_request`` or ``progress`` in robot
+    order, for the blocks that read all robots' (``stack.fleet_inputs``: one port evaluation
+    instead of one per robot).
     """
 
     def __init__(self, policies: Sequence[WaypointPolicy], *, rate_hz: float):
@@ -806,7 +812,21 @@ class FleetWaypoints(LeafSystem):
                         output.set_value(getattr(policy.outputs(
                             context.get_abstract_state(index).get_value()), name)),
                     prerequisites_of_calc={self.abstract_state_ticket(index)})
+        tickets = {self.abstract_state_ticket(index) for index in self._states}
+        for fleet, name in (("targets", "target"), ("queue_requests", "queue_request"),
+                            ("progress", "progress")):
+            self.DeclareAbstractOutputPort(
+                f"fleet_{fleet}", _model(tuple(
+                    getattr(policy.outputs(policy.initial_state()), name)
+                    for policy in self._policies)),
+                lambda context, output, name=name: output.set_value(self._fleet(context, name)),
+                prerequisites_of_calc=tickets)
         self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate_hz, 0.0, self._update)
+
+    def _fleet(self, context, name: str) -> tuple:
+        """Every robot's output payload ``name``, in robot order."""
+        return tuple(getattr(policy.outputs(context.get_abstract_state(index).get_value()), name)
+                     for policy, index in zip(self._policies, self._states, strict=True))
 
     def _update(self, context, state) -> EventStatus:
         inputs = WaypointInputs(self._inputs, context)
