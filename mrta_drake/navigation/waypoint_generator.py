@@ -34,7 +34,8 @@ _ASKING_PHASES = (RobotMode.QUEUE, RobotMode.ENTER, RobotMode.SERVE)
 
 @dataclass(frozen=True)
 class WaypointParams:
-    """Parameters of a ``WaypointGenerator``; distances in m, times in s."""
+    """Parameters of a ``WaypointPolicy`` (kinds ``roadway`` and ``roadway_per_robot``);
+    distances in m, times in s."""
 
     waypoint_tolerance: float = 1.0  # a waypoint is reached within this distance
     reach_tolerance: float = 1.0  # a location's point is reached within this distance
