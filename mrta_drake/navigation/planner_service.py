@@ -30,6 +30,7 @@ from mrta_drake.payloads import (
     frozen_array,
 )
 from mrta_drake.scenario.disturbances import blockage_obstacles
+from mrta_drake.stack.fleet_inputs import PerRobotInputs
 from mrta_drake.world.obstacles import Cylinder, Obstacles
 
 _COSTMAP_CACHE = 16  # costmaps with closures kept for reuse
@@ -73,6 +74,7 @@ class PlannerService(LeafSystem):
         input_ports:
         - robot_state
         - target_<robot>
+        - fleet_targets (optional)
         - disturbances (optional)
         - back_offs (optional)
         output_ports:
@@ -80,7 +82,8 @@ class PlannerService(LeafSystem):
 
     Inputs: ``robot_state`` (vector, 4N: x, y, theta, v per robot, world frame, m, rad, m/s)
     and ``target_<robot>`` (abstract ``WaypointTarget``), one per robot in ``robot_names``
-    order; all must be connected. Output: ``paths`` (abstract ``FleetPaths``), from the
+    order, all connected, or instead ``fleet_targets``, their tuple in that order
+    (``stack.fleet_inputs``). Output: ``paths`` (abstract ``FleetPaths``), from the
     state.
 
     Every ``1 / target_check_rate_hz`` s an unrestricted update re-plans the robots whose
@@ -131,10 +134,7 @@ class PlannerService(LeafSystem):
         self._state_index = self.DeclareAbstractState(Value[object](initial))
         self._robot_state = self.DeclareVectorInputPort(
             "robot_state", BasicVector(ROBOT_STATE_SIZE * n))
-        self._targets = [
-            self.DeclareAbstractInputPort(f"target_{robot}", Value[object](WaypointTarget(robot)))
-            for robot in self._robots
-        ]
+        self._targets = PerRobotInputs(self, "target", "targets", self._robots, WaypointTarget)
         self._disturbances = self.DeclareAbstractInputPort(
             "disturbances", Value[object](Disturbances()))
         self._back_offs = self.DeclareAbstractInputPort(
@@ -172,7 +172,7 @@ class PlannerService(LeafSystem):
         return self._robots
 
     def get_target_input_port(self, robot: str):
-        return self._targets[self._robots.index(robot)]
+        return self._targets.ports[self._robots.index(robot)]
 
     def _calc_paths(self, context, output):
         output.set_value(context.get_abstract_state(self._state_index).get_value().paths)
@@ -210,7 +210,7 @@ class PlannerService(LeafSystem):
     def _targets_now(self, context) -> tuple[WaypointTarget, ...]:
         """Each robot's target: its waypoint generator's, or its back-off spot while the
         watchdog orders one."""
-        targets = tuple(port.Eval(context) for port in self._targets)
+        targets = self._targets.values(context)
         orders = (self._back_offs.Eval(context) if self._back_offs.HasValue(context)
                   else NO_BACK_OFFS)
         if not orders.active:

@@ -14,6 +14,7 @@ from mrta_drake.payloads import (
     RoomQueue,
     SegmentHold,
 )
+from mrta_drake.stack.fleet_inputs import PerRobotInputs
 
 
 class RoomQueues(LeafSystem):
@@ -24,11 +25,13 @@ class RoomQueues(LeafSystem):
         name: RoomQueues
         input_ports:
         - request_<robot>
+        - fleet_queue_requests (optional)
         output_ports:
         - queue_state
 
     Inputs: ``request_<robot>`` (abstract ``QueueRequest``), one per robot, in
-    ``robot_names`` order.
+    ``robot_names`` order, or instead ``fleet_queue_requests``, their tuple in that order
+    (``stack.fleet_inputs``).
     Output: ``queue_state`` (abstract ``QueueState``), one ``RoomQueue`` per room in ``rooms``
     order, from the state (no direct feedthrough).
 
@@ -82,19 +85,17 @@ class RoomQueues(LeafSystem):
         initial = QueueState(tuple(RoomQueue(room, holders.get(room)) for room in self._rooms),
                              segments=(FREE_SEGMENT,) * segments)
         self._state_index = self.DeclareAbstractState(Value[object](initial))
-        self._requests = [
-            self.DeclareAbstractInputPort(f"request_{robot}", Value[object](QueueRequest(robot)))
-            for robot in self._robots
-        ]
+        self._requests = PerRobotInputs(self, "request", "queue_requests", self._robots,
+                                        QueueRequest)
         self.DeclareStateOutputPort("queue_state", self._state_index)
         self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate_hz, 0.0, self._update)
 
     def get_request_input_port(self, robot: str):
-        return self._requests[self._robots.index(robot)]
+        return self._requests.ports[self._robots.index(robot)]
 
     def _update(self, context, state) -> EventStatus:
         old = context.get_abstract_state(self._state_index).get_value()
-        requests = [port.Eval(context) for port in self._requests]
+        requests = self._requests.values(context)
         new = self._applied(old, requests) if self._changes_anything(old, requests) else old
         if self._segments:
             holds, waiting = self._segments_applied(old, requests)
@@ -105,7 +106,7 @@ class RoomQueues(LeafSystem):
         state.get_mutable_abstract_state(self._state_index).set_value(new)
         return EventStatus.Succeeded()
 
-    def _segments_applied(self, old: QueueState, requests: list[QueueRequest]
+    def _segments_applied(self, old: QueueState, requests: Sequence[QueueRequest]
                           ) -> tuple[tuple[SegmentHold, ...], tuple[str, ...]]:
         """The segments' holders and waiting robots after ``requests`` (class docstring)."""
         wanted = {robot: dict(request.segments)
@@ -133,7 +134,7 @@ class RoomQueues(LeafSystem):
                 named.update(wanted[robot])
         return tuple(holds), tuple(waiting)
 
-    def _changes_anything(self, old: QueueState, requests: list[QueueRequest]) -> bool:
+    def _changes_anything(self, old: QueueState, requests: Sequence[QueueRequest]) -> bool:
         """False if applying ``requests`` to ``old`` gives ``old`` itself (the hot path: most
         updates change nothing); True if it may not (a holder releasing and asking again for
         the same room gets it back)."""
@@ -151,7 +152,7 @@ class RoomQueues(LeafSystem):
                    or any(room_of[robot] != q.room for robot in q.waiting)
                    for q in old.rooms)
 
-    def _applied(self, old: QueueState, requests: list[QueueRequest]) -> QueueState:
+    def _applied(self, old: QueueState, requests: Sequence[QueueRequest]) -> QueueState:
         holder = {q.room: q.holder for q in old.rooms}
         waiting = {q.room: list(q.waiting) for q in old.rooms}
         for robot, request in zip(self._robots, requests, strict=True):

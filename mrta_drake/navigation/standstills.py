@@ -95,7 +95,15 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
     n_side = int(reach / SEARCH_STEP)
     offsets = np.arange(-n_side, n_side + 1) * SEARCH_STEP
     points = xy[k] + np.stack(np.meshgrid(offsets, offsets, indexing="ij"), axis=-1)
+    # Robots and people farther than ``far`` (surface to centre) from robot k are more than
+    # ``clearance`` from it at every point within ``reach`` (the only points passable, so
+    # the only ones searched): leaving them out changes nothing.
+    far = reach + radii[k] + clearance + 1e-6
     others = np.delete(np.arange(len(xy)), k)
+    others = others[np.linalg.norm(xy[others] - xy[k], axis=-1) - radii[others] < far]
+    with np.errstate(invalid="ignore"):  # people absent from the run are NaN: left out
+        near = np.linalg.norm(people_xy - xy[k], axis=-1) - people_radii < far
+    people_xy, people_radii = people_xy[near], people_radii[near]
     robot_gaps = (np.linalg.norm(points[..., None, :] - xy[others], axis=-1)
                   - radii[others] - radii[k])
     # Closer to another robot than ``clearance`` only while getting away from where it

@@ -34,7 +34,8 @@ _ASKING_PHASES = (RobotMode.QUEUE, RobotMode.ENTER, RobotMode.SERVE)
 
 @dataclass(frozen=True)
 class WaypointParams:
-    """Parameters of a ``WaypointGenerator``; distances in m, times in s."""
+    """Parameters of a ``WaypointPolicy`` (kinds ``roadway`` and ``roadway_per_robot``);
+    distances in m, times in s."""
 
     waypoint_tolerance: float = 1.0  # a waypoint is reached within this distance
     reach_tolerance: float = 1.0  # a location's point is reached within this distance
@@ -83,6 +84,16 @@ class _Drive:
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the state can share it
+
+
+@dataclass(frozen=True)
+class _FleetState:
+    """The fleet waypoints block's state: every robot's policy state, in robot order."""
+
+    robots: tuple
+
+    def __deepcopy__(self, memo):
+        return self  # immutable (so are the policies' states): Drake's copies can share it
 
 
 @dataclass(frozen=True)
@@ -792,11 +803,12 @@ class WaypointGenerator(LeafSystem):
 class FleetWaypoints(LeafSystem):
     """Every robot's waypoints in one system: ``rate_hz`` times a second one unrestricted
     update reads the inputs once (``WaypointInputs``) and calls each robot's policy in
-    robot order; each robot's state is an abstract state of its own, and its outputs
-    depend on it alone. ``policies`` (one per robot, in ``robot_names`` order) are
-    ``WaypointPolicy`` objects (the behaviour is described there) or any objects with the
-    same ``robot``, ``initial_state``, ``update`` and ``outputs`` (a state must be an
-    immutable value and ``update`` must return the very same object when nothing changes).
+    robot order; the robots' states are one abstract state, their tuple in robot order
+    (``_FleetState``: Drake copies it at each update, as itself). ``policies`` (one per
+    robot, in ``robot_names`` order) are ``WaypointPolicy`` objects (the behaviour is
+    described there) or any objects with the same ``robot``, ``initial_state``, ``update``
+    and ``outputs`` (a state must be an immutable value and ``update`` must return the very
+    same object when nothing changes).
 
     .. pydrake_system::
 
@@ -812,38 +824,60 @@ class FleetWaypoints(LeafSystem):
         - queue_request_<robot>
         - progress_<robot>
         - lift_request_<robot>
+        - fleet_targets
+        - fleet_queue_requests
+        - fleet_progress
 
     Inputs: see ``WaypointInputs`` (``robot_state``: vector 4N, ``[x, y, theta, v]`` per
-    robot, world frame, m, rad, m/s; the others abstract). Outputs (from the robot's state;
-    no direct feedthrough): per robot, its policy's ``outputs``.
+    robot, world frame, m, rad, m/s; the others abstract). Outputs (from the robots' states;
+    no direct feedthrough): per robot, its policy's ``outputs``; and the ``fleet_`` outputs,
+    each one tuple of every robot's ``target``, ``queue_request`` or ``progress`` in robot
+    order, for the blocks that read all robots' (``stack.fleet_inputs``: one port evaluation
+    instead of one per robot).
     """
 
     def __init__(self, policies: Sequence[WaypointPolicy], *, rate_hz: float):
         super().__init__()
         self._policies = tuple(policies)
-        self._states = [self.DeclareAbstractState(Value[object](policy.initial_state()))
-                        for policy in self._policies]
+        self._state_index = self.DeclareAbstractState(Value[object](_FleetState(tuple(
+            policy.initial_state() for policy in self._policies))))
         self._inputs = _declare_inputs(self, len(self._policies))
-        for policy, index in zip(self._policies, self._states, strict=True):
+        tickets = {self.abstract_state_ticket(self._state_index)}
+        for k, policy in enumerate(self._policies):
             initial = policy.outputs(policy.initial_state())
             for name in _OUTPUTS:
                 self.DeclareAbstractOutputPort(
                     f"{name}_{policy.robot}",
                     _model(getattr(initial, name)),
-                    lambda context, output, name=name, policy=policy, index=index:
-                        output.set_value(getattr(policy.outputs(
-                            context.get_abstract_state(index).get_value()), name)),
-                    prerequisites_of_calc={self.abstract_state_ticket(index)})
+                    lambda context, output, name=name, policy=policy, k=k:
+                        output.set_value(getattr(policy.outputs(self._robots(context)[k]),
+                                                 name)),
+                    prerequisites_of_calc=tickets)
+        for fleet, name in (("targets", "target"), ("queue_requests", "queue_request"),
+                            ("progress", "progress")):
+            self.DeclareAbstractOutputPort(
+                f"fleet_{fleet}", _model(tuple(
+                    getattr(policy.outputs(policy.initial_state()), name)
+                    for policy in self._policies)),
+                lambda context, output, name=name: output.set_value(self._fleet(context, name)),
+                prerequisites_of_calc=tickets)
         self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate_hz, 0.0, self._update)
+
+    def _robots(self, context) -> tuple:
+        return context.get_abstract_state(self._state_index).get_value().robots
+
+    def _fleet(self, context, name: str) -> tuple:
+        """Every robot's output payload ``name``, in robot order."""
+        return tuple(getattr(policy.outputs(s), name)
+                     for policy, s in zip(self._policies, self._robots(context), strict=True))
 
     def _update(self, context, state) -> EventStatus:
         inputs = WaypointInputs(self._inputs, context)
-        changed = False
-        for policy, index in zip(self._policies, self._states, strict=True):
-            old = context.get_abstract_state(index).get_value()
-            s = policy.update(old, inputs)
-            if s is not old:
-                state.get_mutable_abstract_state(index).set_value(s)
-                changed = True
-        # unchanged: Drake applies an instant's updates only if one changed
-        return EventStatus.Succeeded() if changed else EventStatus.DidNothing()
+        old = self._robots(context)
+        new = tuple(policy.update(s, inputs)
+                    for policy, s in zip(self._policies, old, strict=True))
+        if all(a is b for a, b in zip(new, old, strict=True)):
+            return EventStatus.DidNothing()  # Drake applies an instant's updates only if one
+            # changed
+        state.get_mutable_abstract_state(self._state_index).set_value(_FleetState(new))
+        return EventStatus.Succeeded()

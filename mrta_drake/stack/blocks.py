@@ -10,12 +10,16 @@ slot        inputs                                outputs
 =========== ===================================== ============================================
 allocator   progress_<robot> (RobotProgress)      plan (FleetPlan)
 waypoints   plan, robot_state, queue_state        target_<robot>, queue_request_<robot>,
-                                                  progress_<robot>, lift_request_<robot>
+                                                  progress_<robot>, lift_request_<robot>,
+                                                  fleet_targets, fleet_queue_requests,
+                                                  fleet_progress
                                                   (one system for the fleet; a ``per_robot``
                                                   kind: target, queue_request, progress,
                                                   lift_request of one system per robot)
-queues      request_<robot> (QueueRequest)        queue_state (QueueState)
-planner     robot_state, target_<robot>           paths (FleetPaths)
+queues      request_<robot> (QueueRequest; or     queue_state (QueueState)
+            fleet_queue_requests)
+planner     robot_state, target_<robot> (or       paths (FleetPaths)
+            fleet_targets)
 controller  robot_state, paths, human_states      commands (2N), telemetry
 robots      commands (2N)                         state (4N), plant_positions (3N)
 humans      robot_state (4N)                      human_states (HumanStates), plant_positions

@@ -116,6 +116,18 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
         """Each robot's waypoints output ``port``, in robot order."""
         return [_waypoint_output(generators, name, k, port) for k, name in enumerate(names)]
 
+    def per_robot(port: str, reader: LeafSystem, prefix: str, fleet: str) -> None:
+        """Each robot's waypoints output ``port`` to ``reader``'s ``<prefix>_<robot>``, or
+        the waypoints block's ``fleet_<fleet>`` to the reader's when both have it
+        (``stack.fleet_inputs``)."""
+        name = f"fleet_{fleet}"
+        if (len(generators) == 1 and generators[0].HasOutputPort(name)
+                and reader.HasInputPort(name)):
+            builder.Connect(generators[0].GetOutputPort(name), reader.GetInputPort(name))
+            return
+        for robot, output in zip(names, waypoints(port), strict=True):
+            builder.Connect(output, reader.GetInputPort(f"{prefix}_{robot}"))
+
     state = robots.GetOutputPort("state")
     builder.Connect(controller.GetOutputPort("commands"), robots.GetInputPort("commands"))
     builder.Connect(state, controller.GetInputPort("robot_state"))
@@ -126,12 +138,9 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
         builder.Connect(state, generator.GetInputPort("robot_state"))
         builder.Connect(queues.GetOutputPort("queue_state"),
                         generator.GetInputPort("queue_state"))
-    for name, target, request, progress in zip(names, waypoints("target"),
-                                               waypoints("queue_request"),
-                                               waypoints("progress"), strict=True):
-        builder.Connect(target, planner.GetInputPort(f"target_{name}"))
-        builder.Connect(request, queues.GetInputPort(f"request_{name}"))
-        builder.Connect(progress, allocator.GetInputPort(f"progress_{name}"))
+    per_robot("target", planner, "target", "targets")
+    per_robot("queue_request", queues, "request", "queue_requests")
+    per_robot("progress", allocator, "progress", "progress")
     lifts = (_add_lifts(builder, ctx, make, robots, generators, waypoints("lift_request"))
              if ctx.lifts else None)
     if humans is not None:
@@ -154,10 +163,8 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
     builder.Connect(planner.GetOutputPort("paths"), recorder.GetInputPort("paths"))
     builder.Connect(queues.GetOutputPort("queue_state"), recorder.GetInputPort("queue_state"))
     builder.Connect(allocator.GetOutputPort("plan"), recorder.GetInputPort("plan"))
-    for name, progress, target in zip(names, waypoints("progress"), waypoints("target"),
-                                      strict=True):
-        builder.Connect(progress, recorder.GetInputPort(f"progress_{name}"))
-        builder.Connect(target, recorder.GetInputPort(f"target_{name}"))
+    per_robot("progress", recorder, "progress", "progress")
+    per_robot("target", recorder, "target", "targets")
     if allocator.HasOutputPort("events"):
         builder.Connect(allocator.GetOutputPort("events"),
                         recorder.GetInputPort("allocator_events"))

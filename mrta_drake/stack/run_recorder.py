@@ -26,6 +26,7 @@ from mrta_drake.payloads import (
     RobotProgress,
     WaypointTarget,
 )
+from mrta_drake.stack.fleet_inputs import PerRobotInputs
 
 
 class RunRecorder(LeafSystem):
@@ -42,6 +43,8 @@ class RunRecorder(LeafSystem):
         - plan
         - progress_<robot>
         - target_<robot>
+        - fleet_progress (optional)
+        - fleet_targets (optional)
         - human_states (optional)
         - human_active (optional)
         - allocator_events (optional)
@@ -89,11 +92,12 @@ class RunRecorder(LeafSystem):
     within ``serve_radius`` m of it; ``DRIVE`` otherwise.
 
     Inputs: ``robot_state`` (4N), ``telemetry``, ``paths``, ``queue_state``, ``plan``,
-    ``progress_<robot>`` and ``target_<robot>`` per robot; optional (may stay unconnected):
-    ``human_states``, ``human_active`` (M, 1 = present), ``allocator_events`` (a sequence
-    of event objects; new ones are noted), ``disturbances``, ``lift_state`` (``LiftState``)
-    and ``lift_events`` (a growing tuple of ``LiftEvent``), ``back_offs``
-    (``BackOffOrders``; its ``history`` grows).
+    ``progress_<robot>`` and ``target_<robot>`` per robot (or instead ``fleet_progress`` and
+    ``fleet_targets``, their tuples in robot order: ``stack.fleet_inputs``); optional (may
+    stay unconnected): ``human_states``, ``human_active`` (M, 1 = present),
+    ``allocator_events`` (a sequence of event objects; new ones are noted),
+    ``disturbances``, ``lift_state`` (``LiftState``) and ``lift_events`` (a growing tuple
+    of ``LiftEvent``), ``back_offs`` (``BackOffOrders``; its ``history`` grows).
     """
 
     def __init__(self, robot_names, humans=(), *, rate_hz: float, out_dir: str | None = None,
@@ -109,12 +113,10 @@ class RunRecorder(LeafSystem):
         self.DeclareAbstractInputPort("paths", _value(FleetPaths(())))
         self.DeclareAbstractInputPort("queue_state", _value(QueueState()))
         self.DeclareAbstractInputPort("plan", _value(FleetPlan(())))
-        self._progress = [
-            self.DeclareAbstractInputPort(f"progress_{name}", _value(RobotProgress(name)))
-            for name in self.robot_names]
-        self._targets = [
-            self.DeclareAbstractInputPort(f"target_{name}", _value(WaypointTarget(name)))
-            for name in self.robot_names]
+        self._progress = PerRobotInputs(self, "progress", "progress", self.robot_names,
+                                        RobotProgress)
+        self._targets = PerRobotInputs(self, "target", "targets", self.robot_names,
+                                       WaypointTarget)
         self.DeclareAbstractInputPort("human_states", _value(HumanStates()))
         self.DeclareVectorInputPort("human_active", len(self.human_names))
         self.DeclareAbstractInputPort("allocator_events", _value(()))
@@ -203,7 +205,7 @@ class RunRecorder(LeafSystem):
                                                      strict=True))
             self._timeline.flush()
         queues = self._ports["queue_state"].Eval(context)
-        progress = [port.Eval(context) for port in self._progress]
+        progress = self._progress.values(context)
         self.modes.append(self._modes(context, states, queues, progress))
         self._note_plan(context, t)
         self._note_progress(progress, t)
@@ -215,7 +217,7 @@ class RunRecorder(LeafSystem):
         self._note_back_offs(context, t)
 
     def _modes(self, context, states: np.ndarray, queues: QueueState,
-               progress: list[RobotProgress]) -> np.ndarray:
+               progress: tuple[RobotProgress, ...]) -> np.ndarray:
         waiting = {robot for queue in queues.rooms for robot in queue.waiting}
         if self._ports["lift_state"].HasValue(context):
             for lift in self._ports["lift_state"].Eval(context).lifts:
@@ -224,6 +226,7 @@ class RunRecorder(LeafSystem):
                     waiting.update(lift.riders)
         holders = {queue.room: queue.holder for queue in queues.rooms}
         modes = np.full(self._n, RobotMode.IDLE, dtype=np.int8)
+        targets = self._targets.values(context)
         for k, name in enumerate(self.robot_names):
             stop = progress[k].current_stop
             if stop is None:
@@ -231,7 +234,7 @@ class RunRecorder(LeafSystem):
             if name in queues.segment_waiting:  # holding back for a single-file stretch
                 modes[k] = RobotMode.QUEUE
                 continue
-            target = self._targets[k].Eval(context)
+            target = targets[k]
             if not target.active:
                 continue
             if name in waiting:
@@ -254,7 +257,7 @@ class RunRecorder(LeafSystem):
                        "location": s.location, "planned": s.planned_time} for s in p.stops]
             for p in plan.plans}})
 
-    def _note_progress(self, progresses: list[RobotProgress], t: float) -> None:
+    def _note_progress(self, progresses: tuple[RobotProgress, ...], t: float) -> None:
         previous = self.times[-2] if len(self.times) > 1 else t
         for k, (name, progress) in enumerate(zip(self.robot_names, progresses, strict=True)):
             if progress is self._last_progress[k]:
