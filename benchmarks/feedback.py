@@ -5,8 +5,8 @@ The cases below, each run with every variant of the allocator's feedback switche
 
 - busy: the six-robot hospital with people for 300 s under the generated task stream of
   ``scenarios/sweeps/hospital_20_seeds.yaml``, over 20 seeds the sweeps do not use
-  (200-219); busy_check: the same on ten further seeds (220-229), to check a default
-  chosen on the first twenty;
+  (200-219); busy_check: the same on forty further seeds (220-259, ``--check-seeds``), to
+  check a default chosen on the first twenty;
 - paper: ``scenarios/hospital_6_robots.yaml`` as it is (its 3+2 stream, the ten people),
   600 s;
 - six_plus_six: ``scenarios/hospital_6_plus_6.yaml`` (a 6+6 stream after the original's
@@ -24,6 +24,7 @@ runs (median and p90 of the absolute error, mean signed error); re-plans on drif
     python benchmarks/feedback.py                 # everything (hours on 2 shared cores)
     python benchmarks/feedback.py --seeds 4 --variants "open loop" "learn only"
     python benchmarks/feedback.py --cases two_floor paper --variants "open loop"
+    python benchmarks/feedback.py --cases busy_check --check-seeds 220 221 222
 
 Prints the tables and writes benchmarks/results/feedback.json, keeping the variants and
 cases an earlier invocation wrote there and this one did not run.
@@ -49,7 +50,7 @@ PAPER = ROOT / "scenarios" / "hospital_6_robots.yaml"
 SINGLE_RUNS = {"paper": PAPER, "six_plus_six": ROOT / "scenarios" / "hospital_6_plus_6.yaml",
                "two_floor": ROOT / "scenarios" / "two_floor_6_robots.yaml"}
 SEEDS = list(range(200, 220))
-CHECK_SEEDS = list(range(220, 230))
+CHECK_SEEDS = list(range(220, 260))
 PARAMS = "blocks.allocator.params."
 
 OFF = {"earliest_drop_offs": False}  # the switches a variant leaves off unless it sets them
@@ -73,6 +74,8 @@ VARIANTS = {  # name -> allocator params set (every switch the defaults could ch
     "loop, earliest drop-offs": EARLIEST,
     "loop, earliest drop-offs, 3 s margin": EARLIEST | {"planning_margin": 3.0},
     DEFAULT: EARLIEST | {"drift_margin": 1.0},
+    "default, write off tasks 5 s late": EARLIEST | {"drift_margin": 1.0,
+                                                     "write_off_lateness": 5.0},
 }
 
 
@@ -130,6 +133,8 @@ def table(results: dict) -> str:
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=len(SEEDS), help="busy seeds to run")
+    parser.add_argument("--check-seeds", type=int, nargs="*", default=CHECK_SEEDS,
+                        help="the busy_check case's seeds (default 220-259)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--variants", nargs="*", default=list(VARIANTS),
                         help="variant names (default: all)")
@@ -139,7 +144,7 @@ def main():
     cases = {
         "busy": SweepSpec(busy.scenario, {"seed": SEEDS[:args.seeds]},
                           {k: v for k, v in busy.fixed.items()}, busy.plugins, busy.source),
-        "busy_check": SweepSpec(busy.scenario, {"seed": CHECK_SEEDS}, dict(busy.fixed),
+        "busy_check": SweepSpec(busy.scenario, {"seed": args.check_seeds}, dict(busy.fixed),
                                 busy.plugins, busy.source),
     } | {name: SweepSpec(str(path), {"seed": [0]}, {}, [], str(path))
          for name, path in SINGLE_RUNS.items()}

@@ -5,6 +5,7 @@ import dataclasses
 import inspect
 from dataclasses import dataclass
 
+from mrta_drake.allocation.local_search import LocalSearchParams
 from mrta_drake.allocation.travel_time_model import Estimator, TravelTimeModel
 from mrta_drake.errors import require_non_negative
 
@@ -32,7 +33,9 @@ class FeedbackParams:
     ``earliest_drop_offs``: every allocation is improved by local search
     (``allocation.local_search``: the fewest late tasks, then the least tardiness, then the
     earliest drop-offs), so that a task planned on time has as much room for delays as the
-    search finds, whatever the allocator's own objective.
+    search finds, whatever the allocator's own objective. With ``write_off_lateness`` (s,
+    None: never) that search writes off a task planned more than that late: it goes after
+    the tasks that can still be on time instead of as early as it can (``Allocation.rank``).
 
     ``learn_travel_times``, ``replan_on_delay``, ``retime_on_drift`` and
     ``earliest_drop_offs`` are on by default (measured better: docs/allocation.md);
@@ -53,11 +56,14 @@ class FeedbackParams:
     replan_interval: float = 10.0
     retime_on_drift: bool = True
     earliest_drop_offs: bool = True
+    write_off_lateness: float | None = None
 
     def __post_init__(self):
         self.estimator()  # checks the estimator's fields
         require_non_negative(self, "prior_samples", "planning_margin", "drift_margin",
                              "replan_interval")
+        if self.write_off_lateness is not None:
+            require_non_negative(self, "write_off_lateness")
         parent = getattr(super(), "__post_init__", None)
         if parent is not None:
             parent()
@@ -65,6 +71,12 @@ class FeedbackParams:
     def estimator(self) -> Estimator:
         return Estimator(self.travel_time_estimator, self.recent_weight, self.quantile,
                          self.quantile_window)
+
+    def local_search(self) -> LocalSearchParams:
+        """The local search of ``earliest_drop_offs``."""
+        if self.write_off_lateness is None:
+            return LocalSearchParams()
+        return LocalSearchParams(write_off=float(self.write_off_lateness))
 
     def travel_time_model(self, prior) -> TravelTimeModel:
         """The model planning with the scenario's matrix ``prior`` (s)."""

@@ -140,7 +140,8 @@ class TaskAllocator(LeafSystem):
     ``ReplanEvent``); with ``retime_on_drift`` a drift that turns nothing late only
     re-times the plan (same routes, times predicted now, no event); with
     ``earliest_drop_offs`` every allocation is improved by local search
-    (``local_search.improve_keeping_verdict``). Done and under-way actions are kept as for
+    (``local_search.improve_keeping_verdict``, writing off tasks more than
+    ``write_off_lateness`` late). Done and under-way actions are kept as for
     a batch.
 
     Args:
@@ -272,7 +273,8 @@ class TaskAllocator(LeafSystem):
         if in_service:
             allocation = self._allocator.allocate(problem)
             if feedback.earliest_drop_offs:
-                allocation = improve_keeping_verdict(problem, allocation)
+                allocation = improve_keeping_verdict(problem, allocation,
+                                                     feedback.local_search())
         else:
             allocation = Allocation((), (), UNKNOWN, note="no robot in service")
         routes = dict(zip(in_service, range(len(in_service)), strict=True))
