@@ -76,6 +76,8 @@ VARIANTS = {  # name -> allocator params set (every switch the defaults could ch
     DEFAULT: EARLIEST | {"drift_margin": 1.0},
     "default, write off tasks 5 s late": EARLIEST | {"drift_margin": 1.0,
                                                      "write_off_lateness": 5.0},
+    "default, write off 5 s, re-plan only for fewer late": EARLIEST | {
+        "drift_margin": 1.0, "write_off_lateness": 5.0, "replan_only_if_fewer_late": True},
 }
 
 

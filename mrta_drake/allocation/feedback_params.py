@@ -28,7 +28,10 @@ class FeedbackParams:
     ``replan_interval`` (s). With ``retime_on_drift`` a drift that turns no drop-off planned
     on time late only re-times the plan (the same routes, the completion times predicted
     now) instead of allocating again, at any check (re-timing changes no route, so
-    ``replan_interval`` does not limit it).
+    ``replan_interval`` does not limit it). With ``replan_only_if_fewer_late`` such an
+    allocation takes the allocator's routes only when they have fewer tasks late than the
+    robots' current routes (re-timed); otherwise the robots keep their routes, so a re-plan
+    moves no task between robots for nothing.
 
     ``earliest_drop_offs``: every allocation is improved by local search
     (``allocation.local_search``: the fewest late tasks, then the least tardiness, then the
@@ -55,6 +58,7 @@ class FeedbackParams:
     drift_margin: float = 1.0
     replan_interval: float = 10.0
     retime_on_drift: bool = True
+    replan_only_if_fewer_late: bool = False
     earliest_drop_offs: bool = True
     write_off_lateness: float | None = None
 
