@@ -28,8 +28,8 @@ class FeedbackParams:
     ``replan_interval`` (s). With ``retime_on_drift`` a drift that turns no drop-off planned
     on time late only re-times the plan (the same routes, the completion times predicted
     now) instead of allocating again, at any check (re-timing changes no route, so
-    ``replan_interval`` does not limit it). With ``replan_only_if_fewer_late`` such an
-    allocation takes the allocator's routes only when they have fewer tasks late than the
+    ``replan_interval`` does not limit it). With ``replan_only_if_fewer_late`` an allocation
+    made on delay takes the allocator's routes only when they have fewer tasks late than the
     robots' current routes (re-timed); otherwise the robots keep their routes, so a re-plan
     moves no task between robots for nothing.
 
