@@ -5,6 +5,8 @@ import dataclasses
 import inspect
 from dataclasses import dataclass
 
+import numpy as np
+
 from mrta_drake.allocation.local_search import LocalSearchParams
 from mrta_drake.allocation.travel_time_model import Estimator, TravelTimeModel
 from mrta_drake.errors import require_non_negative
@@ -18,9 +20,10 @@ class FeedbackParams:
     (``allocation.travel_time_model``), summarised by ``travel_time_estimator`` (``mean``,
     ``recent``: weight ``recent_weight`` for each new sample, or ``quantile``: the
     ``quantile`` of the last ``quantile_window`` samples), a pair's own samples counting
-    against the fleet-wide ratio as ``prior_samples`` samples. ``planning_margin`` (s) is
-    added to every leg planned (with or without learning): a robust plan promises only what
-    it can keep with that margin.
+    against the fleet-wide ratio as ``prior_samples`` samples, each leg rounded to whole
+    seconds as ``travel_time_rounding`` says (``up`` or ``nearest``: unbiased; see
+    ``TravelTimeModel``). ``planning_margin`` (s) is added to every leg planned (with or
+    without learning): a robust plan promises only what it can keep with that margin.
 
     ``replan_on_delay``: between batches, allocate again when a robot's progress (with the
     travel times planned with) makes one of its planned drop-offs late or moves it by more
@@ -54,6 +57,7 @@ class FeedbackParams:
     quantile: float = 0.8
     quantile_window: int = 20
     prior_samples: float = 2.0
+    travel_time_rounding: str = "up"
     planning_margin: float = 0.0
     drift_margin: float = 1.0
     replan_interval: float = 10.0
@@ -64,6 +68,7 @@ class FeedbackParams:
 
     def __post_init__(self):
         self.estimator()  # checks the estimator's fields
+        self.travel_time_model(np.zeros((1, 1)))  # and the rounding
         require_non_negative(self, "prior_samples", "planning_margin", "drift_margin",
                              "replan_interval")
         if self.write_off_lateness is not None:
@@ -85,7 +90,7 @@ class FeedbackParams:
     def travel_time_model(self, prior) -> TravelTimeModel:
         """The model planning with the scenario's matrix ``prior`` (s)."""
         return TravelTimeModel(prior, self.estimator(), self.prior_samples,
-                               self.planning_margin)
+                               self.planning_margin, self.travel_time_rounding)
 
     @classmethod
     def of(cls, params) -> "FeedbackParams":
