@@ -147,9 +147,9 @@ def report(output: dict, case: str, results: dict):
     for variant, f in results.items():
         if base is not None and variant != "open loop" and base["on_time"]:
             gain = 100.0 * (f["on_time"] / base["on_time"] - 1.0)
-            promises = (100.0 * (f["broken_promises"] / base["broken_promises"] - 1.0)
-                        if base["broken_promises"] else float("nan"))
-            print(f"  {variant}: on time {gain:+.1f} %, broken promises {promises:+.0f} %")
+            promises = (f"{100.0 * (f['broken_promises'] / base['broken_promises'] - 1.0):+.0f} %"
+                        if base["broken_promises"] else "none in the open loop")
+            print(f"  {variant}: on time {gain:+.1f} %, broken promises {promises}")
 
 
 def main():

@@ -43,8 +43,9 @@ class FeedbackParams:
     None: never) that search writes off a task planned more than that late: it goes after
     the tasks that can still be on time instead of as early as it can (``Allocation.rank``).
 
-    ``learn_travel_times``, ``replan_on_delay``, ``retime_on_drift`` and
-    ``earliest_drop_offs`` are on by default (measured better: docs/allocation.md);
+    ``learn_travel_times``, ``replan_on_delay``, ``retime_on_drift``,
+    ``replan_only_if_fewer_late`` and ``earliest_drop_offs`` are on by default, with a write-off
+    after 5 s and legs rounded to the nearest second (measured better: docs/allocation.md);
     ``learn_travel_times``, ``replan_on_delay`` and ``earliest_drop_offs`` false, with no
     margin, is the open loop (``OPEN_LOOP``): plans made only when batches arrive or robots
     break down, from the scenario's matrix, as the allocator answers them.
@@ -57,14 +58,14 @@ class FeedbackParams:
     quantile: float = 0.8
     quantile_window: int = 20
     prior_samples: float = 2.0
-    travel_time_rounding: str = "up"
+    travel_time_rounding: str = "nearest"
     planning_margin: float = 0.0
     drift_margin: float = 1.0
     replan_interval: float = 10.0
     retime_on_drift: bool = True
-    replan_only_if_fewer_late: bool = False
+    replan_only_if_fewer_late: bool = True
     earliest_drop_offs: bool = True
-    write_off_lateness: float | None = None
+    write_off_lateness: float | None = 5.0
 
     def __post_init__(self):
         self.estimator()  # checks the estimator's fields

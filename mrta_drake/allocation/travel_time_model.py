@@ -97,7 +97,7 @@ class TravelTimeModel:
     estimator: Estimator = Estimator()
     prior_samples: float = 2.0
     margin: float = 0.0
-    rounding: str = "up"
+    rounding: str = "nearest"
 
     def __post_init__(self):
         if self.rounding not in ROUNDINGS:
