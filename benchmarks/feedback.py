@@ -5,8 +5,9 @@ The cases below, each run with every variant of the allocator's feedback switche
 
 - busy: the six-robot hospital with people for 300 s under the generated task stream of
   ``scenarios/sweeps/hospital_20_seeds.yaml``, over 20 seeds the sweeps do not use
-  (200-219); busy_check: the same on ten further seeds (220-229), to check a default
-  chosen on the first twenty;
+  (200-219); busy_check: the same on forty further seeds (220-259, ``--check-seeds``), to
+  check a default chosen on the first twenty; busy_pooled: both together (printed and
+  stored when both ran);
 - paper: ``scenarios/hospital_6_robots.yaml`` as it is (its 3+2 stream, the ten people),
   600 s;
 - six_plus_six: ``scenarios/hospital_6_plus_6.yaml`` (a 6+6 stream after the original's
@@ -19,11 +20,13 @@ sweeps side by side with ``--workers`` processes in all, resumable from
 ``benchmarks/results/feedback_runs/``. Per case and variant: tasks
 completed, on time and late; broken promises (tasks planned on time at their last
 allocation that missed their deadline); drop-off and leg prediction errors pooled over the
-runs (median and p90 of the absolute error, mean signed error); re-plans on drift.
+runs (median and p90 of the absolute error, mean signed error); re-plans on drift; and
+each variant's change of on-time tasks and broken promises against the open loop.
 
     python benchmarks/feedback.py                 # everything (hours on 2 shared cores)
     python benchmarks/feedback.py --seeds 4 --variants "open loop" "learn only"
     python benchmarks/feedback.py --cases two_floor paper --variants "open loop"
+    python benchmarks/feedback.py --cases busy_check --check-seeds 220 221 222
 
 Prints the tables and writes benchmarks/results/feedback.json, keeping the variants and
 cases an earlier invocation wrote there and this one did not run.
@@ -49,16 +52,19 @@ PAPER = ROOT / "scenarios" / "hospital_6_robots.yaml"
 SINGLE_RUNS = {"paper": PAPER, "six_plus_six": ROOT / "scenarios" / "hospital_6_plus_6.yaml",
                "two_floor": ROOT / "scenarios" / "two_floor_6_robots.yaml"}
 SEEDS = list(range(200, 220))
-CHECK_SEEDS = list(range(220, 230))
+CHECK_SEEDS = list(range(220, 260))
 PARAMS = "blocks.allocator.params."
 
-OFF = {"earliest_drop_offs": False}  # the switches a variant leaves off unless it sets them
+OFF = {"earliest_drop_offs": False, "write_off_lateness": None,  # the switches a variant
+       "replan_only_if_fewer_late": False, "travel_time_rounding": "up"}  # leaves unless set
 DRIFT_10 = OFF | {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": False,
                   "drift_margin": 10.0}  # an earlier default: allocate again on a 10 s drift
 LOOP = OFF | {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": True,
               "drift_margin": 3.0}  # learn, re-plan when late, re-time on a 3 s drift
 EARLIEST = LOOP | {"earliest_drop_offs": True}
-DEFAULT = "default: loop, earliest drop-offs, re-time on 1 s drift"
+PREVIOUS = EARLIEST | {"drift_margin": 1.0}  # the default before write-offs
+DEFAULT = ("default: loop, earliest drop-offs, write off 5 s late, re-plan only for fewer "
+           "late, nearest-second travel times")
 VARIANTS = {  # name -> allocator params set (every switch the defaults could change)
     "open loop": OFF | {"learn_travel_times": False, "replan_on_delay": False},
     "learn only": OFF | {"learn_travel_times": True, "replan_on_delay": False},
@@ -72,7 +78,12 @@ VARIANTS = {  # name -> allocator params set (every switch the defaults could ch
     "loop, smt objective lateness": LOOP | {"objective": "lateness"},
     "loop, earliest drop-offs": EARLIEST,
     "loop, earliest drop-offs, 3 s margin": EARLIEST | {"planning_margin": 3.0},
-    DEFAULT: EARLIEST | {"drift_margin": 1.0},
+    "previous default: loop, earliest drop-offs, re-time on 1 s drift": PREVIOUS,
+    "previous default, write off 5 s late": PREVIOUS | {"write_off_lateness": 5.0},
+    "previous default, write off 5 s late, re-plan only for fewer late": PREVIOUS | {
+        "write_off_lateness": 5.0, "replan_only_if_fewer_late": True},
+    DEFAULT: PREVIOUS | {"write_off_lateness": 5.0, "replan_only_if_fewer_late": True,
+                         "travel_time_rounding": "nearest"},
 }
 
 
@@ -127,9 +138,25 @@ def table(results: dict) -> str:
                        "leg |med| s", "leg bias s", "re-plans"], rows)
 
 
+def report(output: dict, case: str, results: dict):
+    """Prints ``case``'s table, with each variant's on-time change against the open loop
+    when it ran, and stores ``results`` in ``output``."""
+    output["cases"][case] = output["cases"].get(case, {}) | results
+    print(f"\n{case}\n{table(results)}", flush=True)
+    base = results.get("open loop")
+    for variant, f in results.items():
+        if base is not None and variant != "open loop" and base["on_time"]:
+            gain = 100.0 * (f["on_time"] / base["on_time"] - 1.0)
+            promises = (f"{100.0 * (f['broken_promises'] / base['broken_promises'] - 1.0):+.0f} %"
+                        if base["broken_promises"] else "none in the open loop")
+            print(f"  {variant}: on time {gain:+.1f} %, broken promises {promises}")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=len(SEEDS), help="busy seeds to run")
+    parser.add_argument("--check-seeds", type=int, nargs="*", default=CHECK_SEEDS,
+                        help="the busy_check case's seeds (default 220-259)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--variants", nargs="*", default=list(VARIANTS),
                         help="variant names (default: all)")
@@ -139,7 +166,7 @@ def main():
     cases = {
         "busy": SweepSpec(busy.scenario, {"seed": SEEDS[:args.seeds]},
                           {k: v for k, v in busy.fixed.items()}, busy.plugins, busy.source),
-        "busy_check": SweepSpec(busy.scenario, {"seed": CHECK_SEEDS}, dict(busy.fixed),
+        "busy_check": SweepSpec(busy.scenario, {"seed": args.check_seeds}, dict(busy.fixed),
                                 busy.plugins, busy.source),
     } | {name: SweepSpec(str(path), {"seed": [0]}, {}, [], str(path))
          for name, path in SINGLE_RUNS.items()}
@@ -147,13 +174,16 @@ def main():
     output = json.loads(path.read_text()) if path.is_file() else {"variants": {}, "cases": {}}
     output["variants"] |= {v: VARIANTS[v] for v in args.variants}
     workers = max(1, args.workers // len(args.variants))
+    summaries = {}
     for case in args.cases:
         with ThreadPoolExecutor(min(len(args.variants), args.workers)) as pool:
             runs = {variant: pool.submit(run_case, case, cases[case], VARIANTS[variant],
                                          workers) for variant in args.variants}
-            results = {variant: figures(run.result()) for variant, run in runs.items()}
-        output["cases"][case] = output["cases"].get(case, {}) | results
-        print(f"\n{case}\n{table(results)}", flush=True)
+            summaries[case] = {variant: run.result() for variant, run in runs.items()}
+        report(output, case, {v: figures(s) for v, s in summaries[case].items()})
+    if {"busy", "busy_check"} <= summaries.keys():
+        report(output, "busy_pooled", {
+            v: figures(summaries["busy"][v] + summaries["busy_check"][v]) for v in args.variants})
     RESULTS.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(output, indent=1) + "\n")
 

@@ -1,7 +1,9 @@
 """Local search on routes: improves an allocation by moving tasks between and within robots.
 
 An allocation is ranked by ``Allocation.rank``: fewest late tasks, then least total
-tardiness (s), then least total drop-off time (s). Three moves, tried in a fixed order until
+tardiness (s), then least total drop-off time (s); with ``write_off`` a task planned more
+than that late counts only that much tardiness and its drop-off time ranks after the others'
+(it goes after the tasks that can still be on time). Three moves, tried in a fixed order until
 none improves the rank (first improvement, no randomness, so the same allocation always
 improves to the same answer):
 
@@ -16,6 +18,7 @@ only within the route, by 2-opt. Capacity holds in every route tried.
 """
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 from mrta_drake.allocation.problem import FEASIBLE, Action, Allocation, AllocationProblem
@@ -31,16 +34,20 @@ TOLERANCE = 1e-9  # s: a rank must improve by more than this
 class LocalSearchParams:
     """``max_rounds``: at most this many rounds of relocate, swap and 2-opt;
     ``max_evaluations``: at most this many routes evaluated (a count, not a time, so the
-    answer is the same on any host), checked before each task a move tries."""
+    answer is the same on any host), checked before each task a move tries; ``write_off``
+    (s): the rank's (``Allocation.rank``), infinite by default."""
 
     max_rounds: int = MAX_ROUNDS
     max_evaluations: int = MAX_EVALUATIONS
+    write_off: float = math.inf
 
     def __post_init__(self):
         for name in ("max_rounds", "max_evaluations"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
                 raise InputError(None, name, f"must be a whole number >= 0, got {value!r}")
+        if not self.write_off >= 0:
+            raise InputError(None, "write_off", f"must be >= 0 s, got {self.write_off!r}")
 
 
 def improve(problem: AllocationProblem, allocation: Allocation,
@@ -48,12 +55,12 @@ def improve(problem: AllocationProblem, allocation: Allocation,
     """``allocation`` improved by relocate, swap and 2-opt moves until none helps; never
     ranks worse than ``allocation``. The status is recomputed (``FEASIBLE`` when every task
     is on time, else ``UNKNOWN``)."""
-    search = _Routes(problem, allocation.routes, params.max_evaluations)
+    search = _Routes(problem, allocation.routes, params.max_evaluations, params.write_off)
     for _ in range(params.max_rounds):
         if not (search.relocate() or search.swap() or search.two_opt()):
             break
     improved = Allocation.of(problem, search.routes)
-    if improved.rank(problem) < allocation.rank(problem):
+    if improved.rank(problem, params.write_off) < allocation.rank(problem, params.write_off):
         return improved
     return allocation
 
@@ -61,23 +68,27 @@ def improve(problem: AllocationProblem, allocation: Allocation,
 def improve_keeping_verdict(problem: AllocationProblem, allocation: Allocation,
                             params: LocalSearchParams = LocalSearchParams()) -> Allocation:
     """``allocation`` with the routes ``improve`` finds, keeping the allocator's status,
-    conflict, note, optimality, solve time and work (local search never adds a late task or
-    tardiness, so what the allocator proved still holds); ``FEASIBLE`` once nothing is
-    late."""
+    conflict, note, solve time and work (local search never adds a late task, so what the
+    allocator proved still holds), and its optimality unless tardiness was traded for the
+    drop-offs of the tasks not written off; ``FEASIBLE`` once nothing is late."""
     improved = improve(problem, allocation, params)
     if improved is allocation:
         return allocation
     status = FEASIBLE if not improved.late_tasks else allocation.status
+    optimal = allocation.optimal and (improved.total_tardiness(problem)
+                                      <= allocation.total_tardiness(problem))
     return dataclasses.replace(allocation, routes=improved.routes, times=improved.times,
-                               late_tasks=improved.late_tasks, status=status)
+                               late_tasks=improved.late_tasks, status=status, optimal=optimal)
 
 
 class _Routes:
     """The routes being improved, with each one's cost (late, tardiness, drop-off times)."""
 
-    def __init__(self, problem: AllocationProblem, routes, max_evaluations: int):
+    def __init__(self, problem: AllocationProblem, routes, max_evaluations: int,
+                 write_off: float):
         self.problem = problem
         self.evaluations_left = max_evaluations
+        self.write_off = write_off
         self.travel = problem.travel.tolist()
         self.service = problem.service_time
         self.task = {task.id: task for task in problem.tasks}
@@ -85,13 +96,14 @@ class _Routes:
         self.costs = [self.cost(r, route) for r, route in enumerate(self.routes)]
 
     def cost(self, robot: int, route: list[Action]):
-        """(late tasks, tardiness, sum of drop-off times) of ``route`` for robot index
-        ``robot``, or None when it overloads the robot or drops an item not on board."""
+        """(late tasks, tardiness, sum of drop-off times of the tasks not written off, and of
+        those written off; see ``Allocation.rank``) of ``route`` for robot index ``robot``, or
+        None when it overloads the robot or drops an item not on board."""
         self.evaluations_left -= 1
         start = self.problem.robots[robot]
         on_board = set(start.carrying)
         time, here = float(start.ready_time), start.location
-        late, tardiness, drops = 0, 0.0, 0.0
+        late, tardiness, drops, written_off = 0, 0.0, 0.0, 0.0
         for action in route:
             task = self.task[action.task]
             if action.kind == PICKUP:
@@ -107,11 +119,17 @@ class _Routes:
             time = max(time, task.release) + self.travel[here][there] + self.service
             here = there
             if action.kind == DROPOFF:
-                drops += time
-                if time > task.deadline:
+                behind = time - task.deadline
+                if behind > self.write_off:
                     late += 1
-                    tardiness += time - task.deadline
-        return late, tardiness, drops
+                    tardiness += self.write_off
+                    written_off += time
+                    continue
+                drops += time
+                if behind > 0:
+                    late += 1
+                    tardiness += behind
+        return late, tardiness, drops, written_off
 
     def _better(self, new_costs, old_costs) -> bool:
         new = _sum(new_costs)
@@ -120,7 +138,9 @@ class _Routes:
             return new[0] < old[0]
         if abs(new[1] - old[1]) > TOLERANCE:
             return new[1] < old[1]
-        return new[2] < old[2] - TOLERANCE
+        if abs(new[2] - old[2]) > TOLERANCE:
+            return new[2] < old[2]
+        return new[3] < old[3] - TOLERANCE
 
     def _best_insertion(self, robot: int, route: list[Action], task: int):
         """The cheapest route and its cost with ``task``'s pickup and drop-off inserted into
@@ -205,4 +225,4 @@ class _Routes:
 
 
 def _sum(costs):
-    return (sum(c[0] for c in costs), sum(c[1] for c in costs), sum(c[2] for c in costs))
+    return tuple(sum(c[k] for c in costs) for k in range(4))

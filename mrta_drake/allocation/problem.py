@@ -11,6 +11,7 @@ where ``c_0`` and ``l_0`` are the robot's ready time and location. A task is on 
 drop-off completes by its deadline. Robots do not return home.
 """
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -274,11 +275,23 @@ class Allocation:
             max(0.0, time - problem.task(t).deadline) for t, time in self.drop_times().items()
         )
 
-    def rank(self, problem: AllocationProblem) -> tuple[int, float, float]:
+    def rank(self, problem: AllocationProblem,
+             write_off: float = math.inf) -> tuple[int, float, float, float]:
         """What the heuristics minimize, in order: late tasks, total tardiness (s), total
-        drop-off time (s)."""
-        return (len(self.late_tasks), self.total_tardiness(problem),
-                sum(self.drop_times().values()))
+        drop-off time (s) of the tasks not written off, and of those written off. A task
+        whose drop-off is more than ``write_off`` (s) after its deadline is written off: its
+        tardiness counts as ``write_off``, so it may go after every task that can still be
+        on time (the default writes off nothing)."""
+        late, tardiness, kept, written_off = len(self.late_tasks), 0.0, 0.0, 0.0
+        for t, time in self.drop_times().items():
+            behind = max(0.0, time - problem.task(t).deadline)
+            if behind > write_off:
+                tardiness += write_off
+                written_off += time
+            else:
+                tardiness += behind
+                kept += time
+        return late, tardiness, kept, written_off
 
 
 def keeping_planned(problem: AllocationProblem) -> AllocationProblem:

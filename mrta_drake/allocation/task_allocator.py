@@ -33,6 +33,7 @@ from mrta_drake.allocation.problem import (
     stream_tasks,
 )
 from mrta_drake.allocation.travel_time_model import LearnedTravelTimes
+from mrta_drake.allocation.verify import verify_allocation
 from mrta_drake.errors import InputError
 from mrta_drake.payloads import (
     DROPOFF,
@@ -139,8 +140,11 @@ class TaskAllocator(LeafSystem):
     ``drift_margin``, at most ``replan_interval`` after the last allocation (a
     ``ReplanEvent``); with ``retime_on_drift`` a drift that turns nothing late only
     re-times the plan (same routes, times predicted now, no event); with
-    ``earliest_drop_offs`` every allocation is improved by local search
-    (``local_search.improve_keeping_verdict``). Done and under-way actions are kept as for
+    ``replan_only_if_fewer_late`` a ``ReplanEvent`` keeps the robots' routes unless the
+    allocator's have fewer tasks late; with ``earliest_drop_offs`` every allocation is
+    improved by local search
+    (``local_search.improve_keeping_verdict``, writing off tasks more than
+    ``write_off_lateness`` late). Done and under-way actions are kept as for
     a batch.
 
     Args:
@@ -272,7 +276,10 @@ class TaskAllocator(LeafSystem):
         if in_service:
             allocation = self._allocator.allocate(problem)
             if feedback.earliest_drop_offs:
-                allocation = improve_keeping_verdict(problem, allocation)
+                allocation = improve_keeping_verdict(problem, allocation,
+                                                     feedback.local_search())
+            if drift is not None and feedback.replan_only_if_fewer_late:
+                allocation = _kept_unless_fewer_late(problem, allocation)
         else:
             allocation = Allocation((), (), UNKNOWN, note="no robot in service")
         routes = dict(zip(in_service, range(len(in_service)), strict=True))
@@ -410,6 +417,16 @@ def _stops(problem: AllocationProblem, allocation: Allocation, r: int) -> tuple[
         Stop(action.key, problem.location(action), action.kind, action.task, time)
         for action, time in zip(allocation.routes[r], allocation.times[r], strict=True)
     )
+
+
+def _kept_unless_fewer_late(problem: AllocationProblem, allocation: Allocation) -> Allocation:
+    """``allocation``, or the robots' current routes (their ``planned`` actions, re-timed)
+    when those are a complete allocation of ``problem`` with no more tasks late."""
+    kept = Allocation.of(problem, [robot.planned for robot in problem.robots],
+                         note="re-planned: the current routes kept (no fewer tasks late)")
+    if len(allocation.late_tasks) < len(kept.late_tasks) or verify_allocation(problem, kept):
+        return allocation
+    return kept
 
 
 def _retimed(plan: FleetPlan, problem: AllocationProblem, committed, out) -> FleetPlan:

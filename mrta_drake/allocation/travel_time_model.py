@@ -10,7 +10,9 @@ driven:
 - a pair's ratio summarises its own samples, shrunk towards the fleet-wide one with the
   weight of ``prior_samples`` samples;
 - the planned time of a pair is its matrix time times its ratio (the fleet-wide one until
-  it is driven), plus ``margin`` seconds, rounded up to whole seconds.
+  it is driven), plus ``margin`` seconds, rounded to whole seconds: up (``"up"``: a leg is
+  never planned shorter than estimated, so plans lean late by half a second a leg on
+  average) or to the nearest (``"nearest"``: unbiased).
 
 How a sequence of ratios is summarised is the swappable ``Estimator``: the mean, a
 recent-weighted mean, or a chosen quantile of the recent samples. Everything here is an
@@ -24,6 +26,7 @@ import numpy as np
 from mrta_drake.errors import InputError
 
 ESTIMATORS = ("mean", "recent", "quantile")
+ROUNDINGS = ("up", "nearest")
 
 
 @dataclass(frozen=True)
@@ -87,12 +90,19 @@ class LearnedTravelTimes:
 @dataclass(frozen=True)
 class TravelTimeModel:
     """Plans with ``prior`` ((L, L) matrix, s) corrected by what was learned; see the
-    module docstring. ``margin`` (s) is added to every leg planned."""
+    module docstring. ``margin`` (s) is added to every leg planned; ``rounding`` (one of
+    ``ROUNDINGS``) says how a leg's time is rounded to whole seconds."""
 
     prior: np.ndarray
     estimator: Estimator = Estimator()
     prior_samples: float = 2.0
     margin: float = 0.0
+    rounding: str = "nearest"
+
+    def __post_init__(self):
+        if self.rounding not in ROUNDINGS:
+            raise InputError(None, "travel_time_rounding", f"unknown rounding "
+                             f"{self.rounding!r} (one of {', '.join(ROUNDINGS)})")
 
     def observe(self, learned: LearnedTravelTimes, origin: int, destination: int,
                 seconds: float) -> LearnedTravelTimes:
@@ -119,7 +129,9 @@ class TravelTimeModel:
             ratios[origin, destination] = ((n * estimator.value(summary)
                                             + self.prior_samples * fleet)
                                            / (n + self.prior_samples))
-        planned = self.prior * ratios + self.margin
+        planned = np.maximum(self.prior * ratios + self.margin, 0.0)
         np.fill_diagonal(planned, 0.0)
-        return np.ceil(np.maximum(planned, 0.0) - 1e-9)
+        if self.rounding == "nearest":
+            return np.floor(planned + 0.5)
+        return np.ceil(planned - 1e-9)
 

@@ -2,15 +2,26 @@
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
-from mrta_drake.allocation import INFEASIBLE, GreedyAllocator, verify_allocation
+from mrta_drake.allocation import (
+    INFEASIBLE,
+    Action,
+    Allocation,
+    AllocationProblem,
+    GreedyAllocator,
+    RobotStart,
+    Task,
+    verify_allocation,
+)
 from mrta_drake.allocation.local_search import (
     LocalSearchParams,
     improve,
     improve_keeping_verdict,
 )
 from mrta_drake.errors import InputError
+from mrta_drake.payloads import DROPOFF, PICKUP
 from tests.allocation.brute_force import brute_force
 from tests.allocation.test_allocation_random import SEEDS, random_problem
 from tests.allocation.tight_instances import tight_problem
@@ -75,3 +86,31 @@ def test_improving_keeps_the_allocators_verdict():
         improved.routes, improved.times, improved.late_tasks)
     assert (kept.status, kept.conflict, kept.note, kept.work) == (INFEASIBLE, (3, 5), "proven", 7)
     assert kept.rank(problem) < proven.rank(problem)
+
+
+def test_a_task_written_off_goes_after_the_one_that_can_be_on_time():
+    """One robot at 0 on a line of locations 10 s apart: task 0 (1 -> 2) is due long before
+    any robot can drop it off, task 1 (3 -> 4) has room. Least tardiness does task 0 first
+    (17 s late, task 1 dropped at 44 s); written off after 5 s, task 1 goes first (dropped at
+    42 s) and task 0 after it, 79 s late."""
+    travel = 10 * np.abs(np.subtract.outer(np.arange(5), np.arange(5)))
+    problem = AllocationProblem(travel, (RobotStart("r", 0),),
+                                (Task(0, 1, 2, deadline=5.0), Task(1, 3, 4, deadline=200.0)))
+    start = Allocation.of(problem, [[Action(1, PICKUP), Action(1, DROPOFF),
+                                     Action(0, PICKUP), Action(0, DROPOFF)]])
+    earliest = improve(problem, start)
+    assert earliest.drop_times() == {0: 22.0, 1: 44.0}
+    written_off = improve(problem, earliest, LocalSearchParams(write_off=5.0))
+    assert verify_allocation(problem, written_off) == ()
+    assert written_off.drop_times() == {1: 42.0, 0: 84.0}
+    assert written_off.rank(problem, 5.0) == (1, 5.0, 42.0, 84.0)
+    assert written_off.rank(problem) == (1, 79.0, 126.0, 0.0)
+    kept = improve_keeping_verdict(problem, replace(earliest, status=INFEASIBLE, optimal=True),
+                                   LocalSearchParams(write_off=5.0))
+    assert (kept.routes, kept.status, kept.optimal) == (written_off.routes, INFEASIBLE, False)
+
+
+def test_write_off_must_not_be_negative():
+    with pytest.raises(InputError) as error:
+        LocalSearchParams(write_off=-1.0)
+    assert str(error.value).startswith("write_off: ")

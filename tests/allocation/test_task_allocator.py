@@ -177,6 +177,27 @@ def test_a_robot_falling_behind_makes_a_replan_with_its_reason(deadline, reason,
         10.0, reason, drifted, ())
 
 
+@pytest.mark.parametrize("starts, assignment, kept", [
+    ([0], (("robot0", (1, 0)),), True),  # t1's pickup at 4 before t0's drop-off there
+    ([0, 2], (("robot0", (0,)), ("robot1", (1,))), False)])
+def test_a_replan_moves_tasks_only_to_have_fewer_late(starts, assignment, kept):
+    # As above with task 0 due at 60 s, so that it is allocated first (earliest deadline)
+    # and task 1 (due at 85 s) is chained behind it on robot 0, which then turns it late.
+    # Alone, robot 0 can do no better than its route: the re-plan keeps it. With robot 1
+    # idle at 2 (task 1 dropped at 72 s), the allocator's routes have no task late and are
+    # taken.
+    stream = (TaskBatch(0.0, (TaskConfig(0, 4, 60.0), TaskConfig(4, 0, 85.0))),)
+    feedback = replace(OPEN_LOOP, replan_on_delay=True, drift_margin=5.0, replan_interval=10.0,
+                       replan_only_if_fewer_late=True)
+    simulator, allocator, _ = simulate(stream, starts, GreedyAllocator(), 10.0, feedback)
+    simulator.AdvanceTo(10.5)
+    first, replan = allocator("events")
+    assert first.assignment[0] == ("robot0", (0, 1))
+    assert isinstance(replan, ReplanEvent) and replan.assignment == assignment
+    assert ("current routes kept" in replan.note) == kept
+    assert replan.late_tasks == ((1,) if kept else ())
+
+
 def test_a_drift_that_breaks_no_promise_retimes_the_plan():
     # As above with a loose deadline: at 7 s the overdue pickup (planned at 1 s) moves both
     # drop-offs 6 s later, more than the 5 s margin. The plan keeps its routes with the new

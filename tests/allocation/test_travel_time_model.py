@@ -49,6 +49,14 @@ def test_a_driven_pair_teaches_the_others_through_the_fleet_ratio():
     assert np.all(np.diag(planned) == 0)
 
 
+def test_rounding_to_the_nearest_second_is_unbiased():
+    # fleet ratio 1.33: 13.3 s, 26.7 s; up gives 14 and 27, nearest 13 and 27
+    for rounding, planned in (("up", [14, 27]), ("nearest", [13, 27])):
+        model = TravelTimeModel(PRIOR, prior_samples=1.0, rounding=rounding)
+        learned = model.observe(LearnedTravelTimes(), 0, 1, 40 / 3)
+        assert [model.matrix(learned)[1, 2], model.matrix(learned)[0, 2]] == planned
+
+
 def test_legs_in_place_teach_nothing():
     model = TravelTimeModel(PRIOR)
     nothing = LearnedTravelTimes()
@@ -61,6 +69,8 @@ def test_legs_in_place_teach_nothing():
     ("quantile", 1.5, "quantile: must be in"),
     ("quantile_window", 0, "quantile_window: must be >= 1"),
     ("drift_margin", -1.0, "drift_margin: must be >= 0"),
+    ("travel_time_rounding", "down", "travel_time_rounding: unknown rounding 'down'"),
+    ("write_off_lateness", -1.0, "write_off_lateness: must be >= 0"),
 ])
 def test_bad_feedback_settings_are_input_errors(field, value, message):
     with pytest.raises(InputError, match=message):
