@@ -12,13 +12,13 @@ def communication_metrics(recorder, sample_period: float) -> dict | None:
     without a network."""
     if not recorder.information_ages:
         return None
-    ages = np.concatenate(recorder.information_ages)
+    ages = recorder.information_ages.array().ravel()
     telemetry = recorder.telemetry
     return {
         "age_of_information": {"mean": float(ages.mean()),
                                "p95": float(np.percentile(ages, 95)),
                                "max": float(ages.max())},
-        "leader_disagreement_time": sample_period * sum(
-            t.leader_disagreement for t in telemetry),
-        "stale_command_time": sample_period * sum(t.stale_commands for t in telemetry),
+        "leader_disagreement_time": sample_period * float(
+            telemetry.column("leader_disagreement").sum()),
+        "stale_command_time": sample_period * float(telemetry.column("stale_commands").sum()),
     }

@@ -124,13 +124,14 @@ def summarize(stack, duration: float, wall_time: float, cpu_time: float) -> dict
         "predictions": predictions(tasks, legs, allocations),
         "robots": _robots(names, times, states, modes, events),
         "safety": _safety(stack.world.obstacles, names, times, xy, radii, humans, human_radii,
-                          recorder.human_names, telemetry, controller_wall_safety(scenario)),
+                          recorder.human_names, telemetry.column("max_slack"),
+                          controller_wall_safety(scenario)),
         "humans": _humans(stack, times, xy, radii, humans, human_radii),
         "deadlocks": _deadlocks(names, times, xy, modes, humans, recorder.human_names),
         "allocations": _allocations(allocations),
         "planner_failures": int(max((e["total"] for e in events
                                      if e["type"] == "planner_failure"), default=0)),
-        "controller_failures": int(sum(t.failures for t in telemetry)),
+        "controller_failures": int(telemetry.column("failures").sum()),
         "physics_contacts": stack.contacts.summary() if stack.contacts is not None else None,
         "disturbances": _disturbances(scenario.disturbances, names, times, xy, radii, events),
         "lifts": _lifts([e for e in events if e["type"] == "lift"]),
@@ -195,7 +196,8 @@ def controller_wall_safety(scenario) -> float:
 
 
 def _safety(obstacles, names, times, xy, radii, humans, human_radii, human_names,
-            telemetry, wall_safety) -> dict:
+            slack, wall_safety) -> dict:
+    """The ``safety`` figures; ``slack`` (T,) the largest CBF slack at each sample."""
     gaps = clearances(obstacles, xy, radii, humans, human_radii)
     result = {}
     for kind, values, who in (
@@ -219,7 +221,6 @@ def _safety(obstacles, names, times, xy, radii, humans, human_radii, human_names
     result["robot_wall_close_distance"] = close
     result["robot_wall_close_time"] = float(
         (_weights(times)[:, None] * (gaps.robot_wall < close)).sum())
-    slack = np.array([t.max_slack for t in telemetry])
     result["max_cbf_slack"] = float(slack.max()) if len(slack) else 0.0
     result["cbf_slack_time"] = float(_weights(times)[slack > SLACK_TOLERANCE].sum())
     return result

@@ -27,6 +27,7 @@ from mrta_drake.payloads import (
     WaypointTarget,
 )
 from mrta_drake.stack.fleet_inputs import PerRobotInputs
+from mrta_drake.stack.sample_log import RowLog, TelemetryLog
 
 
 class RunRecorder(LeafSystem):
@@ -58,8 +59,10 @@ class RunRecorder(LeafSystem):
     (world frame, m, rad, m/s), the human positions (T, M, 2) (NaN while a human is not yet
     present), each robot's ``RobotMode`` (T, N) (``IDLE``, ``DRIVE``, ``QUEUE`` or ``SERVE``)
     and the controller telemetry; with a ``network`` (``NetworkViews``), the ages (s) of the
-    states each robot has of each other one (``information_ages``, one array per sample);
-    and notes events (dicts, ``time`` the sample time, s):
+    states each robot has of each other one (``information_ages``, one row per sample). The
+    samples are kept as numbers (``sample_log.RowLog`` and ``TelemetryLog``, sequences of
+    rows), not as an object each, so an hour's run grows by its numbers alone. It also
+    notes events (dicts, ``time`` the sample time, s):
 
     - ``plan``: the allocator's plan changed: ``revision`` and, per robot, its stops
       (``key``, ``task``, ``action``, ``location``, ``planned``: predicted completion, s).
@@ -135,12 +138,12 @@ class RunRecorder(LeafSystem):
 
     def clear(self) -> None:
         """Forget everything recorded (before a new run with the same diagram)."""
-        self.times: list[float] = []
-        self.robot_states: list[np.ndarray] = []
-        self.human_positions: list[np.ndarray] = []
-        self.modes: list[np.ndarray] = []
-        self.telemetry: list[ControllerTelemetry] = []
-        self.information_ages: list[np.ndarray] = []
+        self.times = RowLog()
+        self.robot_states = RowLog((self._n, ROBOT_STATE_SIZE))
+        self.human_positions = RowLog((len(self.human_names), 2))
+        self.modes = RowLog((self._n,), np.int8)
+        self.telemetry = TelemetryLog()
+        self.information_ages = RowLog((self._n * (self._n - 1),))
         self.events: list[dict] = []
         self._seen_visits = [0] * self._n
         self._seen_detours = [0] * self._n
@@ -368,16 +371,14 @@ class RunRecorder(LeafSystem):
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """times (T,), robot states (T, N, 4), human positions (T, M, 2)."""
-        times = np.array(self.times)
-        states = (np.array(self.robot_states) if self.robot_states
-                  else np.zeros((0, self._n, ROBOT_STATE_SIZE)))
-        humans = (np.array(self.human_positions) if self.human_positions
+        times = self.times.array()
+        humans = (self.human_positions.array() if self.human_positions
                   else np.zeros((len(times), 0, 2)))
-        return times, states, humans
+        return times, self.robot_states.array(), humans
 
     def mode_array(self) -> np.ndarray:
         """(T, N) int8: each robot's ``RobotMode`` at each sample."""
-        return np.array(self.modes, dtype=np.int8).reshape(len(self.modes), self._n)
+        return self.modes.array()
 
 
 def _value(example):

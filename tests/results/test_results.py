@@ -5,7 +5,6 @@ import dataclasses
 import json
 import math
 import pathlib
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -294,11 +293,11 @@ def test_wall_close_time_is_robot_seconds_nearer_a_wall_than_half_the_safety_dis
     ys = np.array([[1.1, 0.3, 0.3, 1.1, 0.3],  # near at 1 and 2 s (and at the end)
                    [1.1, 1.1, 1.1, 0.35, 1.1]]).T  # near at 3 s
     xy = np.stack([np.zeros_like(ys), ys], axis=-1)
-    telemetry = [SimpleNamespace(max_slack=0.0)] * len(times)
+    slack = np.zeros(len(times))
 
     def safety(wall_safety):
         return summary._safety(wall, ["a", "b"], times, xy, np.array([0.1, 0.1]),
-                               np.zeros((5, 0, 2)), np.zeros(0), [], telemetry, wall_safety)
+                               np.zeros((5, 0, 2)), np.zeros(0), [], slack, wall_safety)
 
     assert safety(0.6)["robot_wall_close_distance"] == 0.3
     assert safety(0.6)["robot_wall_close_time"] == 3.0
