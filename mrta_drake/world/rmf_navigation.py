@@ -245,13 +245,13 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
                         dtype=float)
     single = {(a, b) for segment in lanes.single_file
               for a in segment.nodes for b in segment.nodes if graph.has_edge(a, b)}
-    points, taken = [], []
-    for i in candidates:  # on a passage: served beside it where there is room
-        point = np.asarray(roadways.nodes[lines.vertex_node[i]], dtype=float)
+    points = [np.asarray(roadways.nodes[lines.vertex_node[i]], dtype=float)
+              for i in candidates]
+    for k, i in enumerate(candidates):  # on a passage: served beside it where there is room
         if degree[lines.vertex_node[i]] > 1:
-            point = _beside(point, _Aside(segments, taken), floor_plan, params)
-            taken.append(point)
-        points.append(point)
+            points[k] = _beside(points[k], _Aside(segments, points[:k] + points[k + 1:]),
+                                floor_plan, params)
+    taken = list(points)
     locations = []
     for location_id, (i, point) in enumerate(zip(candidates, points, strict=True)):
         node = lines.vertex_node[i]
@@ -313,9 +313,10 @@ def _queue(graph: nx.DiGraph, node: str, holding: set[str], single: set[tuple[st
     ``node``: slots laid back along the lanes that lead to it, beside those lanes where they
     are single file (``single``: their (from, to) nodes; ``_slot_at``). The head slot is
     the unnamed holding point (``holding``) within the queue's length, else, where the
-    point is a dead end whose lanes in are single file for at most ``zone_length`` (a room
-    behind its door), it lies beyond them and they are the entry (only the room's holder
-    drives them): then ``zone`` is True."""
+    point is a dead end whose lanes in are single file for at most ``zone_length`` up to the
+    first junction (a room behind its door, a spur), it lies beyond that junction and those
+    lanes are the entry (a robot waiting on them would block the holder's only way out):
+    then ``zone`` is True."""
     path = _approach_path(graph, node, single)
     positions = [graph.nodes[n]["pos"] for n in path]
     along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(positions, axis=0),
@@ -323,9 +324,9 @@ def _queue(graph: nx.DiGraph, node: str, holding: set[str], single: set[tuple[st
     span = params.head_gap + (params.queue_slots - 1) * params.slot_spacing
     held = next((along[k] for k, name in enumerate(path[1:], start=1)
                  if name in holding and along[k] <= span), None)
-    lead = _single_file_lead(path, single)
-    zone = (held is None and 0 < lead < len(path) - 1 and along[lead] <= params.zone_length
-            and _dead_end(graph, path[:lead + 1]))
+    lead = _dead_end_lead(graph, path)
+    zone = (held is None and 0 < lead <= _single_file_lead(path, single)
+            and along[lead] <= params.zone_length)
     if held is not None:
         head = held
     elif zone:
@@ -391,13 +392,18 @@ def _beside(vertex: np.ndarray, aside: "_Aside", floor_plan: FloorPlan,
     return vertex
 
 
-def _dead_end(graph: nx.DiGraph, lead: list[str]) -> bool:
-    """Whether the nodes ``lead`` (from the point back) lead nowhere else: the point joins
-    only the next node, each other node only its two neighbours on ``lead``."""
+def _dead_end_lead(graph: nx.DiGraph, path: list[str]) -> int:
+    """How many lanes from the start of ``path`` (back from a point) lead nowhere else: the
+    point joins only the next node, each node up to the lead's end only its two neighbours
+    on ``path`` (0 where the point is not a dead end, or the path ends in the dead end)."""
     def neighbours(n):
         return set(graph.predecessors(n)) | set(graph.successors(n))
-    return neighbours(lead[0]) <= {lead[1]} and all(
-        neighbours(n) <= {lead[k], lead[k + 2]} for k, n in enumerate(lead[1:-1]))
+    if len(path) < 3 or neighbours(path[0]) != {path[1]}:
+        return 0
+    lead = 1
+    while lead < len(path) - 1 and neighbours(path[lead]) == {path[lead - 1], path[lead + 1]}:
+        lead += 1
+    return lead if lead < len(path) - 1 else 0
 
 
 def _slot_at(path, positions, along, distance: float, single: set[tuple[str, str]],
@@ -405,10 +411,12 @@ def _slot_at(path, positions, along, distance: float, single: set[tuple[str, str
     """A queue slot for ``distance`` m back along ``path``, or None: there on the lane,
     ``slot_clearance`` from walls; beside a single-file lane the nearest spot at least
     ``slot_lane_gap`` from every lane (up to 1.5 m more), in sight of the lane, clear of
-    walls and ``slot_spacing`` from the slots and spots ``aside.taken``."""
+    walls and ``slot_spacing`` from ``aside.taken`` (points, slots and spots placed
+    before)."""
     on = _at(positions, along, distance)
     sd = floor_plan.obstacles.signed_distance
     k = min(int(np.searchsorted(along, distance, side="right")) - 1, len(path) - 2)
+    taken = np.asarray(aside.taken, dtype=float).reshape(-1, 2)
     if (path[k + 1], path[k]) not in single:
         return on if sd([on])[0] >= params.slot_clearance else None
     u = (positions[k + 1] - positions[k]) / max(along[k + 1] - along[k], 1e-9)
@@ -418,8 +426,8 @@ def _slot_at(path, positions, along, distance: float, single: set[tuple[str, str
     spots = spots[np.argsort(np.concatenate([offsets, offsets]), kind="stable")]
     ok = ((sd(spots) >= params.slot_clearance)
           & (_off_lanes(spots, aside.lanes) >= params.slot_lane_gap - 1e-9))
-    if aside.taken:
-        gaps = np.linalg.norm(spots[:, None, :] - np.asarray(aside.taken)[None], axis=2)
+    if len(taken):
+        gaps = np.linalg.norm(spots[:, None, :] - taken[None], axis=2)
         ok &= gaps.min(axis=1) >= params.slot_spacing - 1e-9
     for spot in spots[ok]:
         line = on + np.linspace(0.0, 1.0, 12)[:, None] * (spot - on)
