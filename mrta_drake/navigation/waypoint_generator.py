@@ -224,7 +224,8 @@ class WaypointGenerator(LeafSystem):
       ``single_file.hold_distance`` of it, or in it, until it holds them all; it gives
       them up ``single_file.clear_distance`` past the stretch. Queueing or serving, it
       holds the segments it stands in or at its slot or point (``single_file.standing``)
-      and no others, standing still until it holds those at its slot or point.
+      and no others, standing still until it holds those at its slot or point; but not
+      while it waits at a point for a room another robot holds (that robot must come in).
     - enter: once holding the room, drive through the remaining slots and the entry path;
       but while another robot moves within ``door_clearance`` of the entry path or the point
       (e.g. one that had parked in the room, leaving), wait at the slot: two robots in a
@@ -611,6 +612,8 @@ class WaypointGenerator(LeafSystem):
         serving, those it stands in (``single_file.standing``)."""
         if not self._roadways.segment_count:
             return NOTHING
+        if s.phase == RobotMode.SERVE and s.waiting:
+            return NOTHING  # on the point without its room: the holder comes (docstring)
         if s.phase in (RobotMode.QUEUE, RobotMode.SERVE):
             place = self._roadways.place(s.stop.location)
             spot = place.queue[s.index] if s.phase == RobotMode.QUEUE else place.point

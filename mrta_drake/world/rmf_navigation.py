@@ -316,24 +316,29 @@ def _queue(graph: nx.DiGraph, node: str, holding: set[str], single: set[tuple[st
     point is a dead end whose lanes in are single file for at most ``zone_length`` up to the
     first junction (a room behind its door, a spur), it lies beyond that junction and those
     lanes are the entry (a robot waiting on them would block the holder's only way out):
-    then ``zone`` is True."""
-    path = _approach_path(graph, node, single)
-    positions = [graph.nodes[n]["pos"] for n in path]
-    along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(positions, axis=0),
-                                                            axis=1))])
-    span = params.head_gap + (params.queue_slots - 1) * params.slot_spacing
-    held = next((along[k] for k, name in enumerate(path[1:], start=1)
-                 if name in holding and along[k] <= span), None)
-    lead = _dead_end_lead(graph, path)
-    zone = (held is None and 0 < lead <= _single_file_lead(path, single)
-            and along[lead] <= params.zone_length)
-    if held is not None:
-        head = held
-    elif zone:
-        head = along[lead] + params.head_gap
-    else:
-        head = params.head_gap
-    slots, distances = _slots(path, positions, along, head, single, floor_plan, aside, params)
+    then ``zone`` is True. Where no slot fits beside the single-file lanes, the other ways
+    back from where the lanes first branch are tried, then the first one's lanes."""
+    for turn in (0, 1, 2, 0):
+        path = _approach_path(graph, node, single, turn)
+        positions = [graph.nodes[n]["pos"] for n in path]
+        along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(positions, axis=0),
+                                                                axis=1))])
+        span = params.head_gap + (params.queue_slots - 1) * params.slot_spacing
+        held = next((along[k] for k, name in enumerate(path[1:], start=1)
+                     if name in holding and along[k] <= span), None)
+        lead = _dead_end_lead(graph, path)
+        zone = (held is None and 0 < lead <= _single_file_lead(path, single)
+                and along[lead] <= params.zone_length)
+        if held is not None:
+            head = held
+        elif zone:
+            head = along[lead] + params.head_gap
+        else:
+            head = params.head_gap
+        slots, distances = _slots(path, positions, along, head, single, floor_plan, aside,
+                                  params)
+        if slots:
+            break
     if not slots:  # nothing beside the single-file lanes: on them
         slots, distances = _slots(path, positions, along, head, set(), floor_plan, aside,
                                   params)
@@ -436,18 +441,24 @@ def _slot_at(path, positions, along, distance: float, single: set[tuple[str, str
     return None
 
 
-def _approach_path(graph: nx.DiGraph, node: str, single: set[tuple[str, str]]
-                   ) -> list[str]:
+def _approach_path(graph: nx.DiGraph, node: str, single: set[tuple[str, str]],
+                   turn: int = 0) -> list[str]:
     """Nodes from ``node`` back against the lanes that reach it: each step to the
     predecessor whose lane is most in line with the last (the longest lane first), never
-    revisiting, and not into a dead end while another way is left; at least 8 m long
-    beyond the single-file lanes (``single``) it starts with, when the lanes allow."""
+    revisiting, and not into a dead end while another way is left (where the path first
+    branches, the ``turn``-th best way instead); at least 8 m long beyond the single-file
+    lanes (``single``) it starts with, when the lanes allow."""
     path, length, lead = [node], 0.0, 0.0
     while True:
         options = [p for p in graph.predecessors(path[-1]) if p not in path]
         if not options:
             return path
-        path.append(max(options, key=lambda p: _back_step_rank(graph, path, p)))
+        options.sort(key=lambda p: _back_step_rank(graph, path, p), reverse=True)
+        if len(options) > 1:
+            path.append(options[min(turn, len(options) - 1)])
+            turn = 0
+        else:
+            path.append(options[0])
         step = graph.edges[path[-1], path[-2]]["length"]
         length += step
         if lead == length - step and (path[-1], path[-2]) in single:
