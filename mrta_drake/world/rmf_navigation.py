@@ -12,7 +12,10 @@ locations with their queues, entries and parking spots.
   the other named vertices (in the demos most destinations are named holding points or
   parking spots), except chargers, pass-through points and lift cabins; only those in the
   largest set that can all reach each other along the one-way lanes are kept
-  (``BuildingNavigation.notes`` names the others). Ids follow that order from 0.
+  (``BuildingNavigation.notes`` names the others). Ids follow that order from 0. A
+  location on a passage (its vertex has more than one lane) is served beside its lanes
+  (``_beside``), where a robot serving blocks nobody, when there is room within
+  ``serve_reach``.
 - **Queues**: back from the point along the lane that approaches it: the head slot
   ``head_gap`` m from the point (or on the first unnamed holding point within the queue's
   length), then ``queue_slots`` slots ``slot_spacing`` m apart, continuing along the lanes
