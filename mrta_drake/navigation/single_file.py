@@ -60,17 +60,40 @@ class Run:
     segments: tuple[tuple[int, bool], ...]
 
 
+_BESIDE = 2.5  # m: the farthest a queue slot stands beside its lane (2.2 m, rmf_navigation)
+
+
 def _hop_segment(roadways: Roadways, a, b, c) -> tuple[int, bool] | None:
     """The segment the hop from route point ``a`` to ``b`` drives (``c``: the point after
-    ``b``, or None): its lane's, or, for a hop from off the lanes (``a`` no roadway node)
-    onto a segment's lane at ``b``, that segment (the way the route goes on along it)."""
+    ``b``, or None): its lane's; for a hop from a roadway node to a spot beside a lane
+    from it (a queue slot beside the lanes, within ``_BESIDE``), that lane's; for a hop
+    from off the lanes (``a`` no roadway node) onto a segment's lane at ``b``, that
+    segment (the way the route goes on along it)."""
     segment = roadways.segment_of(a, b)
-    if segment is not None or roadways.node_at(a) is not None:
+    if segment is not None:
         return segment
+    start = roadways.node_at(a)
+    if start is not None:
+        if roadways.node_at(b) is not None:
+            return None
+        lanes = [(_to_lane(b, a, roadways.node_position(n)), n)
+                 for n in roadways.graph.successors(start)]
+        gap, n = min(lanes, key=lambda lane: lane[0], default=(math.inf, None))
+        return roadways.segment_of(a, roadways.node_position(n)) if gap <= _BESIDE else None
     if c is not None and (onward := roadways.segment_of(b, c)) is not None:
         return onward
     near = _near(roadways, b, 1e-3)
     return (near[0], True) if near else None
+
+
+def _to_lane(xy, a, b) -> float:
+    """Distance (m) from ``xy`` to the lane from ``a`` to ``b`` where ``xy`` lies beside
+    it (its foot on the lane, past ``a``), else infinity."""
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    t = ((xy[0] - a[0]) * dx + (xy[1] - a[1]) * dy) / max(dx * dx + dy * dy, 1e-18)
+    if not 0.0 < t <= 1.0:
+        return math.inf
+    return math.hypot(xy[0] - a[0] - t * dx, xy[1] - a[1] - t * dy)
 
 
 @functools.lru_cache(maxsize=512)

@@ -81,6 +81,9 @@ def test_a_hop_from_beside_the_lanes_onto_a_segment_enters_it():
     # ... and from there onto the lane's point A25 (a location's point on it).
     runs = route_runs(corridor(), ((25.0, 2.0), (25.0, 0.0)), PARAMS.chain_gap)
     assert [(r.first, r.segments) for r in runs] == [(0, ((1, True),))]
+    # From A20 to a queue slot 1 m beside the lane to A30: along segment 1.
+    runs = route_runs(corridor(), ((20.0, 0.0), (28.0, 1.0)), PARAMS.chain_gap)
+    assert [(r.first, r.last, r.segments) for r in runs] == [(0, 0, ((1, False),))]
 
 
 @pytest.mark.parametrize("xy, spot, expected", [
