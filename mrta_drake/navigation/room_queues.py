@@ -53,16 +53,22 @@ class RoomQueues(LeafSystem):
     The ``segments`` single-file segments (0 .. segments - 1) are granted in the same update,
     after the rooms, from each request's ``segments`` (the set the robot wants now):
 
-    1. Release: a holder that no longer names a segment gives it up.
+    1. Release: a holder that no longer names a segment gives it up. A robot holding a
+       segment alone takes the way it now names (it turns in it).
     2. Wait: a robot naming a segment it does not hold waits (in the order it first did so;
        new ones in robot order); one that no longer does stops waiting.
-    3. Grant: in waiting order, a robot gets all the segments it names at once when each
-       is free or held by robots driving it the same way, and none is named by a robot
-       before it still waiting; else it gets none.
+    3. Grant: robots that hold some of the segments they name (they stand in them) first,
+       then the others, each in waiting order: a robot gets all the segments it names at
+       once when each is free or held by robots driving it the same way (only by itself
+       for the ``exclusive`` segments, where robots stop), and, unless it holds some
+       already, none is named by a robot before it still waiting; else it gets none. (A
+       robot standing in a segment goes as soon as its way is free: one waiting before it
+       may wait for the very segment it stands in.)
 
     All or nothing, so a robot that asks for every segment of a single-file stretch at its
     start never holds one part of it while waiting for another part; robots driving one way
-    may follow each other in, never meet one driving the other way.
+    may follow each other in, never meet one driving the other way, and never follow one
+    into a segment where it may stop and turn.
     """
 
     def __init__(
@@ -73,6 +79,7 @@ class RoomQueues(LeafSystem):
         rate_hz: float,
         holders: Mapping[int, str] | None = None,
         segments: int = 0,
+        exclusive: frozenset[int] = frozenset(),
     ):
         super().__init__()
         holders = dict(holders or {})
@@ -82,6 +89,7 @@ class RoomQueues(LeafSystem):
         self._robots = tuple(robot_names)
         self._rooms = tuple(rooms)
         self._segments = segments
+        self._exclusive = frozenset(exclusive)
         initial = QueueState(tuple(RoomQueue(room, holders.get(room)) for room in self._rooms),
                              segments=(FREE_SEGMENT,) * segments)
         self._state_index = self.DeclareAbstractState(Value[object](initial))
@@ -111,21 +119,27 @@ class RoomQueues(LeafSystem):
         """The segments' holders and waiting robots after ``requests`` (class docstring)."""
         wanted = {robot: dict(request.segments)
                   for robot, request in zip(self._robots, requests, strict=True)}
-        holds = [SegmentHold(tuple(r for r in hold.holders if k in wanted[r]), hold.forward)
-                 for k, hold in enumerate(old.segments)]
+        holds = []
+        for k, hold in enumerate(old.segments):
+            holders = tuple(r for r in hold.holders if k in wanted[r])
+            way = wanted[holders[0]][k] if len(holders) == 1 else hold.forward
+            holds.append(SegmentHold(holders, way))
 
         def needs(robot):
             return any(robot not in holds[k].holders for k in wanted[robot])
 
         def open_to(robot):
-            return all(not holds[k].holders or holds[k].forward == way
-                       for k, way in wanted[robot].items())
+            return all(set(holds[k].holders) <= {robot} or (
+                k not in self._exclusive and holds[k].forward == way)
+                for k, way in wanted[robot].items())
 
         order = [r for r in old.segment_waiting if needs(r)]
         order += [r for r in self._robots if r not in order and needs(r)]
+        inside = [r for r in order if any(r in holds[k].holders for k in wanted[r])]
+        order = inside + [r for r in order if r not in inside]
         waiting, named = [], set()
         for robot in order:
-            if open_to(robot) and named.isdisjoint(wanted[robot]):
+            if open_to(robot) and (robot in inside or named.isdisjoint(wanted[robot])):
                 for k, way in wanted[robot].items():
                     if robot not in holds[k].holders:
                         holds[k] = SegmentHold((*holds[k].holders, robot), way)

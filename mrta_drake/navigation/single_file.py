@@ -5,7 +5,15 @@ meeting head-on in it could not pass. So a robot holds every segment of a *run* 
 enters the run and until it is out of it: a run is the route's edges in single-file
 segments, with the stretches between them shorter than ``SingleFileParams.chain_gap``
 (too short to wait on) counted in. The room queues grant a run's segments all at once
-(``RoomQueues``), so a robot never holds part of a run while waiting for the rest.
+(``RoomQueues``), so a robot never holds part of a run while waiting for the rest. A hop
+that leaves the lanes (from a queue slot or parking spot beside them) onto a segment's lane
+enters that segment like a lane of it.
+
+A robot standing in a segment (within ``stand_distance`` of one of its lanes: queueing,
+serving at a point on it) keeps holding it (``standing``), so that the segment is never
+granted to a robot that would drive into it; a segment where robots stop (a location's
+point or queue slot on it, ``stop_segments``) is held by one robot at a time, since a robot
+following another into it could not pass it where it stops.
 
 Routes are polylines of points (world frame, m); edge ``j`` joins points ``j`` and
 ``j + 1``; a robot driving to point ``index`` is on edge ``index - 1``.
@@ -24,16 +32,19 @@ class SingleFileParams:
     """Distances along the route, m: ask for a run this far before its entry
     (``request_distance``), stop this far before it while not holding it
     (``hold_distance``), keep it until this far past its exit (``clear_distance``); stretches
-    between segments shorter than ``chain_gap`` belong to the run."""
+    between segments shorter than ``chain_gap`` belong to the run. A robot whose centre is
+    within ``stand_distance`` of a segment's lane stands in it (0.5 m: two 0.22 m robots
+    with a few centimetres between them)."""
 
     request_distance: float = 4.0
     hold_distance: float = 1.5
     clear_distance: float = 1.0
     chain_gap: float = 5.0
+    stand_distance: float = 0.5
 
     def __post_init__(self):
         require_positive(self, "request_distance", "hold_distance", "clear_distance",
-                         "chain_gap", unit=" m")
+                         "chain_gap", "stand_distance", unit=" m")
         if self.hold_distance > self.request_distance:
             raise InputError(None, "request_distance", f"must be >= hold_distance "
                              f"({self.hold_distance} m), got {self.request_distance}")
@@ -49,6 +60,42 @@ class Run:
     segments: tuple[tuple[int, bool], ...]
 
 
+_BESIDE = 2.5  # m: the farthest a queue slot stands beside its lane (2.2 m, rmf_navigation)
+
+
+def _hop_segment(roadways: Roadways, a, b, c) -> tuple[int, bool] | None:
+    """The segment the hop from route point ``a`` to ``b`` drives (``c``: the point after
+    ``b``, or None): its lane's; for a hop from a roadway node to a spot beside a lane
+    from it (a queue slot beside the lanes, within ``_BESIDE``), that lane's; for a hop
+    from off the lanes (``a`` no roadway node) onto a segment's lane at ``b``, that
+    segment (the way the route goes on along it)."""
+    segment = roadways.segment_of(a, b)
+    if segment is not None:
+        return segment
+    start = roadways.node_at(a)
+    if start is not None:
+        if roadways.node_at(b) is not None:
+            return None
+        lanes = [(_to_lane(b, a, roadways.node_position(n)), n)
+                 for n in roadways.graph.successors(start)]
+        gap, n = min(lanes, key=lambda lane: lane[0], default=(math.inf, None))
+        return roadways.segment_of(a, roadways.node_position(n)) if gap <= _BESIDE else None
+    if c is not None and (onward := roadways.segment_of(b, c)) is not None:
+        return onward
+    near = _near(roadways, b, 1e-3)
+    return (near[0], True) if near else None
+
+
+def _to_lane(xy, a, b) -> float:
+    """Distance (m) from ``xy`` to the lane from ``a`` to ``b`` where ``xy`` lies beside
+    it (its foot on the lane, past ``a``), else infinity."""
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    t = ((xy[0] - a[0]) * dx + (xy[1] - a[1]) * dy) / max(dx * dx + dy * dy, 1e-18)
+    if not 0.0 < t <= 1.0:
+        return math.inf
+    return math.hypot(xy[0] - a[0] - t * dx, xy[1] - a[1] - t * dy)
+
+
 @functools.lru_cache(maxsize=512)
 def route_runs(roadways: Roadways, route: tuple[tuple[float, float], ...],
                chain_gap: float) -> tuple[Run, ...]:
@@ -56,7 +103,8 @@ def route_runs(roadways: Roadways, route: tuple[tuple[float, float], ...],
     runs: list[Run] = []
     gap = math.inf
     for j in range(len(route) - 1):
-        segment = roadways.segment_of(route[j], route[j + 1])
+        segment = _hop_segment(roadways, route[j], route[j + 1],
+                               route[j + 2] if j + 2 < len(route) else None)
         if segment is None:
             gap += math.dist(route[j], route[j + 1])
             continue
@@ -107,3 +155,59 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
                 < params.clear_distance:  # just out
             wanted.update(dict(run.segments))
     return Need(tuple(sorted(wanted.items())), hold) if wanted else NOTHING
+
+
+@functools.lru_cache(maxsize=64)
+def _segment_lanes(roadways: Roadways) -> tuple[tuple[int, tuple[float, float],
+                                                      tuple[float, float]], ...]:
+    """Every lane of a single-file segment: (segment index, start, end), m."""
+    lanes = []
+    for a, b in roadways.graph.edges:
+        start, end = roadways.node_position(a), roadways.node_position(b)
+        segment = roadways.segment_of(start, end)
+        if segment is not None:
+            lanes.append((segment[0], (float(start[0]), float(start[1])),
+                          (float(end[0]), float(end[1]))))
+    return tuple(lanes)
+
+
+def _near(roadways: Roadways, xy, distance: float) -> tuple[int, ...]:
+    """The segments (sorted indices) with a lane within ``distance`` (m) of point ``xy``."""
+    found = set()
+    for k, (ax, ay), (bx, by) in _segment_lanes(roadways):
+        if k in found:
+            continue
+        dx, dy = bx - ax, by - ay
+        t = ((xy[0] - ax) * dx + (xy[1] - ay) * dy) / max(dx * dx + dy * dy, 1e-18)
+        t = min(max(t, 0.0), 1.0)
+        if math.hypot(xy[0] - ax - t * dx, xy[1] - ay - t * dy) <= distance:
+            found.add(k)
+    return tuple(sorted(found))
+
+
+def standing(roadways: Roadways, xy, spot, held, params: SingleFileParams) -> Need:
+    """What a robot at ``xy`` standing at, or moving up to, ``spot`` (a queue slot, a
+    location's point) needs: the segments within ``stand_distance`` of either, each the
+    way it holds it already (``held``: index -> forward) or forward; it holds back until it
+    holds those at ``spot`` unless it stands in them already."""
+    if roadways.segment_count == 0:
+        return NOTHING
+    here = _near(roadways, xy, params.stand_distance)
+    there = _near(roadways, spot, params.stand_distance)
+    wanted = sorted(set(here) | set(there))
+    if not wanted:
+        return NOTHING
+    return Need(tuple((k, held.get(k, True)) for k in wanted),
+                hold=not set(there) <= set(held) | set(here))
+
+
+@functools.lru_cache(maxsize=64)
+def stop_segments(roadways: Roadways, params: SingleFileParams) -> frozenset[int]:
+    """The segments robots stop in: those within ``stand_distance`` of a location's point
+    or queue slot (one robot at a time holds each, see the module docstring)."""
+    stops = set()
+    for i in roadways.location_ids:
+        place = roadways.place(i)
+        for xy in (place.point, *place.queue):
+            stops.update(_near(roadways, xy, params.stand_distance))
+    return frozenset(stops)

@@ -9,7 +9,13 @@ from pydrake.common.value import Value
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
 from mrta_drake.navigation.roadways import Roadways
-from mrta_drake.navigation.single_file import NOTHING, Need, SingleFileParams, need
+from mrta_drake.navigation.single_file import (
+    NOTHING,
+    Need,
+    SingleFileParams,
+    need,
+    standing,
+)
 from mrta_drake.payloads import (
     NO_DISTURBANCES,
     ROBOT_STATE_SIZE,
@@ -261,8 +267,10 @@ class WaypointPolicy:
       single-file segments of the stretch ahead (``single_file.need``) from
       ``single_file.request_distance`` before it, and stands (target inactive) within
       ``single_file.hold_distance`` of it, or in it, until it holds them all; it gives
-      them up ``single_file.clear_distance`` past the stretch, or when it stops driving
-      (queueing, serving).
+      them up ``single_file.clear_distance`` past the stretch. Queueing or serving, it
+      holds the segments it stands in or at its slot or point (``single_file.standing``)
+      and no others, standing still until it holds those at its slot or point; but not
+      while it waits at a point for a room another robot holds (that robot must come in).
     - enter: once holding the room, drive through the remaining slots and the entry path;
       but while another robot moves within ``door_clearance`` of the entry path or the point
       (e.g. one that had parked in the room, leaving), wait at the slot: two robots in a
@@ -622,11 +630,20 @@ class WaypointPolicy:
         return s
 
     def _lanes(self, s: _Drive, robots: _Robots, queues: QueueState) -> Need:
-        """The single-file segments the robot needs on its route (only while driving it,
+        """The single-file segments the robot needs on its route (while driving it,
         entering a room or driving home), holding back until the room queues grant them
-        all."""
-        if (s.phase not in (RobotMode.DRIVE, RobotMode.ENTER, RobotMode.HOME)
-                or not self._roadways.segment_count):
+        all; queueing or serving, those it stands in (``single_file.standing``)."""
+        if not self._roadways.segment_count:
+            return NOTHING
+        if s.phase == RobotMode.SERVE and s.waiting:
+            return NOTHING  # on the point without its room: the holder comes (docstring)
+        if s.phase in (RobotMode.QUEUE, RobotMode.SERVE):
+            place = self._roadways.place(s.stop.location)
+            spot = place.queue[s.index] if s.phase == RobotMode.QUEUE else place.point
+            held = {k: hold.forward for k, hold in enumerate(queues.segments)
+                    if self._robot in hold.holders}
+            return standing(self._roadways, robots.xy, spot, held, self._params.single_file)
+        if s.phase not in (RobotMode.DRIVE, RobotMode.ENTER, RobotMode.HOME):
             return NOTHING
         wanted = need(self._roadways, s.route, s.index, robots.xy, self._params.single_file)
         if wanted.hold and queues.holds_segments(self._robot, wanted.segments):

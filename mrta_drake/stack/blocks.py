@@ -323,15 +323,20 @@ def _roadway_per_robot_waypoints() -> BlockType:
 
 def _fifo_queues() -> BlockType:
     from mrta_drake.navigation.room_queues import RoomQueues
+    from mrta_drake.navigation.single_file import SingleFileParams, stop_segments
 
     def make(ctx: BuildContext, params):
+        # Segments where robots stop are held by one robot at a time (single_file.py).
+        lanes = getattr(resolve_block(ctx.scenario, "waypoints")[1], "single_file",
+                        SingleFileParams())
         # A robot that starts on a location holds it until it leaves (first one per room).
         holders = {}
         for name, location in zip(ctx.robot_names, ctx.start_locations, strict=True):
             if location is not None:
                 holders.setdefault(location, name)
         return RoomQueues(ctx.robot_names, ctx.roadways.location_ids, rate_hz=ctx.rates.queues,
-                          holders=holders, segments=ctx.roadways.segment_count)
+                          holders=holders, segments=ctx.roadways.segment_count,
+                          exclusive=stop_segments(ctx.roadways, lanes))
 
     return BlockType(NoParams, make)
 

@@ -12,14 +12,19 @@ locations with their queues, entries and parking spots.
   the other named vertices (in the demos most destinations are named holding points or
   parking spots), except chargers, pass-through points and lift cabins; only those in the
   largest set that can all reach each other along the one-way lanes are kept
-  (``BuildingNavigation.notes`` names the others). Ids follow that order from 0.
+  (``BuildingNavigation.notes`` names the others). Ids follow that order from 0. A
+  location on a passage (its vertex has more than one lane) is served beside its lanes
+  (``_beside``), where a robot serving blocks nobody, when there is room within
+  ``serve_reach``.
 - **Queues**: back from the point along the lane that approaches it: the head slot
   ``head_gap`` m from the point (or on the first unnamed holding point within the queue's
   length), then ``queue_slots`` slots ``slot_spacing`` m apart, continuing along the lanes
-  feeding it; a slot nearer a wall than ``slot_clearance`` moves on back. The node beyond
-  the tail is the approach node, the point's own node the exit node, the nodes between
-  the head slot and the point the entry. On offset lanes the queue lies along the lane
-  arriving, robots leave by the other.
+  feeding it; a slot nearer a wall than ``slot_clearance`` moves on back. By a
+  single-file lane a slot stands aside, ``slot_lane_gap`` from every lane (a robot waiting
+  on it would block everyone driving through), and moves on back where there is no room
+  aside. The node beyond the tail is the approach node, the point's own node the exit
+  node, the nodes between the head slot and the point the entry. On offset lanes the queue
+  lies along the lane arriving, robots leave by the other.
 - **Parking**: up to ``parking_spots`` spots ``parking_distance`` m from the point, clear of
   walls by ``slot_clearance``, at least ``parking_lane_gap`` m from every lane and in line
   of sight of the point.
@@ -66,8 +71,14 @@ class BuildingNavigationParams:
     parking_distance: float = 1.4
     parking_lane_gap: float = 0.7
     through_lifts: bool = False  # keep the lanes into lift cabins (several levels)
-    zone_length: float = 12.0  # m: single-file lanes into a point up to this long are its
-    # entry, the queue waiting before them
+    zone_length: float = 12.0  # m: single-file lanes into a dead-end point up to this long
+    # are its entry, the queue waiting before them
+    slot_lane_gap: float = 0.7  # m: a slot by a single-file lane stands this far from every
+    # lane, so robots pass it (two 0.22 m robots and 0.26 m between them)
+    queue_reach: float = 5.0  # m: slots lie at most this far back beyond the head slot's
+    # place; where none fits beside the single-file lanes, they stand on them
+    serve_reach: float = 1.5  # m: a location on a passage is served beside its lanes, at
+    # most this far from its vertex
 
     def __post_init__(self):
         if self.graph < 0:
@@ -77,7 +88,8 @@ class BuildingNavigationParams:
         if self.parking_spots < 0:
             raise InputError(None, "parking_spots", f"must be >= 0, got {self.parking_spots}")
         require_positive(self, "slot_spacing", "head_gap", "slot_clearance", "parking_distance",
-                         "parking_lane_gap", "zone_length", unit=" m")
+                         "parking_lane_gap", "zone_length", "slot_lane_gap", "queue_reach",
+                         "serve_reach", unit=" m")
 
 
 @dataclass(frozen=True)
@@ -236,16 +248,26 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
                         dtype=float)
     single = {(a, b) for segment in lanes.single_file
               for a in segment.nodes for b in segment.nodes if graph.has_edge(a, b)}
+    points = [np.asarray(roadways.nodes[lines.vertex_node[i]], dtype=float)
+              for i in candidates]
+    for k, i in enumerate(candidates):  # on a passage: served beside it where there is room
+        if degree[lines.vertex_node[i]] > 1:
+            points[k] = _beside(points[k], _Aside(segments, points[:k] + points[k + 1:]),
+                                floor_plan, params)
+    taken = list(points)
     locations = []
-    for location_id, i in enumerate(candidates):
+    for location_id, (i, point) in enumerate(zip(candidates, points, strict=True)):
         node = lines.vertex_node[i]
         queue, entry, approach, zone = _queue(graph, node, holding, single, floor_plan,
-                                              params)
-        point = np.asarray(roadways.nodes[node], dtype=float)
+                                              _Aside(segments, taken), params)
+        if len(entry) and not zone and _off_lanes(np.array(queue[:1]), segments)[0] \
+                >= params.slot_lane_gap - 0.01:
+            entry = []  # from a head slot beside the lanes straight to the point
+        parking = [] if zone else _parking(point, segments, floor_plan, params)
+        taken += queue + parking
         locations.append(LocationConfig(
             id=location_id, name=node, point=_listed(point), queue=queue, entry=entry,
-            exit_node=node, approach_node=approach,
-            parking=[] if zone else _parking(point, segments, floor_plan, params)))
+            exit_node=node, approach_node=approach, parking=parking))
     return BuildingNavigation(roadways, locations, lines, lanes.single_file, notes)
 
 
@@ -279,46 +301,50 @@ def _mutually_reachable(nodes: list[str], graph: nx.DiGraph) -> set[str]:
     return best
 
 
+@dataclass(frozen=True)
+class _Aside:
+    """What a queue slot beside a single-file lane keeps clear of: ``lanes`` (m, 2, 2)
+    every lane's ends, ``taken`` the slots and parking spots placed before, m."""
+
+    lanes: np.ndarray
+    taken: list
+
+
 def _queue(graph: nx.DiGraph, node: str, holding: set[str], single: set[tuple[str, str]],
-           floor_plan: FloorPlan, params: BuildingNavigationParams):
+           floor_plan: FloorPlan, aside: _Aside, params: BuildingNavigationParams):
     """Queue slots (head first), entry points and approach node of the location at
-    ``node``: slots laid back along the lanes that lead to it, stopping where those lanes
-    are single file (``single``: their (from, to) nodes), where a waiting robot would block
-    both ways, unless that leaves no room for the head slot. The head slot is the
-    unnamed holding point (``holding``) within the queue's length, else, where the lanes
-    into the point are single file for at most ``zone_length``, it lies beyond them and
-    they are the entry (only the room's holder drives them): then ``zone`` is True."""
-    path = _approach_path(graph, node, single)
-    positions = [graph.nodes[n]["pos"] for n in path]
-    along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(positions, axis=0),
-                                                            axis=1))])
-    span = params.head_gap + (params.queue_slots - 1) * params.slot_spacing
-    held = next((along[k] for k, name in enumerate(path[1:], start=1)
-                 if name in holding and along[k] <= span), None)
-    lead = _single_file_lead(path, single)
-    zone = held is None and 0 < lead < len(path) - 1 and along[lead] <= params.zone_length
-    if held is not None:
-        head = held
-    elif zone:
-        head = along[lead] + params.head_gap
-    else:
-        head = params.head_gap
-    cut = next((k for k in range(lead, len(path) - 1) if (path[k + 1], path[k]) in single),
-               None)
-    if cut is not None and along[cut] >= head:
-        path, positions, along = path[:cut + 1], positions[:cut + 1], along[:cut + 1]
-    wanted = [head + k * params.slot_spacing for k in range(params.queue_slots)]
-    slots, distances = [], []
-    for distance in wanted:
-        if distances and distance <= distances[-1]:
-            distance = distances[-1] + params.slot_spacing
-        while distance <= along[-1]:
-            xy = _at(positions, along, distance)
-            if floor_plan.obstacles.signed_distance([xy])[0] >= params.slot_clearance:
-                slots.append(xy)
-                distances.append(distance)
-                break
-            distance += 0.1
+    ``node``: slots laid back along the lanes that lead to it, beside those lanes where they
+    are single file (``single``: their (from, to) nodes; ``_slot_at``). The head slot is
+    the unnamed holding point (``holding``) within the queue's length, else, where the
+    point is a dead end whose lanes in are single file for at most ``zone_length`` up to the
+    first junction (a room behind its door, a spur), it lies beyond that junction and those
+    lanes are the entry (a robot waiting on them would block the holder's only way out):
+    then ``zone`` is True. Where no slot fits beside the single-file lanes, the other ways
+    back from where the lanes first branch are tried, then the first one's lanes."""
+    for turn in (0, 1, 2, 0):
+        path = _approach_path(graph, node, single, turn)
+        positions = [graph.nodes[n]["pos"] for n in path]
+        along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(positions, axis=0),
+                                                                axis=1))])
+        span = params.head_gap + (params.queue_slots - 1) * params.slot_spacing
+        held = next((along[k] for k, name in enumerate(path[1:], start=1)
+                     if name in holding and along[k] <= span), None)
+        lead = _dead_end_lead(graph, path)
+        zone = (held is None and 0 < lead <= _single_file_lead(path, single)
+                and along[lead] <= params.zone_length)
+        if held is not None:
+            head = held
+        elif zone:
+            head = along[lead] + params.head_gap
+        else:
+            head = params.head_gap
+        slots, distances = _slots(path, positions, along, head, single, floor_plan, aside,
+                                  params)
+        if slots:
+            break
+    if not slots:  # nothing beside the single-file lanes: on them
+        slots, distances = _slots(path, positions, along, head, set(), floor_plan, aside,
+                                  params)
     if not slots:  # the lanes end right here: one slot between the point and its neighbour
         distances = [0.5 * along[-1]]
         slots = [_at(positions, along, distances[0])]
@@ -329,18 +355,113 @@ def _queue(graph: nx.DiGraph, node: str, holding: set[str], single: set[tuple[st
     return [_listed(s) for s in slots], entry, approach, zone
 
 
-def _approach_path(graph: nx.DiGraph, node: str, single: set[tuple[str, str]]
-                   ) -> list[str]:
+def _slots(path, positions, along, head: float, single: set[tuple[str, str]],
+           floor_plan: FloorPlan, aside: "_Aside", params: BuildingNavigationParams):
+    """Up to ``queue_slots`` slots (``_slot_at``) from ``head`` m back along ``path``,
+    ``slot_spacing`` apart or more, within ``queue_reach`` beyond ``head``; and their
+    distances along ``path``."""
+    slots, distances = [], []
+    end = min(along[-1], head + params.queue_reach)
+    for k in range(params.queue_slots):
+        distance = head + k * params.slot_spacing
+        if distances and distance <= distances[-1]:
+            distance = distances[-1] + params.slot_spacing
+        while distance <= end:
+            xy = _slot_at(path, positions, along, distance, single, floor_plan,
+                          _Aside(aside.lanes, aside.taken + slots), params)
+            if xy is not None:
+                slots.append(xy)
+                distances.append(distance)
+                break
+            distance += 0.1
+    return slots, distances
+
+
+def _beside(vertex: np.ndarray, aside: "_Aside", floor_plan: FloorPlan,
+            params: BuildingNavigationParams) -> np.ndarray:
+    """Where a location on a passage at ``vertex`` is served: the nearest spot within
+    ``serve_reach`` of it and in its sight, ``slot_lane_gap`` from every lane,
+    ``slot_clearance`` from walls and ``slot_spacing`` from ``aside.taken``; else the vertex
+    itself."""
+    radii = np.arange(params.slot_lane_gap, params.serve_reach + 1e-9, 0.05)
+    angles = np.arange(32) * (2 * math.pi / 32)
+    spots = (vertex + np.stack([np.outer(radii, np.cos(angles)),
+                                np.outer(radii, np.sin(angles))], axis=-1)).reshape(-1, 2)
+    sd = floor_plan.obstacles.signed_distance
+    ok = ((sd(spots) >= params.slot_clearance)
+          & (_off_lanes(spots, aside.lanes) >= params.slot_lane_gap - 1e-9))
+    if aside.taken:
+        gaps = np.linalg.norm(spots[:, None, :] - np.asarray(aside.taken)[None], axis=2)
+        ok &= gaps.min(axis=1) >= params.slot_spacing - 1e-9
+    for spot in spots[ok]:
+        line = vertex + np.linspace(0.0, 1.0, 12)[:, None] * (spot - vertex)
+        if sd(line).min() >= params.slot_clearance - 0.2:
+            return np.round(spot, 3)
+    return vertex
+
+
+def _dead_end_lead(graph: nx.DiGraph, path: list[str]) -> int:
+    """How many lanes from the start of ``path`` (back from a point) lead nowhere else: the
+    point joins only the next node, each node up to the lead's end only its two neighbours
+    on ``path`` (0 where the point is not a dead end, or the path ends in the dead end)."""
+    def neighbours(n):
+        return set(graph.predecessors(n)) | set(graph.successors(n))
+    if len(path) < 3 or neighbours(path[0]) != {path[1]}:
+        return 0
+    lead = 1
+    while lead < len(path) - 1 and neighbours(path[lead]) == {path[lead - 1], path[lead + 1]}:
+        lead += 1
+    return lead if lead < len(path) - 1 else 0
+
+
+def _slot_at(path, positions, along, distance: float, single: set[tuple[str, str]],
+             floor_plan: FloorPlan, aside: _Aside, params: BuildingNavigationParams):
+    """A queue slot for ``distance`` m back along ``path``, or None: there on the lane,
+    ``slot_clearance`` from walls; beside a single-file lane the nearest spot at least
+    ``slot_lane_gap`` from every lane (up to 1.5 m more), in sight of the lane, clear of
+    walls and ``slot_spacing`` from ``aside.taken`` (points, slots and spots placed
+    before)."""
+    on = _at(positions, along, distance)
+    sd = floor_plan.obstacles.signed_distance
+    k = min(int(np.searchsorted(along, distance, side="right")) - 1, len(path) - 2)
+    taken = np.asarray(aside.taken, dtype=float).reshape(-1, 2)
+    if (path[k + 1], path[k]) not in single:
+        return on if sd([on])[0] >= params.slot_clearance else None
+    u = (positions[k + 1] - positions[k]) / max(along[k + 1] - along[k], 1e-9)
+    normal = np.array([-u[1], u[0]])
+    offsets = params.slot_lane_gap + np.arange(0.0, 1.55, 0.05)
+    spots = np.concatenate([on + np.outer(offsets, normal), on - np.outer(offsets, normal)])
+    spots = spots[np.argsort(np.concatenate([offsets, offsets]), kind="stable")]
+    ok = ((sd(spots) >= params.slot_clearance)
+          & (_off_lanes(spots, aside.lanes) >= params.slot_lane_gap - 1e-9))
+    if len(taken):
+        gaps = np.linalg.norm(spots[:, None, :] - taken[None], axis=2)
+        ok &= gaps.min(axis=1) >= params.slot_spacing - 1e-9
+    for spot in spots[ok]:
+        line = on + np.linspace(0.0, 1.0, 12)[:, None] * (spot - on)
+        if sd(line).min() >= params.slot_clearance - 0.2:
+            return spot
+    return None
+
+
+def _approach_path(graph: nx.DiGraph, node: str, single: set[tuple[str, str]],
+                   turn: int = 0) -> list[str]:
     """Nodes from ``node`` back against the lanes that reach it: each step to the
     predecessor whose lane is most in line with the last (the longest lane first), never
-    revisiting, and not into a dead end while another way is left; at least 8 m long
-    beyond the single-file lanes (``single``) it starts with, when the lanes allow."""
+    revisiting, and not into a dead end while another way is left (where the path first
+    branches, the ``turn``-th best way instead); at least 8 m long beyond the single-file
+    lanes (``single``) it starts with, when the lanes allow."""
     path, length, lead = [node], 0.0, 0.0
     while True:
         options = [p for p in graph.predecessors(path[-1]) if p not in path]
         if not options:
             return path
-        path.append(max(options, key=lambda p: _back_step_rank(graph, path, p)))
+        options.sort(key=lambda p: _back_step_rank(graph, path, p), reverse=True)
+        if len(options) > 1:
+            path.append(options[min(turn, len(options) - 1)])
+            turn = 0
+        else:
+            path.append(options[0])
         step = graph.edges[path[-1], path[-2]]["length"]
         length += step
         if lead == length - step and (path[-1], path[-2]) in single:
@@ -392,10 +513,7 @@ def _parking(point: np.ndarray, lanes: np.ndarray, floor_plan: FloorPlan,
                                                                np.sin(angles)])
     obstacles = floor_plan.obstacles
     clear = obstacles.signed_distance(spots) >= params.slot_clearance
-    a, d = lanes[:, 0], lanes[:, 1] - lanes[:, 0]
-    rel = spots[:, None, :] - a[None]
-    t = np.clip((rel * d).sum(axis=2) / np.maximum((d * d).sum(axis=1), 1e-18), 0.0, 1.0)
-    off_lanes = np.linalg.norm(rel - t[..., None] * d, axis=2).min(axis=1)
+    off_lanes = _off_lanes(spots, lanes)
     chosen = []
     for k in np.argsort(-off_lanes, kind="stable"):
         if not clear[k] or off_lanes[k] < params.parking_lane_gap:
@@ -412,3 +530,11 @@ def _parking(point: np.ndarray, lanes: np.ndarray, floor_plan: FloorPlan,
 
 def _listed(xy) -> list[float]:
     return [round(float(xy[0]), 3), round(float(xy[1]), 3)]
+
+
+def _off_lanes(points: np.ndarray, lanes: np.ndarray) -> np.ndarray:
+    """Each of ``points`` (k, 2)'s distance to the nearest of ``lanes`` (m, 2, 2), m."""
+    a, d = lanes[:, 0], lanes[:, 1] - lanes[:, 0]
+    rel = points[:, None, :] - a[None]
+    t = np.clip((rel * d).sum(axis=2) / np.maximum((d * d).sum(axis=1), 1e-18), 0.0, 1.0)
+    return np.linalg.norm(rel - t[..., None] * d, axis=2).min(axis=1)

@@ -8,7 +8,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from mrta_drake.navigation.room_queues import RoomQueues
-from mrta_drake.payloads import QueueRequest, QueueState, RoomQueue
+from mrta_drake.payloads import QueueRequest, QueueState, RoomQueue, SegmentHold
 
 ROOM, OTHER = 7, 8
 
@@ -143,8 +143,9 @@ class SegmentBench(Bench):
     """A RoomQueues with three single-file segments; ``want`` sets a robot's segments as
     (index, forward) pairs."""
 
-    def __init__(self, robots):
-        self.queues = RoomQueues(robots, rooms=[ROOM], rate_hz=10.0, segments=3)
+    def __init__(self, robots, exclusive=frozenset()):
+        self.queues = RoomQueues(robots, rooms=[ROOM], rate_hz=10.0, segments=3,
+                                 exclusive=exclusive)
         self.simulator = Simulator(self.queues)
         self.context = self.simulator.get_mutable_context()
         for robot in robots:
@@ -194,6 +195,60 @@ def test_a_robot_waiting_first_keeps_its_turn():
     bench.step()
     state = bench.state()
     assert state.segments[0].holders == ("b",) and state.segment_waiting == ("c",)
+
+
+def test_a_segment_where_robots_stop_is_held_by_one_robot_at_a_time():
+    bench = SegmentBench(["a", "b"], exclusive=frozenset({0}))
+    bench.want("a", (0, True))
+    bench.step()
+    bench.want("b", (0, True))  # the same way, but a may stop in 0 and turn: b waits
+    bench.step()
+    state = bench.state()
+    assert state.segments[0].holders == ("a",) and state.segment_waiting == ("b",)
+    bench.want("a", (0, False))  # a, alone in it, turns
+    bench.step()
+    state = bench.state()
+    assert state.segments[0] == SegmentHold(("a",), False) and state.segment_waiting == ("b",)
+    bench.want("a")
+    bench.step()
+    assert bench.state().segments[0].holders == ("b",)
+
+
+def test_a_robot_standing_in_a_segment_gets_the_next_before_robots_outside():
+    # a stands in 0 and needs 1 (a segment where robots stop) to drive on; b, outside,
+    # asked for 1 first. Granting b first would leave a holding 0 while waiting for 1.
+    bench = SegmentBench(["a", "b", "c"], exclusive=frozenset({1}))
+    bench.want("c", (1, True))
+    bench.want("a", (0, True))
+    bench.step()
+    bench.want("b", (1, False))
+    bench.step()
+    bench.want("a", (0, True), (1, True))
+    bench.step()
+    assert bench.state().segment_waiting == ("a", "b")  # a, standing in 0, first
+    bench.want("c")
+    bench.step()
+    state = bench.state()
+    assert state.holds_segments("a", ((0, True), (1, True)))
+    assert state.segment_waiting == ("b",)
+
+
+def test_a_robot_standing_in_a_segment_passes_one_waiting_for_that_segment():
+    # a stands in 2, b in 1; a, waiting first, wants 0 and 1, b wants 0: b goes first
+    # (letting a's turn hold b back would wait for ever).
+    bench = SegmentBench(["a", "b", "c"], exclusive=frozenset({1, 2}))
+    bench.want("c", (0, True))
+    bench.want("b", (1, True))
+    bench.want("a", (2, True))
+    bench.step()
+    bench.want("a", (2, True), (0, True), (1, True))
+    bench.step()
+    bench.want("b", (0, True), (1, True))
+    bench.want("c")
+    bench.step()
+    state = bench.state()
+    assert state.holds_segments("b", ((0, True), (1, True)))
+    assert state.segment_waiting == ("a",)
 
 
 class _QueueReader(LeafSystem):

@@ -4,25 +4,40 @@ import pytest
 
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.roadways import Roadways
-from mrta_drake.navigation.single_file import Need, SingleFileParams, need, route_runs
+from mrta_drake.navigation.single_file import (
+    Need,
+    SingleFileParams,
+    need,
+    route_runs,
+    standing,
+    stop_segments,
+)
 from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig
 
 PARAMS = SingleFileParams(request_distance=4.0, hold_distance=1.5, clear_distance=1.0,
                           chain_gap=5.0)
 
 
+def roadways_nodes():
+    """Nodes A0 .. A50 every 10 m along y = 0."""
+    return {f"A{x}": [float(x), 0.0] for x in range(0, 60, 10)}
+
+
+def roadways_edges():
+    """Two-way lanes between each pair of neighbouring nodes."""
+    xs = range(0, 60, 10)
+    edges = [[f"A{a}", f"A{b}"] for a, b in zip(xs[:-1], xs[1:], strict=True)]
+    return edges + [[b, a] for a, b in edges]
+
+
 def corridor():
     """Nodes every 10 m along y = 0 (A0 .. A50): two-way lanes between each pair; the
     stretches A10-A20 and A20-A30 are two single-file segments meeting at A20, A40-A50 a
     third, 10 m of ordinary lane (A30-A40) between."""
-    xs = range(0, 60, 10)
-    nodes = {f"A{x}": [float(x), 0.0] for x in xs}
-    edges = [[f"A{a}", f"A{b}"] for a, b in zip(xs[:-1], xs[1:], strict=True)]
-    edges += [[b, a] for a, b in edges]
     locations = [LocationConfig(id=i, name=f"L{i}", point=[x, 3.0], queue=[[x, 1.0]],
                                 exit_node=f"A{x}", approach_node=f"A{x}")
                  for i, x in enumerate((0, 50))]
-    config = RoadwaysConfig(nodes=nodes, edges=edges,
+    config = RoadwaysConfig(nodes=roadways_nodes(), edges=roadways_edges(),
                             single_file=[["A10", "A20"], ["A30", "A20"], ["A40", "A50"]])
     return Roadways(config, locations)
 
@@ -55,6 +70,43 @@ def test_runs_join_segments_that_meet_and_keep_the_way_driven():
 ])
 def test_need_along_the_route(x, index, expected):
     assert need(corridor(), EAST, index, (x, 0.0), PARAMS) == expected
+
+
+def test_a_hop_from_beside_the_lanes_onto_a_segment_enters_it():
+    # From a queue slot beside the lanes to A20, then along segment 1 (listed A30 -> A20):
+    # the robot is in segment 1 from the moment it leaves the slot.
+    route = ((15.0, 2.0), (20.0, 0.0), (30.0, 0.0))
+    runs = route_runs(corridor(), route, PARAMS.chain_gap)
+    assert [(r.first, r.last, r.segments) for r in runs] == [(0, 1, ((1, False),))]
+    # ... and from there onto the lane's point A25 (a location's point on it).
+    runs = route_runs(corridor(), ((25.0, 2.0), (25.0, 0.0)), PARAMS.chain_gap)
+    assert [(r.first, r.segments) for r in runs] == [(0, ((1, True),))]
+    # From A20 to a queue slot 1 m beside the lane to A30: along segment 1.
+    runs = route_runs(corridor(), ((20.0, 0.0), (28.0, 1.0)), PARAMS.chain_gap)
+    assert [(r.first, r.last, r.segments) for r in runs] == [(0, 0, ((1, False),))]
+
+
+@pytest.mark.parametrize("xy, spot, expected", [
+    ((25.0, 0.3), (25.0, 0.0), Need(((1, True),), False)),  # in 1 already: asks, drives
+    ((25.0, 3.0), (25.0, 0.4), Need(((1, True),), True)),  # driving up to a slot in 1
+    ((25.0, 3.0), (25.0, 2.0), Need()),  # beside the lanes
+    ((20.0, 0.0), (21.0, 3.0), Need(((0, False), (1, True)), False)),  # holds 0 one way
+])
+def test_a_robot_standing_in_a_segment_or_going_to_a_spot_in_one_needs_it(xy, spot, expected):
+    held = {0: False} if expected.segments[:1] == ((0, False),) else {}
+    assert standing(corridor(), xy, spot, held, PARAMS) == expected
+
+
+def test_segments_where_robots_stop_are_those_with_a_point_or_slot_on_their_lanes():
+    roadways = corridor()
+    assert stop_segments(roadways, PARAMS) == frozenset()  # points and slots 1 m off
+    config = RoadwaysConfig(nodes=roadways_nodes(), edges=roadways_edges(),
+                            single_file=[["A10", "A20"], ["A30", "A20"], ["A40", "A50"]])
+    locations = [LocationConfig(id=0, name="on", point=[25.0, 0.0], queue=[[45.0, 0.2]],
+                                exit_node="A20", approach_node="A40"),
+                 LocationConfig(id=1, name="off", point=[0.0, 3.0], queue=[[0.0, 1.0]],
+                                exit_node="A0", approach_node="A0")]
+    assert stop_segments(Roadways(config, locations), PARAMS) == frozenset({1, 2})
 
 
 def test_params_check_themselves():

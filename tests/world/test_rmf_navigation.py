@@ -94,6 +94,47 @@ def test_queue_lies_back_along_the_approach_with_its_head_on_a_holding_point():
         assert (gaps <= PARAMS.slot_spacing + 2e-3).all() and (gaps > 0.5).all()
 
 
+def _off_lanes(navigation, points) -> np.ndarray:
+    """Each of ``points``' distance to the nearest lane of ``navigation``, m."""
+    nodes = navigation.roadways.nodes
+    lanes = [(np.array(nodes[a]), np.array(nodes[b])) for a, b in navigation.roadways.edges]
+    gaps = []
+    for point in np.asarray(points, dtype=float).reshape(-1, 2):
+        gaps.append(min(np.linalg.norm(point - (a + np.clip(
+            np.dot(point - a, b - a) / np.dot(b - a, b - a), 0.0, 1.0) * (b - a)))
+            for a, b in lanes))
+    return np.array(gaps)
+
+
+def test_a_location_on_a_single_file_passage_is_served_beside_it_where_there_is_room():
+    # The corridor's lane is single file; desk and closet stand on it. A robot serving on
+    # it would block everyone driving through: desk is served in the alcove beside it,
+    # closet (no room beside it) on its vertex.
+    _, floor_plan, navigation = derived("passage", "ground")
+    desk, closet = navigation.locations[:2]
+    assert [desk.name, closet.name] == ["desk", "closet"]
+    assert _off_lanes(navigation, [desk.point])[0] >= PARAMS.slot_lane_gap - 1e-3
+    assert np.linalg.norm(np.subtract(desk.point, [10.0, 0.0])) <= PARAMS.serve_reach
+    assert floor_plan.obstacles.signed_distance([desk.point])[0] >= PARAMS.slot_clearance
+    assert closet.point == [16.0, 0.0] == navigation.roadways.nodes["closet"]
+
+
+def test_queue_slots_by_a_single_file_lane_stand_beside_every_lane():
+    # A robot waiting on the corridor's lane would block robots driving through it and
+    # the holder leaving: every slot of the two locations on it keeps off the lanes, and
+    # clear of the other slots and the points.
+    _, floor_plan, navigation = derived("passage", "ground")
+    slots = [slot for location in navigation.locations[:2] for slot in location.queue]
+    assert len(slots) >= 2
+    assert (_off_lanes(navigation, slots) >= PARAMS.slot_lane_gap - 1e-3).all()
+    assert floor_plan.obstacles.signed_distance(np.array(slots)).min() >= PARAMS.slot_clearance
+    others = slots + [location.point for location in navigation.locations]
+    for k, slot in enumerate(slots):
+        gaps = [np.linalg.norm(np.subtract(slot, other)) for j, other in enumerate(others)
+                if j != k]
+        assert min(gaps) >= PARAMS.slot_spacing - 1e-3
+
+
 def test_parking_spots_stay_off_the_lanes():
     _, _, navigation = derived("one_level", "L1")
     nodes = navigation.roadways.nodes
