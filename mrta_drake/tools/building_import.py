@@ -191,8 +191,9 @@ def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: Floor
 
 def _open_nodes(navigation: BuildingNavigation, floor_plan: FloorPlan, tasks: set[str]
                 ) -> list[tuple[str, int]]:
-    """The lane nodes that are not task locations, at least ``QUEUE_BERTH`` m from every
-    location's point and queue slots: where a robot waiting there (at the start, or back
+    """The lane nodes that are not task locations, not on single-file segments (driven by
+    one robot at a time) and at least ``QUEUE_BERTH`` m from every location's point and
+    queue slots: where a robot waiting there (at the start, or back
     home with nothing to do) leaves the rooms and their queues free; each with the number
     of legs between task locations that pass it (within ``ROUTE_BERTH`` m), fewest first (a
     robot waiting there is least in the way), then the widest open space (clearance to
@@ -200,8 +201,10 @@ def _open_nodes(navigation: BuildingNavigation, floor_plan: FloorPlan, tasks: se
     lines = navigation.centre_lines
     busy = np.array([p for loc in navigation.locations for p in (loc.point, *loc.queue)],
                     dtype=float).reshape(-1, 2)
-    nodes = [n for n in lines.nodes if n not in tasks and (not len(busy) or np.min(
-        np.linalg.norm(busy - np.asarray(lines.nodes[n], dtype=float), axis=1)) >= QUEUE_BERTH)]
+    single_file = {v for segment in navigation.single_file for v in segment.vertices}
+    nodes = [n for n in lines.nodes if n not in tasks and n not in single_file and (
+        not len(busy) or np.min(np.linalg.norm(
+            busy - np.asarray(lines.nodes[n], dtype=float), axis=1)) >= QUEUE_BERTH)]
     points = np.array([lines.nodes[n] for n in nodes], dtype=float).reshape(-1, 2)
     clearance = floor_plan.obstacles.signed_distance(points)
     traffic = _legs_passing(navigation, points)
