@@ -41,18 +41,23 @@ def test_import_writes_a_scenario_that_loads(tmp_path):
     assert scenario.blocks.controller.params == {"safety_distances": {"wall": 0.54}}
 
 
-def test_robots_start_off_the_task_locations_where_lane_nodes_allow(tmp_path):
-    building = BUILDINGS / "cartesian.building.yaml"
-    import_building(str(building), str(tmp_path), ImportOptions(robots=3))
+def test_robots_start_where_they_are_least_in_the_way(tmp_path):
+    building = BUILDINGS / "open_hall.building.yaml"
+    import_building(str(building), str(tmp_path), ImportOptions(robots=4))
     scenario = load_scenario(tmp_path / "scenario.yaml")
-    busy = np.array([p for loc in scenario.locations for p in (loc.point, *loc.queue)])
-    gaps = [np.linalg.norm(busy - robot.start[:2], axis=1).min() for robot in scenario.robots]
-    # The parking spot; then east_shelf, a task location with parking spots (a robot with
-    # nothing to do parks off its point) before the lane node 2 m from every point and
-    # queue slot that legs between the task locations pass; west_bench (no parking) last.
-    shelf = next(loc for loc in scenario.locations if loc.name == "east_shelf")
-    assert scenario.robots[1].start[:2] == shelf.point
-    assert gaps[2] >= 2.0
+    starts = [robot.start[:2] for robot in scenario.robots]
+    # The charger; the spur's bare node, which no leg between the task locations passes;
+    # the task locations (both have parking spots); the hall's middle node, which every
+    # leg passes, last.
+    assert starts == [[10.0, 7.0], [10.0, 1.0], [2.0, 4.0], [18.0, 4.0]]
+    # With no such node (every node on single-file lanes, or near a point or queue): the
+    # charger, then the task location with parking spots, then the other one.
+    import_building(str(BUILDINGS / "cartesian.building.yaml"), str(tmp_path / "c"),
+                    ImportOptions(robots=3))
+    cartesian = load_scenario(tmp_path / "c" / "scenario.yaml")
+    shelf = next(loc for loc in cartesian.locations if loc.name == "east_shelf")
+    bench = next(loc for loc in cartesian.locations if loc.name == "west_bench")
+    assert [r.start[:2] for r in cartesian.robots][1:] == [shelf.point, bench.point]
 
 
 def test_the_task_stream_is_sized_to_be_served_in_the_run(tmp_path):
