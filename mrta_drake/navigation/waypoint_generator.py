@@ -776,22 +776,13 @@ class WaypointGenerator(LeafSystem):
     Inputs: see ``WaypointInputs`` (``robot_state``: vector 4N, ``[x, y, theta, v]`` per
     robot in ``robot_names`` order, world frame, m, rad, m/s; the others abstract).
     Outputs (from the state; no direct feedthrough): the policy's ``outputs``.
+    The arguments but ``rate_hz`` are the ``WaypointPolicy``'s.
     """
 
-    def __init__(
-        self,
-        robot_names: Sequence[str],
-        index: int,
-        roadways: Roadways,
-        start_location: int | None = None,
-        params: WaypointParams = WaypointParams(),
-        home: tuple[float, float] | None = None,
-        *,
-        rate_hz: float,
-    ):
+    def __init__(self, robot_names: Sequence[str], *policy_args, rate_hz: float,
+                 **policy_kwargs):
         super().__init__()
-        self._policy = WaypointPolicy(robot_names, index, roadways, start_location, params,
-                                      home)
+        self._policy = WaypointPolicy(robot_names, *policy_args, **policy_kwargs)
         self._state_index = self.DeclareAbstractState(
             Value[object](self._policy.initial_state()))
         self._inputs = _declare_inputs(self, len(robot_names))
