@@ -35,7 +35,7 @@ from mrta_drake.control.barriers import SafetyDistances
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig, TasksConfig
-from mrta_drake.scenario.stream_sizing import BATCH_SIZE, StreamSize, size_stream
+from mrta_drake.scenario.stream_sizing import BATCH_SIZE, LEG_SHARE, StreamSize, size_stream
 from mrta_drake.world.floor_plan import FloorPlan
 from mrta_drake.world.rmf_building import Building, Level
 from mrta_drake.world.rmf_navigation import BuildingNavigation
@@ -119,7 +119,11 @@ def _write_level(building: Building, level_name: str, out_dir: str, options: Imp
     navigation = imported_navigation(building.source, level_name, options.graph)
     level = building.levels[level_name]
     rng = np.random.default_rng(options.seed)
-    starts = robot_starts(level, navigation, world.floor_plan, options.robots)
+    stream = servable_stream(navigation.roadways, navigation.locations, options, options.robots,
+                             building.source)
+    used = [navigation.locations[i].point for i in stream.locations]
+    starts = robot_starts(level, navigation, world.floor_plan, options.robots,
+                          work=(used, LEG_SHARE * options.duration * TasksConfig().estimate_speed))
     humans = people_section(level, navigation, starts, options.people, rng)
     os.makedirs(out_dir, exist_ok=True)
     copy = os.path.join(out_dir, os.path.basename(building.source))
@@ -128,8 +132,6 @@ def _write_level(building: Building, level_name: str, out_dir: str, options: Imp
     _write_navigation(os.path.join(out_dir, "navigation.yaml"), building, level_name,
                       options.graph, navigation)
     scenario = os.path.join(out_dir, "scenario.yaml")
-    stream = servable_stream(navigation.roadways, navigation.locations, options, len(starts),
-                             building.source)
     write_scenario(scenario, os.path.basename(building.source), level_name, options, starts,
                     humans, wall_safety(navigation.roadways, world.floor_plan), stream)
     report.scenarios.append(scenario)
@@ -146,14 +148,18 @@ def _write_level(building: Building, level_name: str, out_dir: str, options: Imp
 
 
 def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: FloorPlan,
-                 count: int, lifts: Sequence[tuple[float, float]] = ()) -> list[list[float]]:
+                 count: int, lifts: Sequence[tuple[float, float]] = (),
+                 work: tuple[Sequence, float] = ((), 0.0)) -> list[list[float]]:
     """``count`` start poses [x, y, theta] on the level's lane nodes, each facing along its
     first lane, in this order: chargers, parking spots and spawn points that are not task
     locations; lane nodes away from the task locations and their queues that no leg between
     them passes; task locations with parking spots (a robot with nothing to do parks off the
     point); the other lane nodes away from the task locations, fewest legs passing first;
-    the other task locations; last, the other lane nodes within ``LIFT_BERTH`` m of the
-    ``lifts``' cabins (x, y, m) on this level, where riders wait."""
+    the other task locations; then the other lane nodes within ``LIFT_BERTH`` m of the
+    ``lifts``' cabins (x, y, m) on this level, where riders wait; last, any lane node.
+    ``work``: the points (x, y, m) of the task locations a stream uses and a distance (m):
+    spots farther than that from all of them come after every nearer one (a campus whose
+    stream keeps to a few neighbouring locations)."""
     lines = navigation.centre_lines
     tasks = {loc.name for loc in navigation.locations}
     flagged = []
@@ -169,7 +175,13 @@ def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: Floor
     parking = {loc.name for loc in navigation.locations if loc.parking}
     ranked = ([n for n in flagged if n not in tasks]
               + [n for n, k in open_nodes if k == 0] + [n for n in task_nodes if n in parking]
-              + [n for n, k in open_nodes if k > 0] + task_nodes + sorted(by_lift, key=str))
+              + [n for n, k in open_nodes if k > 0] + task_nodes + sorted(by_lift, key=str)
+              + list(lines.nodes))
+    points, reach = work
+    if len(points):
+        near = {n for n in lines.nodes if np.min(np.linalg.norm(
+            np.asarray(points, dtype=float) - lines.nodes[n], axis=1)) <= reach}
+        ranked = [n for n in ranked if n in near] + [n for n in ranked if n not in near]
     chosen: list[list[float]] = []
     seen = set()
     for node in ranked:

@@ -10,9 +10,12 @@ import yaml
 
 from mrta_drake.errors import InputError
 from mrta_drake.scenario.loading import load_scenario
-from mrta_drake.tools.building_import import ImportOptions, import_building
+from mrta_drake.tools.building_import import ImportOptions, import_building, robot_starts
 from mrta_drake.tools.cli import main
 from mrta_drake.world.plant import load_floor_plan_of
+from mrta_drake.world.rmf_building import load_building
+from mrta_drake.world.rmf_navigation import level_navigation
+from mrta_drake.world.rmf_world import level_world
 
 BUILDINGS = Path(__file__).parents[1] / "data" / "buildings"
 ONE_LEVEL = BUILDINGS / "one_level.building.yaml"
@@ -58,6 +61,17 @@ def test_robots_start_where_they_are_least_in_the_way(tmp_path):
     shelf = next(loc for loc in cartesian.locations if loc.name == "east_shelf")
     bench = next(loc for loc in cartesian.locations if loc.name == "west_bench")
     assert [r.start[:2] for r in cartesian.robots][1:] == [shelf.point, bench.point]
+
+
+def test_robots_start_near_the_task_locations_the_stream_uses():
+    building = load_building(str(BUILDINGS / "open_hall.building.yaml"))
+    world = level_world(building, "ground")
+    navigation = level_navigation(building, "ground", world.floor_plan)
+    # Work only at east_shelf (18, 4): the spots within 5 m of it first, east_shelf's own
+    # point (it has parking spots), then any lane node near it, before the charger 8 m off.
+    starts = robot_starts(building.levels["ground"], navigation, world.floor_plan, 3,
+                          work=([(18.0, 4.0)], 5.0))
+    assert [s[:2] for s in starts] == [[18.0, 4.0], [14.0, 4.0], [10.0, 7.0]]
 
 
 def test_the_task_stream_is_sized_to_be_served_in_the_run(tmp_path):
