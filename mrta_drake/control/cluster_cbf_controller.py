@@ -315,9 +315,7 @@ class ClusterCbfController(LeafSystem):
             if u_nominal is None and not plan.qps.needs_solver[g]:
                 continue
             members = list(plan.qps.groups[g])
-            nominal, G, b, lower, upper = plan.qps.arrays(g)
-            if u_nominal is not None:
-                nominal = u_nominal[members]
+            nominal, G, b, lower, upper = plan.qps.arrays(g, u_nominal)
             solution = self._qp.solve(nominal, G, b, lower, upper)
             calls.append((len(members), solution.solve_time))
             if solution.success:

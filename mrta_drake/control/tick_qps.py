@@ -31,7 +31,8 @@ class TickQps:
     """The QPs of one tick (``qp_problems``), kept as the compiled kernel made them: group g's
     robots ``groups[g]``, rows ``G[G_start[g]:G_start[g + 1]]`` (flattened) and ``b``, ...
     ``[row_start[g]:row_start[g + 1]]``; whether it needs a solver; the steered nominal
-    inputs, bounds and ``settled`` inputs (N, 2) of ``qp_problems``."""
+    inputs, bounds and ``settled`` inputs (N, 2) of ``qp_problems``; which robots stand
+    (``standing`` (N,), |v| < ``coordination.stall_speed``)."""
 
     groups: tuple[tuple[int, ...], ...]
     u_nominal: np.ndarray
@@ -43,6 +44,7 @@ class TickQps:
     row_start: np.ndarray
     needs_solver: np.ndarray
     settled: np.ndarray
+    standing: np.ndarray
 
     def problem(self, g: int) -> QpProblem:
         """Group g's QP."""
@@ -51,12 +53,22 @@ class TickQps:
         rows = SafetyRows(G, b, *(a[r0:r1] for a in self.rows[1:]))
         return QpProblem(self.groups[g], u_nominal, rows, lower, upper)
 
-    def arrays(self, g: int) -> tuple[np.ndarray, ...]:
-        """Group g's QP as ``CbfQp.solve`` takes it: nominal inputs, ``G``, ``b``, bounds."""
+    def arrays(self, g: int, u_nominal=None) -> tuple[np.ndarray, ...]:
+        """Group g's QP as ``CbfQp.solve`` takes it: nominal inputs (``u_nominal`` (N, 2) in
+        place of the plan's, if given), ``G``, ``b``, bounds. A standing robot's yaw rate is
+        its nominal's (clipped), not a decision: it enters the rows only through ``v omega``
+        (``barriers``), a term near zero whose sign is that of ``v``, so when a row cannot be
+        met the QP would turn the robot at full rate one way or the other as ``v`` crosses
+        zero, tick after tick, and it would never get away (issue 15)."""
         group, r0, r1 = self.groups[g], self.row_start[g], self.row_start[g + 1]
         index = list(group)
-        return (self.u_nominal[index], self.G[self.G_start[g]:self.G_start[g + 1]].reshape(
-            r1 - r0, 2 * len(group)), self.rows[0][r0:r1], self.lower[index], self.upper[index])
+        nominal = (self.u_nominal if u_nominal is None else u_nominal)[index]
+        lower, upper = self.lower[index], self.upper[index]
+        standing = self.standing[index]
+        lower[standing, 1] = upper[standing, 1] = np.clip(
+            nominal[standing, 1], lower[standing, 1], upper[standing, 1])
+        return (nominal, self.G[self.G_start[g]:self.G_start[g + 1]].reshape(
+            r1 - r0, 2 * len(group)), self.rows[0][r0:r1], lower, upper)
 
     @property
     def problems(self) -> tuple[QpProblem, ...]:
@@ -105,8 +117,10 @@ def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocitie
         movers, mover_start, params.row_params, params.coordination.stall_speed,
         params.nominal.k_theta, params.nominal.corner_steering, u_nominal, lower, upper,
         settled)
+    standing = np.abs(np.asarray(states, dtype=float).reshape(n, 4)[:, 3]) < (
+        params.coordination.stall_speed)
     return TickQps(groups, u_nominal, lower, upper, G, G_start, tuple(rows), row_start,
-                   needs_solver, settled)
+                   needs_solver, settled, standing)
 
 
 @numba.njit(cache=True)
