@@ -53,22 +53,26 @@ class TickQps:
         rows = SafetyRows(G, b, *(a[r0:r1] for a in self.rows[1:]))
         return QpProblem(self.groups[g], u_nominal, rows, lower, upper)
 
-    def arrays(self, g: int, u_nominal=None) -> tuple[np.ndarray, ...]:
-        """Group g's QP as ``CbfQp.solve`` takes it: nominal inputs (``u_nominal`` (N, 2) in
-        place of the plan's, if given), ``G``, ``b``, bounds. A standing robot's yaw rate is
-        its nominal's (clipped), not a decision: it enters the rows only through ``v omega``
-        (``barriers``), a term near zero whose sign is that of ``v``, so when a row cannot be
-        met the QP would turn the robot at full rate one way or the other as ``v`` crosses
-        zero, tick after tick, and it would never get away (issue 15)."""
+    def arrays(self, g: int) -> tuple[np.ndarray, ...]:
+        """Group g's QP as ``CbfQp.solve`` takes it: nominal inputs, ``G``, ``b``, bounds."""
         group, r0, r1 = self.groups[g], self.row_start[g], self.row_start[g + 1]
         index = list(group)
-        nominal = (self.u_nominal if u_nominal is None else u_nominal)[index]
-        lower, upper = self.lower[index], self.upper[index]
-        standing = self.standing[index]
+        return (self.u_nominal[index], self.G[self.G_start[g]:self.G_start[g + 1]].reshape(
+            r1 - r0, 2 * len(group)), self.rows[0][r0:r1], self.lower[index], self.upper[index])
+
+    def turns_fixed(self, g: int, u_nominal, lower, upper) -> tuple[np.ndarray, np.ndarray]:
+        """Group g's bounds ``lower``, ``upper`` (k, 2) with each standing robot's yaw rate
+        fixed at its nominal's (``u_nominal`` (k, 2), clipped), for when its rows cannot all
+        be met: a standing robot's yaw rate enters the rows only through ``v omega``
+        (``barriers``), a term near zero whose sign is that of ``v``, so the QP would spend
+        it at full rate to shave the slack, one way while the robot creeps back and the
+        other way once it creeps forward, tick after tick, and it would never get away
+        (issue 15)."""
+        standing = self.standing[list(self.groups[g])]
+        lower, upper = np.array(lower, dtype=float), np.array(upper, dtype=float)
         lower[standing, 1] = upper[standing, 1] = np.clip(
-            nominal[standing, 1], lower[standing, 1], upper[standing, 1])
-        return (nominal, self.G[self.G_start[g]:self.G_start[g + 1]].reshape(
-            r1 - r0, 2 * len(group)), self.rows[0][r0:r1], lower, upper)
+            np.asarray(u_nominal)[standing, 1], lower[standing, 1], upper[standing, 1])
+        return lower, upper
 
     @property
     def problems(self) -> tuple[QpProblem, ...]:
