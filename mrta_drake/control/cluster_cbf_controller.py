@@ -14,7 +14,7 @@ from mrta_drake.control.controller_common import controller_update, declare_cont
 from mrta_drake.control.followers import follower_rule_code
 from mrta_drake.control.input_limits import limits_of
 from mrta_drake.control.paths import PathArrays, robot_paths_of
-from mrta_drake.control.qp_solver import CbfQp
+from mrta_drake.control.qp_solver import SLACK_IN_USE, CbfQp
 from mrta_drake.control.tick_kernel import (
     TickArrays,
     TickRobots,
@@ -319,7 +319,13 @@ class ClusterCbfController(LeafSystem):
             if u_nominal is not None:
                 nominal = u_nominal[members]
             solution = self._qp.solve(nominal, G, b, lower, upper)
-            calls.append((len(members), solution.solve_time))
+            seconds = solution.solve_time
+            if (solution.success and max(solution.slack.tolist(), default=0.0) > SLACK_IN_USE
+                    and plan.qps.standing[members].any()):  # see TickQps.turns_fixed
+                solution = self._qp.solve(nominal, G, b,
+                                          *plan.qps.turns_fixed(g, nominal, lower, upper))
+                seconds += solution.solve_time
+            calls.append((len(members), seconds))
             if solution.success:
                 u[members] = solution.u
                 max_slack = max(max_slack, max(solution.slack.tolist(), default=0.0))

@@ -27,6 +27,7 @@ from mrta_drake.stack.compiled_helper import compiled_helper
 
 SOLVERS = ("clarabel", "osqp")
 _PAD = 4  # row counts are padded to a multiple of this so that few programs are built
+SLACK_IN_USE = 1e-6  # scaled rows, m/s^2: slack above this means the rows were not all met
 
 
 @dataclass(frozen=True)

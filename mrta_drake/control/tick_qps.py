@@ -31,7 +31,8 @@ class TickQps:
     """The QPs of one tick (``qp_problems``), kept as the compiled kernel made them: group g's
     robots ``groups[g]``, rows ``G[G_start[g]:G_start[g + 1]]`` (flattened) and ``b``, ...
     ``[row_start[g]:row_start[g + 1]]``; whether it needs a solver; the steered nominal
-    inputs, bounds and ``settled`` inputs (N, 2) of ``qp_problems``."""
+    inputs, bounds and ``settled`` inputs (N, 2) of ``qp_problems``; which robots stand
+    (``standing`` (N,), |v| < ``coordination.stall_speed``)."""
 
     groups: tuple[tuple[int, ...], ...]
     u_nominal: np.ndarray
@@ -43,6 +44,7 @@ class TickQps:
     row_start: np.ndarray
     needs_solver: np.ndarray
     settled: np.ndarray
+    standing: np.ndarray
 
     def problem(self, g: int) -> QpProblem:
         """Group g's QP."""
@@ -57,6 +59,20 @@ class TickQps:
         index = list(group)
         return (self.u_nominal[index], self.G[self.G_start[g]:self.G_start[g + 1]].reshape(
             r1 - r0, 2 * len(group)), self.rows[0][r0:r1], self.lower[index], self.upper[index])
+
+    def turns_fixed(self, g: int, u_nominal, lower, upper) -> tuple[np.ndarray, np.ndarray]:
+        """Group g's bounds ``lower``, ``upper`` (k, 2) with each standing robot's yaw rate
+        fixed at its nominal's (``u_nominal`` (k, 2), clipped), for when its rows cannot all
+        be met: a standing robot's yaw rate enters the rows only through ``v omega``
+        (``barriers``), a term near zero whose sign is that of ``v``, so the QP would spend
+        it at full rate to shave the slack, one way while the robot creeps back and the
+        other way once it creeps forward, tick after tick, and it would never get away
+        (issue 15)."""
+        standing = self.standing[list(self.groups[g])]
+        lower, upper = np.array(lower, dtype=float), np.array(upper, dtype=float)
+        lower[standing, 1] = upper[standing, 1] = np.clip(
+            np.asarray(u_nominal)[standing, 1], lower[standing, 1], upper[standing, 1])
+        return lower, upper
 
     @property
     def problems(self) -> tuple[QpProblem, ...]:
@@ -105,8 +121,10 @@ def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocitie
         movers, mover_start, params.row_params, params.coordination.stall_speed,
         params.nominal.k_theta, params.nominal.corner_steering, u_nominal, lower, upper,
         settled)
+    standing = np.abs(np.asarray(states, dtype=float).reshape(n, 4)[:, 3]) < (
+        params.coordination.stall_speed)
     return TickQps(groups, u_nominal, lower, upper, G, G_start, tuple(rows), row_start,
-                   needs_solver, settled)
+                   needs_solver, settled, standing)
 
 
 @numba.njit(cache=True)

@@ -12,9 +12,11 @@ from pydrake.systems.primitives import ConstantValueSource, LogVectorOutput
 
 from mrta_drake.control.cbf_params import CbfParams, CoordinationParams
 from mrta_drake.control.cluster_cbf_controller import ClusterCbfController
+from mrta_drake.control.controller_common import predict_states
 from mrta_drake.control.go_to_goal_controller import GoToGoalController
 from mrta_drake.control.nominal import NominalParams, nominal_control
 from mrta_drake.payloads import PATH_OK, FleetPaths, HumanStates, RobotPath, frozen_array
+from mrta_drake.results.summary import SLACK_TOLERANCE
 from mrta_drake.robots.unicycle_robots import UnicycleRobots
 from mrta_drake.world.obstacles import Box, Obstacles
 
@@ -415,3 +417,33 @@ def test_a_body_standing_right_of_the_lane_is_passed_on_its_left():
     assert turn(0.1, 0.0) < -0.1  # a body near the lane's middle: passed on the right
     assert turn(0.4, 0.5) < -0.1  # oncoming traffic: passed on the right
     assert nominal_control(state, path, params, bodies=[(0.4, 1.5)])[1] < -0.1  # moving
+
+
+def test_a_robot_standing_inside_the_wall_distance_gets_away_instead_of_chattering():
+    # Issue 15 (seed 105 of the soak), rebuilt small: robot a stands 0.55 m from a wall
+    # (inside its 0.6 m safety distance) with the wall nearly abeam, rolling back at
+    # 0.023 m/s, robot b parked 1.6 m behind it (so they are one QP). The wall row cannot
+    # be met; when the QP chose a's yaw rate, whose only effect is through v omega, it
+    # turned a at full rate one way or the other as v changed sign, and a stood still,
+    # flipping between (a, omega) = (1, -2) and (-1, 2) every tick, for as long as it ran.
+    normal = np.array([-0.5, math.sqrt(3) / 2])  # the wall's face, towards the robots
+    wall = Obstacles((Box("wall", tuple(-0.654 * normal), (12.0, 0.2), yaw=math.pi / 6),))
+    goal = 4.0 * np.array([0.374, 0.927])  # a's path leaves the wall at 52 degrees
+    states = np.array([[0.0, 0.0, 0.431, 0.023], [-1.538, 0.388, 2.625, 0.0]])
+    controller = ClusterCbfController(("a", "b"), wall, rate_hz=20.0)
+    paths = FleetPaths((RobotPath("a", PATH_OK, frozen_array([[0.0, 0.0], goal])),
+                        RobotPath("b", PATH_OK, frozen_array([states[1, :2]] * 2))))
+    slack_ticks, yaw_rates, trace = 0, [], [states]
+    for tick in range(200):  # 10 s
+        u, telemetry = controller.control(0.05 * tick, states, paths)
+        slack_ticks += telemetry.max_slack > SLACK_TOLERANCE
+        yaw_rates.append(u[0, 1])
+        states = predict_states(states, np.c_[states[:, 3] + 0.05 * u[:, 0], u[:, 1]],
+                                controller.params.nominal, 0.05)
+        trace.append(states)
+    yaw_rates = np.array(yaw_rates)
+    reversals = yaw_rates[1:] * yaw_rates[:-1] < -1.0  # full rate one way, then the other
+    assert not np.any(reversals[1:] & reversals[:-1])  # never back and forth, tick after tick
+    assert slack_ticks <= 10
+    assert np.linalg.norm(states[0, :2] - goal) < 0.1
+    assert _min_wall_distance(np.array(trace), wall) >= RADIUS
