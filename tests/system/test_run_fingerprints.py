@@ -12,8 +12,11 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 SCRIPT = pathlib.Path(__file__).with_name("run_fingerprint.py")
 
+# hospital_6_robots changed on 2026-11-26 with the controller's second solve for standing
+# robots whose QP uses slack (docs/control.md; robot1 moves up to 4.9 cm differently from
+# 69 s on, tasks and closest distances the same): a deliberate change, not a regression.
 FINGERPRINTS = {
-    "hospital_6_robots.yaml": "390395c124c153df2524ae476c8a84d640c47a209f752a625719a589a7e4b89c",
+    "hospital_6_robots.yaml": "b0cbf15c7eafe07863f20c6da64ae039af45a36bcf4c6cdd751dd083eb578955",
     "hospital_disturbances.yaml":
         "8d645b26613e01bdff9fe6181d606bc53911e132bb02a0ff8b00510976d21187",
 }
