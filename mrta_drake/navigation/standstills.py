@@ -123,7 +123,7 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
     spot_ok = (passable & _eroded(free, steps) & (robot_gaps >= clearance).all(axis=-1)
                & people_clear)
     for way, radius in ways:
-        spot_ok &= _distance_to_polyline(points, way) >= radii[k] + radius + clearance
+        spot_ok &= distance_to_polyline(points, way) >= radii[k] + radius + clearance
     for missed in np.asarray(avoid, dtype=float).reshape(-1, 2):
         spot_ok &= np.linalg.norm(points - missed, axis=-1) > avoid_radius
     start = (n_side, n_side)
@@ -156,7 +156,7 @@ def _eroded(mask: np.ndarray, steps: int) -> np.ndarray:
     return mask
 
 
-def _distance_to_polyline(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
+def distance_to_polyline(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
     """Distance (m) from each of ``points`` (..., 2) to the polyline (P, 2) (a point if
     P = 1)."""
     polyline = np.asarray(polyline, dtype=float).reshape(-1, 2)

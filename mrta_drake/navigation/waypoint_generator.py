@@ -366,10 +366,7 @@ class WaypointPolicy:
             parking = _point(self._roadways.place(s.last_location).parking[s.index])
             return WaypointTarget(self._robot, True, parking, None, True)
         if s.phase == RobotMode.HOME and not s.lanes.hold:
-            last = len(s.route) - 1
-            return WaypointTarget(self._robot, True, s.route[s.index],
-                                  s.route[s.index + 1] if s.index < last else None,
-                                  s.index == last)
+            return self._along_route(s)
         if s.stop is None or s.phase == RobotMode.WAIT or s.waiting or s.lanes.hold:
             return WaypointTarget(self._robot)
         if s.phase == RobotMode.LIFT:
@@ -379,17 +376,18 @@ class WaypointPolicy:
             wait = _back_along(s.route[:s.index + 1],
                                self._params.lift_wait_distance + s.lift_slot)
             return WaypointTarget(self._robot, True, wait, None, True)
-        place = self._roadways.place(s.stop.location)
         if s.phase in (RobotMode.DRIVE, RobotMode.ENTER):
-            last = len(s.route) - 1
-            current = s.route[s.index]
-            after = s.route[s.index + 1] if s.index < last else None
-            stop_here = s.index == last
-        elif s.phase == RobotMode.QUEUE:
-            current, after, stop_here = _point(place.queue[s.index]), None, True
-        else:
-            current, after, stop_here = _point(place.point), None, True
-        return WaypointTarget(self._robot, True, current, after, stop_here)
+            return self._along_route(s)
+        place = self._roadways.place(s.stop.location)
+        spot = place.queue[s.index] if s.phase == RobotMode.QUEUE else place.point
+        return WaypointTarget(self._robot, True, _point(spot), None, True)
+
+    def _along_route(self, s: _Drive) -> WaypointTarget:
+        """Route waypoint ``s.index`` and the one after it; the robot stops at the last."""
+        last = len(s.route) - 1
+        return WaypointTarget(self._robot, True, s.route[s.index],
+                              s.route[s.index + 1] if s.index < last else None,
+                              s.index == last)
 
     # --- Update ------------------------------------------------------------------------------
 

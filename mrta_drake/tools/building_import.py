@@ -9,10 +9,9 @@
   level's chargers, then parking spots and spawn points that are not task locations, then
   the other spots where a robot is least in the way (``robot_starts``), each clear of walls
   and of the others (a robot waits back on its start spot when it has nothing to do where
-  no parking spot is), ``people``
-  people walking the level's human lanes (else visitors between random lane nodes), and a
-  seeded generated task stream
-  between the task locations. Where lanes pass nearer walls than the controller's
+  no parking spot is), ``people`` people walking the level's human lanes (else visitors
+  between random lane nodes), and a seeded generated task stream between the task
+  locations. Where lanes pass nearer walls than the controller's
   default wall safety distance (0.6 m), as through the demos' 0.9 m doors, the scenario sets
   the controller's ``safety_distances.wall`` to the lanes' least clearance less 6 cm (at
   least the robot radius plus 5 cm), else robots stop short of those doors.
@@ -34,6 +33,7 @@ import yaml
 from mrta_drake.control.barriers import SafetyDistances
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.roadways import Roadways
+from mrta_drake.navigation.standstills import distance_to_polyline
 from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig, TasksConfig
 from mrta_drake.scenario.stream_sizing import BATCH_SIZE, LEG_SHARE, StreamSize, size_stream
 from mrta_drake.world.floor_plan import FloorPlan
@@ -167,8 +167,7 @@ def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: Floor
         flagged += [lines.vertex_node[i] for i, v in enumerate(level.vertices)
                     if i in lines.vertex_node and (v.flag(flag) or (
                         flag == "spawn_robot_name" and v.params.get(flag)))]
-    by_lift = {n for n in lines.nodes if len(lifts) and np.min(np.linalg.norm(
-        np.asarray(lifts, dtype=float) - lines.nodes[n], axis=1)) < LIFT_BERTH}
+    by_lift = {n for n in lines.nodes if _gap(lines.nodes[n], lifts) < LIFT_BERTH}
     open_nodes = [(n, k) for n, k in _open_nodes(navigation, floor_plan, tasks)
                   if n not in by_lift]
     task_nodes = [n for n in flagged if n in tasks] + [loc.name for loc in navigation.locations]
@@ -179,8 +178,7 @@ def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: Floor
               + list(lines.nodes))
     points, reach = work
     if len(points):
-        near = {n for n in lines.nodes if np.min(np.linalg.norm(
-            np.asarray(points, dtype=float) - lines.nodes[n], axis=1)) <= reach}
+        near = {n for n in lines.nodes if _gap(lines.nodes[n], points) <= reach}
         ranked = [n for n in ranked if n in near] + [n for n in ranked if n not in near]
     chosen: list[list[float]] = []
     seen = set()
@@ -205,22 +203,28 @@ def _open_nodes(navigation: BuildingNavigation, floor_plan: FloorPlan, tasks: se
                 ) -> list[tuple[str, int]]:
     """The lane nodes that are not task locations, not on single-file segments (driven by
     one robot at a time) and at least ``QUEUE_BERTH`` m from every location's point and
-    queue slots: where a robot waiting there (at the start, or back
-    home with nothing to do) leaves the rooms and their queues free; each with the number
+    queue slots: where a robot waiting there (at the start, or back home with nothing to
+    do) leaves the rooms and their queues free; each with the number
     of legs between task locations that pass it (within ``ROUTE_BERTH`` m), fewest first (a
     robot waiting there is least in the way), then the widest open space (clearance to
     walls)."""
     lines = navigation.centre_lines
-    busy = np.array([p for loc in navigation.locations for p in (loc.point, *loc.queue)],
-                    dtype=float).reshape(-1, 2)
+    busy = [p for loc in navigation.locations for p in (loc.point, *loc.queue)]
     single_file = {v for segment in navigation.single_file for v in segment.vertices}
-    nodes = [n for n in lines.nodes if n not in tasks and n not in single_file and (
-        not len(busy) or np.min(np.linalg.norm(
-            busy - np.asarray(lines.nodes[n], dtype=float), axis=1)) >= QUEUE_BERTH)]
+    nodes = [n for n in lines.nodes if n not in tasks and n not in single_file
+             and _gap(lines.nodes[n], busy) >= QUEUE_BERTH]
     points = np.array([lines.nodes[n] for n in nodes], dtype=float).reshape(-1, 2)
     clearance = floor_plan.obstacles.signed_distance(points)
     traffic = _legs_passing(navigation, points)
     return [(nodes[k], int(traffic[k])) for k in np.lexsort((-clearance, traffic))]
+
+
+def _gap(xy, points) -> float:
+    """Distance (m) from ``xy`` to the nearest of ``points`` (x, y); infinite if none."""
+    if not len(points):
+        return math.inf
+    return float(np.min(np.linalg.norm(np.asarray(points, dtype=float).reshape(-1, 2)
+                                       - np.asarray(xy, dtype=float), axis=1)))
 
 
 def _legs_passing(navigation: BuildingNavigation, points: np.ndarray) -> np.ndarray:
@@ -234,12 +238,7 @@ def _legs_passing(navigation: BuildingNavigation, points: np.ndarray) -> np.ndar
             leg = None if a == b else roadways.leg(a, b)
             if leg is None or len(leg) < 2 or not len(points):
                 continue
-            start, step = leg[:-1], np.diff(leg, axis=0)
-            rel = points[:, None, :] - start[None]
-            t = np.clip((rel * step).sum(axis=2) / np.maximum((step * step).sum(axis=1), 1e-12),
-                        0.0, 1.0)
-            gaps = np.linalg.norm(rel - t[..., None] * step, axis=2).min(axis=1)
-            counts += gaps <= ROUTE_BERTH
+            counts += distance_to_polyline(points, leg) <= ROUTE_BERTH
     return counts
 
 
