@@ -15,6 +15,7 @@ so that one ``MathematicalProgram`` per (robots, padded rows) is built once and 
 its coefficients and bounds are updated.
 """
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -225,8 +226,14 @@ def check_nominal(G, b, u_nominal, clipped) -> tuple[bool, bool]:
     """Whether ``G``, ``b`` and ``u_nominal`` are all finite, and whether then ``clipped``
     (the nominal clipped to the input bounds) meets every row ``G u >= b``: it is then the
     QP's optimum, compiled."""
-    if not (np.all(np.isfinite(G)) and np.all(np.isfinite(b))
-            and np.all(np.isfinite(u_nominal))):
+    finite = True  # element by element: np.all(np.isfinite(...)) compiles numba's generic code
+    for row in range(len(b)):
+        finite = finite and math.isfinite(b[row])
+        for column in range(G.shape[1]):
+            finite = finite and math.isfinite(G[row, column])
+    for column in range(len(u_nominal)):
+        finite = finite and math.isfinite(u_nominal[column])
+    if not finite:
         return False, False
     for row in range(len(b)):
         value = 0.0

@@ -57,17 +57,22 @@ def safety_rows(states, hits, hit_mask, human_positions, human_velocities, mover
 
 @numba.njit(cache=True)
 def empty_rows(m, k):
-    """Arrays for m rows over k robots: ``SafetyRows``' fields, ``G`` zero."""
+    """Arrays for m rows over k robots: ``SafetyRows``' fields, ``G`` zero, ``other`` -1."""
+    other = np.empty(m, np.int64)
+    for row in range(m):  # not np.full: numba compiles its generic code for that
+        other[row] = -1
     return (np.zeros((m, 2 * k)), np.empty(m), np.empty(m, np.int64), np.empty(m),
-            np.empty(m, np.int64), np.full(m, -1, np.int64), np.empty((m, 2)))
+            np.empty(m, np.int64), other, np.empty((m, 2)))
 
 
 @numba.njit(cache=True)
 def count_rows(states, mask, humans, movers, radius2):
     """The number of rows ``safety_rows`` makes (``humans``: how many)."""
     k = len(states)
-    m = mask.sum() + k * humans
+    m = k * humans
     for i in range(k):
+        for ray in range(mask.shape[1]):  # not mask.sum(): numba compiles its generic code
+            m += mask[i, ray]
         for q in range(len(movers)):
             m += near(states[i], movers[q], radius2)
         for j in range(i + 1, k):
