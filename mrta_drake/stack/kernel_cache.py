@@ -45,14 +45,16 @@ PARENT_AHEAD_S = 1.8
 class EntryKernel:
     """An entry kernel: ``module``'s ``njit(cache=True)`` function ``name``, the argument
     types it is called with (numba's spelling of each signature), the CPU s compiling it
-    (with every helper it compiled first) took on the benchmark host and the compiled
-    functions (``module.name``) it calls, directly or through others."""
+    (with every helper it compiled first) took on the benchmark host, the compiled
+    functions (``module.name``) it calls, directly or through others, and whether loading
+    the scenario or building the diagram calls it (``building``: before the run)."""
 
     module: str
     name: str
     cpu_s: float
     signatures: tuple[str, ...]
     helpers: tuple[str, ...] = ()
+    building: bool = False
 
     @property
     def functions(self) -> frozenset[str]:
@@ -67,7 +69,7 @@ class EntryKernel:
 def _read_manifest(path: pathlib.Path) -> tuple[EntryKernel, ...]:
     kernels = json.loads(path.read_text(encoding="utf-8"))["kernels"]
     return tuple(EntryKernel(k["module"], k["name"], k["cpu_s"], tuple(k["signatures"]),
-                             tuple(k["helpers"])) for k in kernels)
+                             tuple(k["helpers"]), k["building"]) for k in kernels)
 
 
 ENTRY_KERNELS = _read_manifest(MANIFEST)
@@ -110,14 +112,17 @@ def groups(kernels: tuple[EntryKernel, ...]) -> list[list[EntryKernel]]:
 def split(kernels: tuple[EntryKernel, ...]) -> tuple[tuple[EntryKernel, ...],
                                                      tuple[EntryKernel, ...]]:
     """``kernels`` in two parts that finish about together: the one compiled here and the
-    one for a second process. The group (``groups``) of the first kernel (the first the run
-    calls, as the scenario loads) stays here; the others go, largest first, to the part that
-    would finish first so far, this process starting ``PARENT_AHEAD_S`` behind with its
+    one for a second process. The groups (``groups``) of the first kernel and of those
+    loading the scenario or building the diagram calls (this process calls them before the
+    second could have compiled them) stay here; the others go, largest first, to the part
+    that would finish first so far, this process starting ``PARENT_AHEAD_S`` behind with its
     other work, the second ``CHILD_START_S`` behind with its start-up."""
     found = groups(kernels)
-    halves = ([*found[0]], []) if found else ([], [])
+    pinned = [g for i, g in enumerate(found) if i == 0 or any(k.building for k in g)]
+    halves = ([k for g in pinned for k in g], [])
     ahead = (PARENT_AHEAD_S, CHILD_START_S)
-    for group in sorted(found[1:], key=lambda g: -sum(k.cpu_s for k in g)):
+    for group in sorted((g for g in found if g not in pinned),
+                        key=lambda g: -sum(k.cpu_s for k in g)):
         side = min((0, 1), key=lambda h: ahead[h] + sum(k.cpu_s for k in halves[h]))
         halves[side].extend(group)
     order = {kernel: i for i, kernel in enumerate(kernels)}
@@ -205,7 +210,8 @@ class Compilation:
 def _record(out: pathlib.Path) -> None:
     """Runs the quickstart's simulation here (one process) with numba's cache in an empty
     folder and writes the entry kernels it compiled (in order, with their signatures, compile
-    CPU s and the compiled functions each calls) to ``out``."""
+    CPU s, the compiled functions each calls and whether it was called before the run) to
+    ``out``."""
     import tempfile
     import time
 
@@ -216,10 +222,13 @@ def _record(out: pathlib.Path) -> None:
         from mrta_drake.scenario.loading import load_scenario
         from mrta_drake.stack.simulate import simulate
 
-        entries, open_, compiled = {}, [], set()
+        entries, open_, compiled, begun, building = {}, [], set(), set(), set()
 
         class Listener(event.Listener):
             def on_start(self, ev):
+                if not open_:  # an entry kernel (numba compiles one function at a time)
+                    function = ev.data["dispatcher"].py_func
+                    begun.add((function.__module__, function.__name__))
                 open_.append(time.process_time())
 
             def on_end(self, ev):
@@ -233,7 +242,8 @@ def _record(out: pathlib.Path) -> None:
 
         event.register("numba:compile", Listener())
         scenario = pathlib.Path(__file__).resolve().parents[2] / QUICKSTART[0]
-        simulate(load_scenario(str(scenario)), duration=float(QUICKSTART[2]), plots=False)
+        simulate(load_scenario(str(scenario)), duration=float(QUICKSTART[2]), plots=False,
+                 before_run=lambda: building.update(begun))
     names = {id(result.library): f"{d.py_func.__module__}.{d.py_func.__name__}"
              for d in compiled for result in d.overloads.values()}
     kernels = []
@@ -250,7 +260,7 @@ def _record(out: pathlib.Path) -> None:
         helpers -= {None, f"{module}.{name}"}
         kernels.append({"module": module, "name": name, "cpu_s": round(seconds, 2),
                         "signatures": [str(s) for s in dispatcher.signatures],
-                        "helpers": sorted(helpers)})
+                        "helpers": sorted(helpers), "building": (module, name) in building})
     out.write_text(json.dumps({"command": "python -m mrta_drake.stack.kernel_cache record",
                                "run": "mrta-sim run " + " ".join(QUICKSTART),
                                "kernels": kernels}, indent=1) + "\n", encoding="utf-8")

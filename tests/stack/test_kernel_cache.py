@@ -72,6 +72,8 @@ def test_kernels_sharing_a_helper_stay_together():
                                         ("c", 5.0, ())))
     assert kernel_cache.groups((first, alone, shares)) == [[first, shares], [alone]]
     assert kernel_cache.split((first, alone, shares)) == ((first, shares), (alone,))
+    builds = EntryKernel("m", "d", 20.0, (), (), building=True)  # called before the run
+    assert kernel_cache.split((first, alone, builds)) == ((first, builds), (alone,))
 
 
 def test_the_cli_announces_a_cold_cache_and_compiles_in_two_processes(fresh_kernels, capsys):
