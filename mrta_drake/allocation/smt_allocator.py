@@ -211,6 +211,11 @@ class _Terms:
         """``z3.PbLe(pairs, k)``."""
         return z3.BoolRef(z3.Z3_mk_pble(self.ref, len(pairs), *_pb(pairs), k), self.ctx)
 
+    def prefer(self, solver: z3.Solver, literal: z3.BoolRef, value: bool):
+        """``solver.set_initial_value(literal, value)``."""
+        value = z3.Z3_mk_true(self.ref) if value else z3.Z3_mk_false(self.ref)
+        z3.Z3_solver_set_initial_value(self.ref, solver.solver, literal.ast, value)
+
     def count_at_most(self, args, k: int) -> z3.BoolRef:
         """``z3.AtMost(*args, k)``."""
         return z3.BoolRef(z3.Z3_mk_atmost(self.ref, len(args), _array(args), k), self.ctx)
@@ -507,15 +512,15 @@ class _Encoding:
 
     def hint(self, allocation: Allocation):
         """Prefer the assignments and orders of ``allocation`` in the search."""
-        solver, times = self.solver, {}
+        prefer, times = self.terms.prefer, {}
         for r, (route, route_times) in enumerate(
             zip(allocation.routes, allocation.times, strict=True)
         ):
             for action, time in zip(route, route_times, strict=True):
                 times[action] = time
-                solver.set_initial_value(self.assigned[action.task, r], True)
+                prefer(self.solver, self.assigned[action.task, r], True)
         for (a, b), literal in self.first.items():
-            solver.set_initial_value(literal, times[a] < times[b])
+            prefer(self.solver, literal, times[a] < times[b])
 
 
 class _Solve:
