@@ -212,7 +212,8 @@ class _Terms:
         return z3.BoolRef(z3.Z3_mk_pble(self.ref, len(pairs), *_pb(pairs), k), self.ctx)
 
     def prefer(self, solver: z3.Solver, literal: z3.BoolRef, value: bool):
-        """``solver.set_initial_value(literal, value)``."""
+        """``solver.set_initial_value(literal, value)`` (no term made: true and false are
+        z3's own, never freed)."""
         value = z3.Z3_mk_true(self.ref) if value else z3.Z3_mk_false(self.ref)
         z3.Z3_solver_set_initial_value(self.ref, solver.solver, literal.ast, value)
 
@@ -251,8 +252,7 @@ class _Encoding:
                  check_limit: Callable[[], None]):
         self.problem = problem
         self.solver = solver
-        self.ctx = solver.ctx
-        self.terms = terms = _Terms(self.ctx)
+        self.terms = terms = _Terms(solver.ctx)
         robots, travel, service = problem.robots, problem.travel, problem.service_time
         self.carrier = {task.id: problem.carrier(task.id) for task in problem.tasks}
         self.actions = []
