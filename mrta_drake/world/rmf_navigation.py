@@ -469,7 +469,7 @@ def _door_path(graph: nx.DiGraph, node: str, single: set[tuple[str, str]],
     if len(beyond) != 1:
         return []
     path = nx.shortest_path(graph, beyond.pop(), node, weight="length")[::-1]
-    length = sum(graph.edges[b, a]["length"] for a, b in zip(path, path[1:]))
+    length = sum(graph.edges[b, a]["length"] for a, b in zip(path[:-1], path[1:], strict=True))
     return path if length <= reach else []
 
 
