@@ -290,8 +290,9 @@ class WaypointPolicy:
     is never redone. Without stops the robot parks (unless ``parking`` is off): at a location
     with parking spots it drives to the first one no other robot is within
     ``parking_clearance`` of (park), off the point; at a location without any (a dead end
-    of an imported building, where an idle robot would box in the next one), it drives back
-    along the lanes to ``home``, its start spot (world frame, m; home: asking for
+    of an imported building, where an idle robot would box in the next one), or where
+    every one is taken and it has a home (idle robots would pile up round the point), it
+    drives back along the lanes to ``home``, its start spot (world frame, m; home: asking for
     single-file segments on the way as when driving), and waits there; elsewhere, or with
     no home (it started on a location), the target is inactive and it stands still.
     A parked robot given a stop starts it as if standing on the location's point.
@@ -433,11 +434,12 @@ class WaypointPolicy:
                     or _distance(robots.xy, place.point) > self._params.reach_tolerance):
                 return _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0,
                                 since=None)
-            if not len(place.parking):
-                return self._go_home(s, place, lanes)
             others = np.delete(robots.states[:, :2], self._index, axis=0)
+            spot = self._free_parking(place, others)
+            if spot is None and (self._home is not None or not len(place.parking)):
+                return self._go_home(s, place, lanes)
             return replace(s, phase=RobotMode.PARK, stop=None, route=(), since=None,
-                           index=self._free_parking(place, others))
+                           index=len(place.parking) - 1 if spot is None else spot)
         xy = robots.xy
         if s.stop is None:
             return self._start(s, stop, xy, lanes, t)
@@ -503,14 +505,14 @@ class WaypointPolicy:
                        route=route or (), index=0,
                        detours=s.detours + (Detour(t, changed, route is not None),))
 
-    def _free_parking(self, place, others: np.ndarray) -> int:
-        """Index of the first of ``place``'s parking spots with no other robot near it (the
-        last spot if all are taken)."""
+    def _free_parking(self, place, others: np.ndarray) -> int | None:
+        """Index of the first of ``place``'s parking spots with no other robot near it
+        (None if all are taken, or it has none)."""
         for k, spot in enumerate(place.parking):
             if not len(others) or np.min(np.linalg.norm(others - spot, axis=1)) > \
                     self._params.parking_clearance:
                 return k
-        return len(place.parking) - 1
+        return None
 
     def _start(self, s: _Drive, stop: Stop, xy, lanes: Roadways, t: float) -> _Drive:
         """Begin ``stop`` from standing (at the start, or after finishing a stop)."""
