@@ -37,9 +37,7 @@ class WatchdogParams:
     A robot *has a goal* when its target is active and it is farther than
     ``goal_tolerance`` from the target's current waypoint; it is *stalled* once it has had
     one for ``standstill_time`` without getting farther than ``progress_distance`` from
-    where it stood, or for ``idle_standstill_time`` with an idle robot (no active target:
-    it loses nothing by moving, e.g. one waiting on its start spot, on a lane) within
-    ``block_gap`` of it. A stalled robot is blocked by the robots within ``block_gap`` of it
+    where it stood. A stalled robot is blocked by the robots within ``block_gap`` of it
     (surface to surface). The robot chosen to yield drives to the nearest spot within
     ``search_reach`` at least ``spot_clearance`` from every other robot and person and from
     its blockers' ways to their targets, its centre ``wall_clearance`` from walls, and
@@ -52,7 +50,6 @@ class WatchdogParams:
 
     enabled: bool = True
     standstill_time: float = 15.0
-    idle_standstill_time: float = 5.0
     progress_distance: float = 0.5
     goal_tolerance: float = 1.0
     block_gap: float = 0.6
@@ -63,8 +60,7 @@ class WatchdogParams:
     retry_window: float = 120.0
 
     def __post_init__(self):
-        require_positive(self, "standstill_time", "idle_standstill_time", "yield_time",
-                         "retry_window", unit=" s")
+        require_positive(self, "standstill_time", "yield_time", "retry_window", unit=" s")
         require_positive(self, "progress_distance", "goal_tolerance", "search_reach",
                          "wall_clearance", unit=" m")
         require_non_negative(self, "block_gap", "spot_clearance", unit=" m")
@@ -185,9 +181,6 @@ class DeadlockWatchdog(LeafSystem):
                 anchors[k] = Anchor(anchors[k].xy, min(anchors[k].since, order.issued))
         stalled = np.array([a is not None and now - a.since >= self._params.standstill_time
                             - 1e-9 for a in anchors])
-        idle = np.array([not t.active or t.current is None for t in targets])
-        if idle.any():
-            stalled |= self._blocked_by_idle(anchors, idle, states[:, :2], now)
         history = old.orders.history
         groups = (blocked_groups(stalled, states[:, :2], self._radii, self._params.block_gap)
                   if stalled.any() else ())
@@ -218,22 +211,6 @@ class DeadlockWatchdog(LeafSystem):
         state.get_mutable_abstract_state(self._state_index).set_value(
             _WatchdogState(tuple(anchors), orders, misses))
         return EventStatus.Succeeded()
-
-    def _blocked_by_idle(self, anchors, idle: np.ndarray, xy: np.ndarray, now: float
-                         ) -> np.ndarray:
-        """(N,) whether each robot has had a goal without progress for
-        ``idle_standstill_time`` with an ``idle`` robot within ``block_gap`` of it (battle
-        royale, seed 0: a robot standing on its start spot in the diagonal corridor held
-        the next one driving through for 31 s, 15 s of them before the watchdog looked)."""
-        p = self._params
-        waited = np.array([a is not None and now - a.since >= p.idle_standstill_time - 1e-9
-                           for a in anchors])
-        if not waited.any():
-            return waited
-        gaps = (np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=-1)
-                - self._radii[:, None] - self._radii)
-        near = (gaps <= p.block_gap) & ~np.eye(len(xy), dtype=bool)
-        return waited & (near & idle[None, :]).any(axis=1)
 
     def _has_goal(self, robot_state: np.ndarray, target: WaypointTarget) -> bool:
         return (target.active and target.current is not None

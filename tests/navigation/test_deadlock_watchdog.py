@@ -308,16 +308,3 @@ def test_an_order_without_blockers_ends_when_its_robot_gets_there():
     simulator.AdvanceTo(17.0)
     orders = watchdog.GetOutputPort("back_offs").Eval(context)
     assert orders.active == () and len(orders.history) == 1
-
-
-def test_a_robot_held_by_an_idle_one_gets_it_moved_sooner():
-    # r0 heads east to (8, 0); r1, idle (no target), stands 0.6 m ahead of it (on its start
-    # spot, on the lane): r1 loses nothing by moving, so it is sent off after
-    # idle_standstill_time (5 s), not standstill_time (15 s).
-    params = WatchdogParams()
-    history = _orders_for_robots_that_never_move(
-        duration=10.0, states=(5.0, 0.0, 0.0, 0.0, 5.6, 0.0, math.pi, 0.0),
-        goals=((8.0, 0.0), None))
-    assert [(order.robot, order.blockers) for order in history] == [("r1", ("r0",))]
-    assert history[0].issued - history[0].stalled_since == pytest.approx(
-        params.idle_standstill_time, abs=0.5)
