@@ -295,10 +295,11 @@ def profile(simulator, until: float) -> dict:
 
 def warm_up_qp() -> None:
     """One CBF-QP that needs the solver (the short warm-up run may solve none), so that its
-    kernels are loaded before the timed runs."""
-    from mrta_drake.control.qp_solver import CbfQp
+    kernels are loaded before the timed runs (the default ``qp.solver``'s)."""
+    from mrta_drake.control.qp_solver import CbfQp, QpParams
 
-    solution = CbfQp().solve([[1.0, 0.0]], [[-1.0, 0.0]], [0.5], [[-1.0, -2.0]], [[1.0, 2.0]])
+    solution = CbfQp(QpParams().solver).solve([[1.0, 0.0]], [[-1.0, 0.0]], [0.5],
+                                              [[-1.0, -2.0]], [[1.0, 2.0]])
     assert solution.solved and solution.success
 
 

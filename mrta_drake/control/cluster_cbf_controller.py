@@ -315,22 +315,28 @@ class ClusterCbfController(LeafSystem):
             if u_nominal is None and not plan.qps.needs_solver[g]:
                 continue
             members = list(plan.qps.groups[g])
-            nominal, G, b, lower, upper = plan.qps.arrays(g)
-            if u_nominal is not None:
-                nominal = u_nominal[members]
-            solution = self._qp.solve(nominal, G, b, lower, upper)
-            seconds = solution.solve_time
-            if (solution.success and max(solution.slack.tolist(), default=0.0) > SLACK_IN_USE
+            if u_nominal is None:
+                solution = self._qp.solve_loaded(plan.qps.loaded(g))
+            else:
+                nominal, G, b, lower, upper = plan.qps.arrays(g)
+                solution = self._qp.solve(u_nominal[members], G, b, lower, upper)
+            seconds, slack = solution.solve_time, float(solution.slack.max(initial=0.0))
+            if (solution.success and slack > SLACK_IN_USE
                     and plan.qps.standing[members].any()):  # see TickQps.turns_fixed
+                nominal, G, b, lower, upper = plan.qps.arrays(g)
+                if u_nominal is not None:
+                    nominal = u_nominal[members]
                 solution = self._qp.solve(nominal, G, b,
                                           *plan.qps.turns_fixed(g, nominal, lower, upper))
                 seconds += solution.solve_time
+                slack = float(solution.slack.max(initial=0.0))
             calls.append((len(members), seconds))
             if solution.success:
                 u[members] = solution.u
-                max_slack = max(max_slack, max(solution.slack.tolist(), default=0.0))
+                max_slack = max(max_slack, slack)
             else:
-                u[members] = np.stack([lower[:, 0], np.zeros(len(members))], axis=1)
+                u[members] = np.stack([plan.qps.lower[members, 0], np.zeros(len(members))],
+                                      axis=1)
                 failures += len(members)
         return SolvedQps(u, failures, max_slack, tuple(calls))
 

@@ -1,4 +1,5 @@
-"""The CBF QP and its solver: Clarabel or OSQP through Drake's ``MathematicalProgram``.
+"""The CBF QP and its solver: Clarabel or OSQP through Drake's ``MathematicalProgram``, or a
+compiled dual active-set method (``active_set``) with Clarabel where it cannot answer.
 
 For k robots solved jointly (u stacked ``[a_0, omega_0, a_1, ...]``, m/s^2 and rad/s)::
 
@@ -23,18 +24,23 @@ import numba
 import numpy as np
 from pydrake.solvers import ClarabelSolver, MathematicalProgram, OsqpSolver, SolverOptions
 
+from mrta_drake.control.active_set import dual_active_set
 from mrta_drake.errors import require_choice, require_positive
 from mrta_drake.stack.compiled_helper import compiled_helper
 
-SOLVERS = ("clarabel", "osqp")
+SOLVERS = ("clarabel", "osqp", "active_set")
 _PAD = 4  # row counts are padded to a multiple of this so that few programs are built
 SLACK_IN_USE = 1e-6  # scaled rows, m/s^2: slack above this means the rows were not all met
 
 
 @dataclass(frozen=True)
 class QpParams:
-    """The QP ``solver`` (``clarabel`` or ``osqp``) and the ``slack_weight`` W, the linear
-    penalty per unit of slack (scaled rows, m/s^2)."""
+    """The QP ``solver`` and the ``slack_weight`` W, the linear penalty per unit of slack
+    (scaled rows, m/s^2). ``clarabel`` (interior point) and ``osqp`` (ADMM) run through
+    Drake; ``active_set`` solves a QP whose rows can all be met without slack by the compiled
+    dual active-set method of ``active_set`` (its exact optimum, ~3 us instead of ~100 us)
+    and the others (rows that must be relaxed) with Clarabel; it changes trajectories in
+    their last bits and beyond against ``clarabel`` (docs/benchmarks.md, "Fifth round")."""
 
     solver: str = "clarabel"
     slack_weight: float = 1e4
@@ -67,19 +73,34 @@ class _Program:
         self.u = self.prog.NewContinuousVariables(2 * k, "u")
         self.s = self.prog.NewContinuousVariables(m, "s")
         self.hessian = 2.0 * np.eye(2 * k)
-        self.linear = np.zeros(2 * k)
-        self.cost = self.prog.AddQuadraticCost(self.hessian, self.linear, self.u, is_convex=True)
+        self.cost = self.prog.AddQuadraticCost(self.hessian, np.zeros(2 * k), self.u,
+                                               is_convex=True)
         self.box = self.prog.AddBoundingBoxConstraint(np.zeros(2 * k), np.zeros(2 * k), self.u)
-        self.A = np.hstack([np.zeros((m, 2 * k)), np.eye(m)])
-        self.lower = np.zeros(m)
         self.upper = np.full(m, np.inf)
         self.prog.AddLinearCost(np.full(m, slack_weight), 0.0, self.s)
         self.prog.AddBoundingBoxConstraint(np.zeros(m), self.upper, self.s)
-        self.rows = self.prog.AddLinearConstraint(self.A, self.lower, self.upper,
-                                                  np.concatenate([self.u, self.s]))
+        self.rows = self.prog.AddLinearConstraint(
+            np.hstack([np.zeros((m, 2 * k)), np.eye(m)]), np.zeros(m), self.upper,
+            np.concatenate([self.u, self.s]))
         # The decision variables are u, then s: a solution vector reads [u, s].
         self.cost_evaluator, self.box_evaluator, self.rows_evaluator = (
             binding.evaluator() for binding in (self.cost, self.box, self.rows))
+
+
+@dataclass(frozen=True)
+class LoadedQp:
+    """A QP over k robots as its program takes it (``load_qp``): whether its rows are
+    ``finite`` (if not, it fails without a solve); of its m safety rows those ``kept``
+    (indices), padded to ``size`` rows; and ``data``, the flat block ``load_qp`` wrote: the
+    linear cost (2k,), the bounds ``lower`` and ``upper`` (2k,) each, the rows' lower bounds
+    (size,) and the rows' matrix [A | I] (size, 2k + size)."""
+
+    k: int
+    m: int
+    finite: bool
+    kept: np.ndarray
+    size: int
+    data: np.ndarray
 
 
 class CbfQp:
@@ -91,7 +112,8 @@ class CbfQp:
             raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}")
         self.solver_name = solver
         self.slack_weight = float(slack_weight)
-        self._solver = ClarabelSolver() if solver == "clarabel" else OsqpSolver()
+        self._solver = OsqpSolver() if solver == "osqp" else ClarabelSolver()
+        self._active_set = solver == "active_set"
         self._options = SolverOptions()
         if solver == "osqp":
             # Drake's defaults (1e-5) leave visible slack on tight rows; polish snaps to the
@@ -110,50 +132,89 @@ class CbfQp:
         b = np.asarray(b, dtype=float)
         k, m = len(u_nom) // 2, len(b)
         start = time.perf_counter()
-        clipped, finite, optimal, kept = _prepare(u_nom, G, b, lo, hi)
-        if not finite:
-            return QpSolution(np.zeros((k, 2)), np.zeros(m), False, time.perf_counter() - start)
-        if optimal:
+        clipped, finite, optimal, kept, size, data = _prepare(u_nom, G, b, lo, hi)
+        if finite and optimal:
             return QpSolution(clipped.reshape(k, 2), np.zeros(m), True,
                               time.perf_counter() - start, solved=False)
-        size = -(-len(kept) // _PAD) * _PAD
+        return self.solve_loaded(LoadedQp(k, m, finite, kept, size, data), start)
+
+    def solve_loaded(self, qp: LoadedQp, start: float | None = None) -> QpSolution:
+        """The solution of a QP loaded by ``load_qp`` (its solve time counted from
+        ``start``, a ``time.perf_counter()``; None: now)."""
+        start = time.perf_counter() if start is None else start
+        k, size, data = qp.k, qp.size, qp.data
+        if not qp.finite:
+            return QpSolution(np.zeros((k, 2)), np.zeros(qp.m), False,
+                              time.perf_counter() - start)
+        n = 2 * k
+        lo, hi = data[n:2 * n], data[2 * n:3 * n]
+        if self._active_set:
+            x, met, largest = dual_active_set(data, n, size, len(qp.kept))
+            # The slack-free optimum is the QP's while no multiplier outweighs the slack.
+            if met and largest < self.slack_weight:
+                return QpSolution(np.minimum(np.maximum(x, lo), hi).reshape(k, 2),
+                                  np.zeros(qp.m), True, time.perf_counter() - start)
         program = self._programs.get((k, size))
         if program is None:
             program = self._programs[(k, size)] = _Program(k, size, self.slack_weight)
-        _load_program(u_nom, G, b, kept, program.linear, program.A, program.lower)
-        program.cost_evaluator.UpdateCoefficients(program.hessian, program.linear, 0.0, True)
+        program.cost_evaluator.UpdateCoefficients(program.hessian, data[:n], 0.0, True)
         program.box_evaluator.set_bounds(lo, hi)
-        program.rows_evaluator.UpdateCoefficients(program.A, program.lower, program.upper)
+        program.rows_evaluator.UpdateCoefficients(
+            data[3 * n + size:].reshape(size, n + size), data[3 * n:3 * n + size],
+            program.upper)
         result = self._solver.Solve(program.prog, None, self._options)
         elapsed = time.perf_counter() - start
         if not result.is_success():
-            return QpSolution(np.zeros((k, 2)), np.zeros(m), False, elapsed)
+            return QpSolution(np.zeros((k, 2)), np.zeros(qp.m), False, elapsed)
         x = result.GetSolution()
-        u = np.minimum(np.maximum(x[: 2 * k], lo), hi)
-        slack = np.zeros(m)
-        slack[kept] = np.maximum(x[2 * k: 2 * k + len(kept)], 0.0)
-        return QpSolution(u.reshape(k, 2), slack, True, elapsed)
+        slack = np.zeros(qp.m)
+        slack[qp.kept] = np.maximum(x[n:n + len(qp.kept)], 0.0)
+        return QpSolution(np.minimum(np.maximum(x[:n], lo), hi).reshape(k, 2), slack, True,
+                          elapsed)
 
 
 @numba.njit(cache=True)
 def _prepare(u_nominal, G, b, lower, upper):
     """The nominal clipped to the box [``lower``, ``upper``]; whether ``G``, ``b`` and
     ``u_nominal`` are finite; whether the clipped nominal then meets every row (it minimizes
-    the cost over the box, so it is the QP's optimum and no solver call is needed); and the
-    rows that some u in the box breaks (the others cannot change the optimum)."""
+    the cost over the box, so it is the QP's optimum and no solver call is needed); and,
+    when a solver is needed, the rows kept (``kept_rows``), their padded count and the
+    program's data (``load_qp``)."""
     clipped = np.minimum(np.maximum(u_nominal, lower), upper)
     finite, optimal = check_nominal(G, b, u_nominal, clipped)
     kept = np.empty(len(b), np.int64)
+    count = kept_rows(G, b, lower, upper, kept) if finite and not optimal else 0
+    size = padded_rows(count)
+    data = np.empty(qp_data_size(len(u_nominal), size))
+    load_qp(u_nominal, G, b, kept[:count], lower, upper, size, data)
+    return clipped, finite, optimal, kept[:count], size, data
+
+
+@compiled_helper
+def kept_rows(G, b, lower, upper, kept):
+    """How many rows of ``G`` u >= ``b`` some u in the box [``lower``, ``upper``] breaks
+    (the others cannot change the optimum); their indices go to the start of ``kept``."""
     count = 0
-    if finite and not optimal:
-        least = np.empty(G.shape[1])  # each term's minimum over the box
-        for row in range(len(b)):
-            for c in range(G.shape[1]):
-                least[c] = G[row, c] * (lower[c] if G[row, c] > 0.0 else upper[c])
-            if _pairwise_sum(least) < b[row]:
-                kept[count] = row
-                count += 1
-    return clipped, finite, optimal, kept[:count]
+    least = np.empty(G.shape[1])  # each term's minimum over the box
+    for row in range(len(b)):
+        for c in range(G.shape[1]):
+            least[c] = G[row, c] * (lower[c] if G[row, c] > 0.0 else upper[c])
+        if _pairwise_sum(least) < b[row]:
+            kept[count] = row
+            count += 1
+    return count
+
+
+@compiled_helper
+def padded_rows(count):
+    """``count`` rows padded to a multiple of ``_PAD`` (few program sizes)."""
+    return -(-count // _PAD) * _PAD
+
+
+@compiled_helper
+def qp_data_size(columns, size):
+    """The length of ``load_qp``'s block for ``columns`` = 2k inputs and ``size`` rows."""
+    return 3 * columns + size + size * (columns + size)
 
 
 @compiled_helper
@@ -205,18 +266,25 @@ def _block_sum(a, start, n):
     return total
 
 
-@numba.njit(cache=True)
-def _load_program(u_nominal, G, b, kept, linear, A, lower):
-    """A ``_Program``'s data for rows ``G`` u >= ``b`` of which those ``kept`` are the
-    first rows of ``A`` (the rest read 0 >= -1), and the linear cost of ``u_nominal``."""
+@compiled_helper
+def load_qp(u_nominal, G, b, kept, lower, upper, size, out):
+    """A ``LoadedQp``'s ``data`` in ``out`` (``qp_data_size`` long) for rows ``G`` u >=
+    ``b`` of which those ``kept`` are the first rows of A (the rest, up to ``size``, read
+    0 >= -1), the linear cost of ``u_nominal`` and the box [``lower``, ``upper``]."""
     columns = len(u_nominal)
     for c in range(columns):
-        linear[c] = u_nominal[c] * -2.0
-    for row in range(len(lower)):
+        out[c] = u_nominal[c] * -2.0
+        out[columns + c] = lower[c]
+        out[2 * columns + c] = upper[c]
+    rows_lower = 3 * columns
+    A = out[rows_lower + size:].reshape((size, columns + size))
+    for row in range(size):
         keep = row < len(kept)
         for c in range(columns):
             A[row, c] = G[kept[row], c] if keep else 0.0
-        lower[row] = b[kept[row]] if keep else -1.0
+        for c in range(size):
+            A[row, columns + c] = 1.0 if c == row else 0.0
+        out[rows_lower + row] = b[kept[row]] if keep else -1.0
 
 
 @compiled_helper

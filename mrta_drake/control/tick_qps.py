@@ -8,7 +8,14 @@ import numba
 import numpy as np
 
 from mrta_drake.control.cbf_params import CbfParams
-from mrta_drake.control.qp_solver import check_nominal
+from mrta_drake.control.qp_solver import (
+    LoadedQp,
+    check_nominal,
+    kept_rows,
+    load_qp,
+    padded_rows,
+    qp_data_size,
+)
 from mrta_drake.control.safety_rows import SafetyRows, count_rows, empty_rows, fill_rows
 from mrta_drake.control.steering import steer
 from mrta_drake.stack.compiled_helper import compiled_helper
@@ -32,7 +39,11 @@ class TickQps:
     robots ``groups[g]``, rows ``G[G_start[g]:G_start[g + 1]]`` (flattened) and ``b``, ...
     ``[row_start[g]:row_start[g + 1]]``; whether it needs a solver; the steered nominal
     inputs, bounds and ``settled`` inputs (N, 2) of ``qp_problems``; which robots stand
-    (``standing`` (N,), |v| < ``coordination.stall_speed``)."""
+    (``standing`` (N,), |v| < ``coordination.stall_speed``); and, for the QPs that need a
+    solver, what ``CbfQp.solve`` would load into its program (``loaded``): whether the
+    rows are ``finite``, the rows kept (``kept[row_start[g]:row_start[g] + kept_count[g]]``),
+    their padded count ``sizes[g]`` and the program's data
+    ``data[data_start[g]:data_start[g + 1]]``."""
 
     groups: tuple[tuple[int, ...], ...]
     u_nominal: np.ndarray
@@ -45,6 +56,12 @@ class TickQps:
     needs_solver: np.ndarray
     settled: np.ndarray
     standing: np.ndarray
+    finite: np.ndarray
+    kept: np.ndarray
+    kept_count: np.ndarray
+    sizes: np.ndarray
+    data: np.ndarray
+    data_start: np.ndarray
 
     def problem(self, g: int) -> QpProblem:
         """Group g's QP."""
@@ -59,6 +76,14 @@ class TickQps:
         index = list(group)
         return (self.u_nominal[index], self.G[self.G_start[g]:self.G_start[g + 1]].reshape(
             r1 - r0, 2 * len(group)), self.rows[0][r0:r1], self.lower[index], self.upper[index])
+
+    def loaded(self, g: int) -> LoadedQp:
+        """Group g's QP as loaded for the solver (``CbfQp.solve_loaded``; for a group that
+        ``needs_solver``)."""
+        r0 = self.row_start[g]
+        return LoadedQp(len(self.groups[g]), int(self.row_start[g + 1] - r0),
+                        bool(self.finite[g]), self.kept[r0:r0 + self.kept_count[g]],
+                        int(self.sizes[g]), self.data[self.data_start[g]:self.data_start[g + 1]])
 
     def turns_fixed(self, g: int, u_nominal, lower, upper) -> tuple[np.ndarray, np.ndarray]:
         """Group g's bounds ``lower``, ``upper`` (k, 2) with each standing robot's yaw rate
@@ -113,7 +138,7 @@ def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocitie
     n = len(states)
     lower, upper = (np.ascontiguousarray(a, dtype=float) for a in (lower, upper))
     settled = np.zeros((n, 2))
-    G, G_start, *rows, row_start, needs_solver = _group_rows(
+    G, G_start, *rows, row_start, needs_solver, loads = _group_rows(
         *(np.ascontiguousarray(a, dtype=float).reshape(shape) for a, shape in (
             (states, (n, 4)), (hits, (n, -1, 2)), (human_positions, (-1, 2)),
             (human_velocities, (-1, 2)))),
@@ -124,7 +149,7 @@ def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocitie
     standing = np.abs(np.asarray(states, dtype=float).reshape(n, 4)[:, 3]) < (
         params.coordination.stall_speed)
     return TickQps(groups, u_nominal, lower, upper, G, G_start, tuple(rows), row_start,
-                   needs_solver, settled, standing)
+                   needs_solver, settled, standing, *loads)
 
 
 @numba.njit(cache=True)
@@ -136,7 +161,8 @@ def _group_rows(states, hits, humans, human_velocities, mask, members, group_sta
     flattened at ``G[G_start[g]:G_start[g + 1]]``, the other arrays at
     ``row_start[g]:row_start[g + 1]``), steering ``u_nominal`` in place (with
     ``corner_steering``), and whether each
-    group needs its QP solved; ``settled`` gets the others' clipped nominal inputs."""
+    group needs its QP solved; ``settled`` gets the others' clipped nominal inputs; and
+    what ``TickQps.loaded`` reads for the groups that need a solver (``_load_groups``)."""
     groups = len(group_start) - 1
     radius2 = params[9] * params[9]
     row_start = np.zeros(groups + 1, dtype=np.int64)
@@ -150,6 +176,7 @@ def _group_rows(states, hits, humans, human_velocities, mask, members, group_sta
     G = np.zeros(G_start[groups])
     b, kind, h, member, other, normal = empty_rows(row_start[groups], 0)[1:]
     needs_qp = np.zeros(groups, dtype=np.bool_)
+    finite = np.ones(groups, dtype=np.bool_)
     for g in range(groups):
         index = members[group_start[g]:group_start[g + 1]]
         k, r0, r1 = len(index), row_start[g], row_start[g + 1]
@@ -165,11 +192,46 @@ def _group_rows(states, hits, humans, human_velocities, mask, members, group_sta
         _scatter_rows(u_nominal, index, u)
         flat = u.ravel()
         clipped = np.minimum(np.maximum(flat, lower[index].ravel()), upper[index].ravel())
-        finite, optimal = check_nominal(G_g, b[r0:r1], flat, clipped)
-        needs_qp[g] = not (finite and optimal)
+        finite[g], optimal = check_nominal(G_g, b[r0:r1], flat, clipped)
+        needs_qp[g] = not (finite[g] and optimal)
         if not needs_qp[g]:
             _scatter_rows(settled, index, clipped.reshape((k, 2)))
-    return G, G_start, b, kind, h, member, other, normal, row_start, needs_qp
+    loads = _load_groups(G, G_start, b, row_start, members, group_start, u_nominal, lower,
+                         upper, needs_qp, finite)
+    return G, G_start, b, kind, h, member, other, normal, row_start, needs_qp, loads
+
+
+@compiled_helper
+def _load_groups(G, G_start, b, row_start, members, group_start, u_nominal, lower, upper,
+                 needs_qp, finite):
+    """For each group whose QP needs a solver and whose rows are finite, what ``_prepare``
+    in ``CbfQp.solve`` makes of it: the rows kept, their padded count and the program's
+    data (``load_qp``); ``TickQps``' ``finite`` to ``data_start``."""
+    groups = len(group_start) - 1
+    kept = np.empty(row_start[groups], np.int64)
+    kept_count = np.zeros(groups, np.int64)
+    sizes = np.zeros(groups, np.int64)
+    data_start = np.zeros(groups + 1, np.int64)
+    for g in range(groups):
+        index = members[group_start[g]:group_start[g + 1]]
+        r0, r1 = row_start[g], row_start[g + 1]
+        if needs_qp[g] and finite[g]:
+            G_g = G[G_start[g]:G_start[g + 1]].reshape((r1 - r0, 2 * len(index)))
+            kept_count[g] = kept_rows(G_g, b[r0:r1], lower[index].ravel(),
+                                      upper[index].ravel(), kept[r0:r1])
+            sizes[g] = padded_rows(kept_count[g])
+            data_start[g + 1] = qp_data_size(2 * len(index), sizes[g])
+        data_start[g + 1] += data_start[g]
+    data = np.empty(data_start[groups])
+    for g in range(groups):
+        if data_start[g + 1] > data_start[g]:
+            index = members[group_start[g]:group_start[g + 1]]
+            r0, r1 = row_start[g], row_start[g + 1]
+            G_g = G[G_start[g]:G_start[g + 1]].reshape((r1 - r0, 2 * len(index)))
+            load_qp(u_nominal[index].ravel(), G_g, b[r0:r1], kept[r0:r0 + kept_count[g]],
+                    lower[index].ravel(), upper[index].ravel(), sizes[g],
+                    data[data_start[g]:data_start[g + 1]])
+    return finite, kept, kept_count, sizes, data, data_start
 
 
 @compiled_helper

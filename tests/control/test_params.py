@@ -92,7 +92,7 @@ def test_a_field_go_to_goal_never_used_is_unknown():
     ("coordination.mode", "magic", "must be one of clusters, decentralized, centralized"),
     ("coordination.followers", "none", "must be one of all, in_the_way"),
     ("coordination.stall_time", 0.0, "must be > 0, got 0.0"),
-    ("qp.solver", "gurobi", "must be one of clarabel, osqp, got 'gurobi'"),
+    ("qp.solver", "gurobi", "must be one of clarabel, osqp, active_set, got 'gurobi'"),
     ("nominal.max_accel", -1.0, "must be > 0, got -1.0"),
     ("nominal.min_speed", 0.2, "must be <= 0, got 0.2"),
     ("barrier_rates.alpha1_wall", 0.0, "must be > 0, got 0.0"),

@@ -21,7 +21,7 @@ def _bounds(k, a_max=1.0, w_max=2.0):
     return np.tile([-a_max, -w_max], (k, 1)), np.tile([a_max, w_max], (k, 1))
 
 
-@pytest.mark.parametrize("solver", ["clarabel", "osqp"])
+@pytest.mark.parametrize("solver", ["clarabel", "osqp", "active_set"])
 def test_feasible_nominal_is_returned_without_solving(solver):
     qp = CbfQp(solver)
     lo, hi = _bounds(1)
@@ -30,7 +30,7 @@ def test_feasible_nominal_is_returned_without_solving(solver):
     np.testing.assert_allclose(solution.u, [[1.0, 0.5]])  # clipped to the box
 
 
-@pytest.mark.parametrize("solver", ["clarabel", "osqp"])
+@pytest.mark.parametrize("solver", ["clarabel", "osqp", "active_set"])
 def test_active_row_is_met_exactly_without_slack(solver):
     qp = CbfQp(solver)
     lo, hi = _bounds(1)
@@ -41,7 +41,7 @@ def test_active_row_is_met_exactly_without_slack(solver):
     assert solution.slack[0] == pytest.approx(0.0, abs=1e-5)
 
 
-@pytest.mark.parametrize("solver", ["clarabel", "osqp"])
+@pytest.mark.parametrize("solver", ["clarabel", "osqp", "active_set"])
 def test_input_limits_hold_when_the_safety_rows_cannot(solver):
     qp = CbfQp(solver)
     lo, hi = _bounds(2)
@@ -54,19 +54,20 @@ def test_input_limits_hold_when_the_safety_rows_cannot(solver):
     assert solution.slack.max() > 3.0
 
 
-def test_non_finite_rows_fail_instead_of_solving():
-    qp = CbfQp()
+@pytest.mark.parametrize("solver", ["clarabel", "active_set"])
+def test_non_finite_rows_fail_instead_of_solving(solver):
+    qp = CbfQp(solver)
     lo, hi = _bounds(1)
     assert not qp.solve([[0.0, 0.0]], [[np.nan, 0.0]], [1.0], lo, hi).success
 
 
-def test_both_solvers_agree_on_crowded_problems():
-    rng = np.random.default_rng(4)
+def _crowded_problems(seed: int, count: int):
+    """``count`` QPs (nominal, rows, bounds) of 1-4 robots at random in the corridor among
+    two people; some robots spawn inside safety distances (rows that need slack)."""
+    rng = np.random.default_rng(seed)
     params = CbfParams()
-    clarabel, osqp = CbfQp("clarabel"), CbfQp("osqp")
     obstacles = _corridor()
-    feasible = infeasible = 0
-    for _ in range(40):
+    for _ in range(count):
         k = int(rng.integers(1, 5))
         states = np.column_stack([rng.uniform(-3, 3, k), rng.uniform(-0.8, 0.8, k),
                                   rng.uniform(-math.pi, math.pi, k), rng.uniform(0, 1.5, k)])
@@ -74,11 +75,22 @@ def test_both_solvers_agree_on_crowded_problems():
         hits, mask = WallRays(obstacles, params.sensing)(states)
         rows = safety_rows(states, hits, mask, humans, rng.uniform(-1, 1, (2, 2)),
                            np.zeros((0, 4)), params)
-        u_nom = rng.uniform(-2, 2, (k, 2))
-        lo, hi = _bounds(k)
-        a = clarabel.solve(u_nom, rows.G, rows.b, lo, hi)
-        b = osqp.solve(u_nom, rows.G, rows.b, lo, hi)
+        yield (rng.uniform(-2, 2, (k, 2)), rows, *_bounds(k))
+
+
+def _answers(solver: str, seed: int, count: int):
+    """Per crowded problem (``_crowded_problems``): its nominal, rows, and Clarabel's and
+    ``solver``'s solutions (both successful)."""
+    clarabel, other = CbfQp("clarabel"), CbfQp(solver)
+    for u_nom, rows, lo, hi in _crowded_problems(seed, count):
+        a, b = (qp.solve(u_nom, rows.G, rows.b, lo, hi) for qp in (clarabel, other))
         assert a.success and b.success
+        yield u_nom, rows, a, b
+
+
+def test_both_solvers_agree_on_crowded_problems():
+    feasible = infeasible = 0
+    for u_nom, rows, a, b in _answers("osqp", 4, 40):
         if max(a.slack.max(initial=0), b.slack.max(initial=0)) < 1e-6:
             feasible += a.solved
             np.testing.assert_allclose(a.u, b.u, atol=1e-4)
@@ -86,7 +98,22 @@ def test_both_solvers_agree_on_crowded_problems():
             # Robots spawned inside safety distances: the slack penalty dominates and the
             # optimum is flat in u; the solvers agree on its value.
             infeasible += 1
-            cost = [np.sum((u.ravel() - u_nom.ravel()) ** 2) + params.qp.slack_weight
+            cost = [np.sum((u.ravel() - u_nom.ravel()) ** 2) + CbfParams().qp.slack_weight
                     * np.sum(np.maximum(0.0, rows.b - rows.G @ u.ravel())) for u in (a.u, b.u)]
             assert cost[0] == pytest.approx(cost[1], rel=1e-6)
     assert feasible >= 5 and infeasible >= 5
+
+
+def test_active_set_meets_clarabel_and_hands_it_the_qps_that_need_slack():
+    exact = relaxed = 0
+    for u_nom, rows, a, b in _answers("active_set", 7, 60):
+        assert a.solved == b.solved
+        if a.slack.max(initial=0) < 1e-6:  # the slack-free optimum: the same, rows met
+            exact += a.solved
+            np.testing.assert_allclose(b.u, a.u, atol=1e-5)
+            assert np.all(rows.G @ b.u.ravel() >= rows.b - 1e-9)
+            assert np.sum((b.u - u_nom) ** 2) <= np.sum((a.u - u_nom) ** 2) + 1e-9
+        else:  # rows that must be relaxed: Clarabel's answer, bit for bit
+            relaxed += 1
+            np.testing.assert_array_equal(b.u, a.u)
+    assert exact >= 5 and relaxed >= 5

@@ -29,3 +29,20 @@ def test_wall_hits_world_and_body_frame_rays():
     np.testing.assert_allclose(direction, [math.cos(angle), math.sin(angle)])
     hits, mask = WallRays(None, params)(states)
     assert not mask.any()
+
+
+def test_robots_at_their_last_pose_get_the_hits_of_fresh_rays():
+    rng = np.random.default_rng(3)
+    for body_frame in (False, True):
+        params = SensingParams(rays_in_body_frame=body_frame)
+        rays, states = WallRays(_corridor(), params), rng.uniform(-1.0, 1.0, (5, 4))
+        for _ in range(6):
+            moved = rng.random(len(states)) < 0.5
+            states = states.copy()
+            states[moved, :2] += rng.uniform(-0.3, 0.3, (int(moved.sum()), 2))
+            states[~moved, 2] += rng.uniform(-0.5, 0.5, int((~moved).sum()))  # turns only
+            hits, mask = rays(states)
+            fresh_hits, fresh_mask = WallRays(_corridor(), params)(states)
+            np.testing.assert_array_equal(hits, fresh_hits)
+            np.testing.assert_array_equal(mask, fresh_mask)
+        assert len(rays(states[:3])[0]) == 3  # a smaller fleet: rays cast afresh
