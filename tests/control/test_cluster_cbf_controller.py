@@ -482,3 +482,22 @@ def test_the_passing_side_has_room():
     # No more room on the left than on the right: the rule stands.
     assert nominal_control(state, path, params, bodies=person, walls=walls_both)[1] < -0.1
 
+
+def test_a_robot_sent_aside_leads_its_cluster():
+    # Issue 15 (seeds 103 and 106 of the soak): the watchdog sent a robot aside, but in its
+    # cluster it was a follower in the leader's way, got the slow-down and stood, the
+    # leader standing behind it, for as long as the order lasted (three orders in a row).
+    states = np.array([[0.0, 0.0, 0.0, 0.0], [0.9, 0.0, math.pi, 0.0]])
+    controller = ClusterCbfController(("a", "b"), Obstacles(()), rate_hz=20.0)
+
+    def paths(yielding):
+        return FleetPaths((RobotPath("a", PATH_OK, frozen_array([[0.0, 0.0], [4.0, 0.0]])),
+                           RobotPath("b", PATH_OK, frozen_array([[0.9, 0.0], [0.9, 1.5]]),
+                                     yielding=yielding)))
+
+    u, _ = controller.control(0.0, states, paths(False))
+    assert u[1, 0] <= 0.0  # b, in a's way, waits as a follower
+    plan = controller.plan(states, paths(True))
+    assert plan.clusters == ((1, 0),)  # b leads
+    u, _ = controller.control(0.0, states, paths(True))
+    assert abs(u[1, 1]) > 0.5 or u[1, 0] > 0.0  # b turns or drives off to its spot
