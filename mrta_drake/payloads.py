@@ -334,13 +334,15 @@ class RobotPath:
     """A planned path for one robot: ``points`` (k, 2) in the world frame from near the
     robot's position to its target, m. ``status`` is ``ok``, ``idle`` (nothing to do) or
     ``failed`` (no path; the robot waits and the planner retries). ``stop_at_end`` says the
-    robot must come to rest at the last point."""
+    robot must come to rest at the last point; ``yielding`` that it leads to a spot the
+    deadlock watchdog sent the robot to, out of the others' way."""
 
     robot: str
     status: str = PATH_IDLE
     points: np.ndarray = field(default_factory=lambda: frozen_array(np.zeros((0, 2))))
     stop_at_end: bool = True
     planned_at: float = 0.0
+    yielding: bool = False
 
 
 @dataclass(frozen=True)

@@ -128,7 +128,8 @@ class ClusterCbfController(LeafSystem):
     ``params.coordination.mode``:
 
     - ``clusters`` (default): robots within ``cluster_radius`` (transitively) form a cluster;
-      its leader (the first active member by the leader rule) keeps its nominal, its
+      its leader (the first active member by the leader rule, but a robot whose path is
+      ``yielding``, sent aside by the deadlock watchdog, first) keeps its nominal, its
       followers (``mrta_drake.control.followers``) get the slow-down nominal, and one joint QP
       over all members' inputs is solved, each member's wall and human rows evaluated at that
       member's own state. Lone robots solve their own QP.
@@ -225,10 +226,13 @@ class ClusterCbfController(LeafSystem):
         slowed = np.zeros(n, dtype=bool)  # cut-off robots get the slow-down nominal
         slowed[list(d.cut_off)] = True
         shared = d.seen_by(states)
-        robots = TickRobots(
-            states, np.ascontiguousarray(shared, dtype=float),
-            np.ascontiguousarray(self._rule(self._priorities, distances), dtype=float),
-            active, self._stalled(stall_times), ~alone, slowed)
+        keys = np.array(self._rule(self._priorities, distances), dtype=float)
+        # A robot the deadlock watchdog sent aside leads its cluster: as a follower in the
+        # others' way it would get the slow-down and never make way.
+        keys[[k for k, path in enumerate(robot_paths_of(paths, n))
+               if path is not None and path.yielding]] = -np.inf
+        robots = TickRobots(states, np.ascontiguousarray(shared, dtype=float), keys, active,
+                            self._stalled(stall_times), ~alone, slowed)
         hits, mask = self._rays(states)
         if d.blockages:
             hits, mask = rays_with_blockages(states, hits, mask, d.blockages, p.sensing)

@@ -29,7 +29,11 @@ Beyond the paper:
   standing unicycle cannot steer out of a position barrier. But a body at rest (slower than
   ``ROBOT_STOPPED_SPEED``) more than ``pass_clearance / 2`` right of the lane is passed on
   its left, where there is more room: e.g. a robot waiting at a queue slot by the wall,
-  beside a lane, is passed on the corridor side, not squeezed past along the wall.
+  beside a lane, is passed on the corridor side, not squeezed past along the wall. And a
+  passing point with a wall nearer than ``pass_wall_room`` (the walls as the robot's wall
+  rays see them, ``_wall_room``) is no way past: the body is passed on the other side if
+  there is more room there. A robot standing at the wall distance beside a person in its
+  lane would otherwise be sent into the wall, stopped by the barrier, for good.
 
 Units: m, rad, s; world frame. Inputs are ``[a, omega]`` (m/s^2, rad/s).
 """
@@ -68,6 +72,7 @@ class NominalParams:
     pass_offset: float = 0.7  # m, passing beside a body in the lane (not in the paper; 0: off)
     pass_clearance: float = 0.6  # m, half width of the lane checked for bodies
     pass_range: float = 4.0  # m, how far ahead bodies are checked
+    pass_wall_room: float = 0.6  # m, a passing point this near a wall is no way past
     heading_speed_factor: bool = False  # desired speed x cos(heading error), as in the paper
     corner_steering: bool = True  # a standing robot blocked by a barrier turns along it
     braking_profile: bool = True  # cap the speed to stop at a path end (not in the paper)
@@ -77,7 +82,7 @@ class NominalParams:
                          "heading_gate_cluster", "max_speed", "max_accel", "max_yaw_rate",
                          "slow_accel", "brake_accel")
         require_non_negative(self, "k_slow", "goal_tolerance", "pass_offset",
-                             "pass_clearance", "pass_range")
+                             "pass_clearance", "pass_range", "pass_wall_room")
         if self.min_speed > 0:
             raise InputError(None, "min_speed", f"must be <= 0, got {self.min_speed!r}")
 
@@ -89,7 +94,8 @@ class NominalParams:
                          self.heading_gate_cluster, self.max_speed, self.k_slow,
                          self.slow_accel, self.goal_tolerance, self.brake_accel,
                          self.pass_offset, self.pass_clearance, self.pass_range,
-                         float(self.heading_speed_factor), float(self.braking_profile)])
+                         float(self.heading_speed_factor), float(self.braking_profile),
+                         self.pass_wall_room])
 
 
 def slow_down(speed, params: NominalParams) -> np.ndarray:
@@ -107,17 +113,19 @@ def wrap_angle(angle):
 
 
 def nominal_control(state, path: RobotPath | None, params: NominalParams, clustered: bool = False,
-                    bodies=(), exclude: int = -1) -> np.ndarray:
+                    bodies=(), exclude: int = -1, walls=()) -> np.ndarray:
     """Nominal ``[a, omega]`` of a robot in ``state`` ``[x, y, theta, v]`` following ``path``
     (slow-down without an ``ok`` path). ``bodies`` (n, 3): positions and speeds (m/s) of
     other robots and humans, or (n, 2) positions of moving ones, used only for passing;
-    ``bodies[exclude]`` is left out (e.g. the robot itself)."""
+    ``bodies[exclude]`` is left out (e.g. the robot itself). ``walls`` (R, 2): the robot's
+    wall ray hits in ray order (world frame, m), used only for the room to pass."""
     if not has_path(path):
         return slow_down(state[3], params)
     bodies = _with_speeds(bodies)
+    walls = np.ascontiguousarray(np.asarray(walls, dtype=float).reshape(-1, 2))
     return np.array(_nominal(float(state[0]), float(state[1]), float(state[2]), float(state[3]),
                              path.points, path.stop_at_end, clustered, bodies, exclude,
-                             params.gains))
+                             walls, np.ones(len(walls), dtype=np.bool_), params.gains))
 
 
 def _with_speeds(bodies) -> np.ndarray:
@@ -130,16 +138,18 @@ def _with_speeds(bodies) -> np.ndarray:
 
 
 @compiled_helper
-def nominal_inputs(states, paths, clustered, bodies, gains, u):
+def nominal_inputs(states, paths, clustered, bodies, hits, hit_mask, gains, u):
     """``nominal_control`` of every robot ``states`` (N, 4) into ``u`` (N, 2), compiled:
     ``paths`` a ``PathArrays``, ``clustered`` (N,) bools, ``bodies`` (n, 3) whose first N
-    are the robots (each robot leaves itself out), ``gains`` ``NominalParams.gains``."""
+    are the robots (each robot leaves itself out), ``hits`` (N, R, 2) and ``hit_mask``
+    (N, R) the wall rays (as from ``WallRays``), ``gains`` ``NominalParams.gains``."""
     points, start, ok, stop_at_end = paths
     for i in range(len(states)):
         x, y, theta, v = states[i, 0], states[i, 1], states[i, 2], states[i, 3]
         if ok[i]:
             u[i, 0], u[i, 1] = _nominal(x, y, theta, v, points[start[i]:start[i + 1]],
-                                        stop_at_end[i], clustered[i], bodies, i, gains)
+                                        stop_at_end[i], clustered[i], bodies, i, hits[i],
+                                        hit_mask[i], gains)
         else:
             u[i, 0], u[i, 1] = slow_down_input(v, gains)
 
@@ -154,7 +164,7 @@ def slow_down_input(speed, gains):
 # Indices into ``NominalParams.gains``.
 (_K_X, _K_V, _K_THETA, _LOOKAHEAD, _GATE, _GATE_CLUSTER, _MAX_SPEED, _K_SLOW, _SLOW_ACCEL,
  _GOAL_TOLERANCE, _BRAKE_ACCEL, _PASS_OFFSET, _PASS_CLEARANCE, _PASS_RANGE,
- _HEADING_SPEED_FACTOR, _BRAKING_PROFILE) = range(16)
+ _HEADING_SPEED_FACTOR, _BRAKING_PROFILE, _PASS_WALL_ROOM) = range(17)
 
 
 @compiled_helper
@@ -169,10 +179,13 @@ def _slow_downs(speeds, k_slow, slow_accel, u):
 
 
 @numba.njit(cache=True)
-def _nominal(x, y, theta, v, points, stop_at_end, clustered, bodies, exclude, gains):
-    """Nominal (a, omega) along a path of at least one point (see ``nominal_control``)."""
+def _nominal(x, y, theta, v, points, stop_at_end, clustered, bodies, exclude, walls,
+             wall_mask, gains):
+    """Nominal (a, omega) along a path of at least one point (see ``nominal_control``;
+    ``walls`` (R, 2) the robot's wall ray hits, ``wall_mask`` (R,) those that hit)."""
     gx, gy, is_end, remaining = _local_goal(x, y, points, gains[_LOOKAHEAD])
-    passing, px, py = _passing_goal(x, y, gx, gy, bodies, exclude, remaining, gains)
+    passing, px, py = _passing_goal(x, y, gx, gy, bodies, exclude, remaining, walls,
+                                    wall_mask, gains)
     if passing:
         gx, gy, is_end = px, py, False
     gate = gains[_GATE_CLUSTER] if clustered else gains[_GATE]
@@ -218,12 +231,13 @@ def _local_goal(x, y, points, lookahead):
 
 
 @compiled_helper
-def _passing_goal(x, y, gx, gy, bodies, exclude, reach, gains):
+def _passing_goal(x, y, gx, gy, bodies, exclude, reach, walls, wall_mask, gains):
     """Whether a body (``[x, y, speed]`` (n, 3), but ``exclude``) stands in the lane from
     (x, y) towards the goal (gx, gy) no farther than ``reach`` (m), and then a point as far
     as the goal in the direction of the point ``pass_offset`` to the right of the nearest
     such body (to its left if it is at rest more than ``pass_clearance / 2`` right of the
-    lane)."""
+    lane, or if that point has a wall (``walls``, ``wall_mask``: ``_wall_room``) nearer
+    than ``pass_wall_room`` and the point to the left has more room)."""
     offset = gains[_PASS_OFFSET]
     dist = math.hypot(gx - x, gy - y)
     if offset <= 0.0 or len(bodies) == 0 or dist < 1e-9:
@@ -243,11 +257,41 @@ def _passing_goal(x, y, gx, gy, bodies, exclude, reach, gains):
         return False, gx, gy
     if speed < ROBOT_STOPPED_SPEED and lateral_min < -0.5 * gains[_PASS_CLEARANCE]:
         offset = -offset
+    elif len(walls):
+        right = _wall_room(x + along_min * ahead_x - (lateral_min - offset) * ahead_y,
+                           y + along_min * ahead_y + (lateral_min - offset) * ahead_x,
+                           walls, wall_mask)
+        if right < gains[_PASS_WALL_ROOM]:
+            left = _wall_room(x + along_min * ahead_x - (lateral_min + offset) * ahead_y,
+                              y + along_min * ahead_y + (lateral_min + offset) * ahead_x,
+                              walls, wall_mask)
+            if left > right:
+                offset = -offset
     aim_x = along_min * ahead_x - (lateral_min - offset) * ahead_y
     aim_y = along_min * ahead_y + (lateral_min - offset) * ahead_x
     # As far away as the goal, so that passing changes the heading but not the speed.
     scale = dist / math.hypot(aim_x, aim_y)
     return True, x + aim_x * scale, y + aim_y * scale
+
+
+@compiled_helper
+def _wall_room(px, py, walls, mask):
+    """Distance (m) from (px, py) to the walls as a robot's wall rays see them: ``walls``
+    (R, 2) its ray hits in ray order, ``mask`` (R,) the rays that hit; the wall between
+    neighbouring hits is taken as straight (inf without hits)."""
+    room, count = math.inf, len(walls)
+    for r in range(count):
+        if not mask[r]:
+            continue
+        ax, ay = walls[r, 0], walls[r, 1]
+        room = min(room, math.hypot(px - ax, py - ay))
+        n = (r + 1) % count
+        if count > 1 and mask[n]:
+            dx, dy = walls[n, 0] - ax, walls[n, 1] - ay
+            f = min(max(((px - ax) * dx + (py - ay) * dy) / max(dx * dx + dy * dy, 1e-12),
+                        0.0), 1.0)
+            room = min(room, math.hypot(px - ax - f * dx, py - ay - f * dy))
+    return room
 
 
 @compiled_helper

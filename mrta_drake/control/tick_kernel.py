@@ -100,7 +100,7 @@ def plan_tick(robots, world, paths, settings, out):
     for i in range(n):
         clustered[i] = size[labels[i]] > 1
     nominal_inputs(states, paths, clustered, _bodies(shared, human_positions, human_velocities),
-                   gains, u_nominal)
+                   hits, hit_mask, gains, u_nominal)
     first = 0  # position in order of the current cluster's leader
     for k in range(n):
         i = order[k]

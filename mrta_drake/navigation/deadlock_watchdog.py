@@ -14,6 +14,7 @@ from mrta_drake.navigation.standstills import (
     Anchor,
     back_off_spot,
     blocked_groups,
+    in_ways,
     near_walls,
     next_anchor,
     yield_order,
@@ -109,8 +110,9 @@ class DeadlockWatchdog(LeafSystem):
        has none.
     3. Stalled robots and the robots within ``block_gap`` of them form groups
        (``standstills.blocked_groups``). In each group (in robot order) without a robot
-       backing off, the first of ``standstills.yield_order`` (robots without a goal, then
-       stalled ones, then those at their goal; the lowest priority first) that makes way
+       backing off, the first of ``standstills.yield_order`` (robots standing ahead in a
+       stalled robot's way first, ``standstills.in_ways``; then robots without a goal,
+       then stalled ones, then those at their goal; the lowest priority first) that makes way
        for a stalled robot (not the only stalled one itself) and for which
        ``standstills.back_off_spot`` finds a spot clear of the others' ways is ordered
        there; every member's anchor starts again, so the group gets another
@@ -249,12 +251,14 @@ class DeadlockWatchdog(LeafSystem):
         broken = (self._disturbances.Eval(context).broken
                   if self._disturbances.HasValue(context) else ())
         missed_spots = {k: self._spots_to_avoid(k, xy[k], misses) for k in group}
-        for k in sorted(yield_order(group, idle, stalled, self._priorities),
+        all_ways = [_way(xy[j], targets[j]) for j in range(len(xy))]
+        in_way = in_ways(group, stalled, xy, self._radii, all_ways, p.spot_clearance)
+        for k in sorted(yield_order(group, idle, stalled, self._priorities, in_way),
                         key=lambda k: len(missed_spots[k])):
             if stalled_here == [k] or k in broken:
                 continue  # it would make way for nobody, or cannot move
             blockers = tuple(j for j in group if j != k)
-            ways = [(_way(xy[j], targets[j]), self._radii[j]) for j in blockers]
+            ways = [(all_ways[j], self._radii[j]) for j in blockers]
             spot = back_off_spot(k, xy, self._radii, ways,
                                  np.asarray(humans.positions).reshape(-1, 2),
                                  np.asarray(humans.radii).reshape(-1), self._costmap,

@@ -1,7 +1,7 @@
 """One planner block serving every robot, like the single shared Nav2 planner server."""
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pydrake.common.value import Value
@@ -113,7 +113,8 @@ class PlannerService(LeafSystem):
 
     Optional input ``back_offs`` (abstract ``BackOffOrders``, the deadlock watchdog's): a
     robot ordered to back off is planned to its spot, to stop there, instead of to its
-    target, until the order ends.
+    target, until the order ends; its path is marked ``yielding`` (the controller lets it
+    lead its cluster).
     """
 
     def __init__(self, planner: GridPlanner, robot_names: Sequence[str], *,
@@ -180,7 +181,7 @@ class PlannerService(LeafSystem):
     def _update(self, context, state):
         old = context.get_abstract_state(self._state_index).get_value()
         now = context.get_time()
-        targets = self._targets_now(context)
+        targets, backing = self._targets_now(context)
         disturbances = (self._disturbances.Eval(context) if self._disturbances.HasValue(context)
                         else NO_DISTURBANCES)
         periodic = now >= old.next_replan - 1e-9
@@ -198,6 +199,8 @@ class PlannerService(LeafSystem):
         for k in due:
             xy = robot_state[ROBOT_STATE_SIZE * k:ROBOT_STATE_SIZE * k + 2]
             paths[k], failed = self._plan(self._robots[k], xy, targets[k], now)
+            if self._robots[k] in backing:
+                paths[k] = replace(paths[k], yielding=True)
             failures += failed
         next_replan = old.next_replan
         if periodic:
@@ -207,17 +210,17 @@ class PlannerService(LeafSystem):
             _ServiceState(FleetPaths(tuple(paths), failures), targets, next_replan, closed))
         return EventStatus.Succeeded()
 
-    def _targets_now(self, context) -> tuple[WaypointTarget, ...]:
+    def _targets_now(self, context) -> tuple[tuple[WaypointTarget, ...], frozenset[str]]:
         """Each robot's target: its waypoint generator's, or its back-off spot while the
-        watchdog orders one."""
+        watchdog orders one; and the robots backing off."""
         targets = self._targets.values(context)
         orders = (self._back_offs.Eval(context) if self._back_offs.HasValue(context)
                   else NO_BACK_OFFS)
         if not orders.active:
-            return targets
+            return targets, frozenset()
         spots = {order.robot: order.point for order in orders.active}
         return tuple(WaypointTarget(t.robot, True, spots[t.robot], None, True)
-                     if t.robot in spots else t for t in targets)
+                     if t.robot in spots else t for t in targets), frozenset(spots)
 
     def _closures(self, context, disturbances: Disturbances, targets, old: tuple,
                   periodic: bool) -> tuple:

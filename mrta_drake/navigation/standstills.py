@@ -62,15 +62,36 @@ def blocked_groups(stalled: np.ndarray, xy: np.ndarray, radii: np.ndarray,
 
 
 def yield_order(group: tuple[int, ...], idle: np.ndarray, stalled: np.ndarray,
-                priorities: np.ndarray) -> list[int]:
-    """Who of ``group`` is asked to yield first: robots without a goal (``idle``: they lose
-    nothing by moving), then the stalled ones, then those standing at their goal; within
-    each, the lowest priority (largest ``priorities`` value) first."""
-    def rank(k: int) -> tuple[int, float]:
+                priorities: np.ndarray, in_way=None) -> list[int]:
+    """Who of ``group`` is asked to yield first: robots standing in a stalled robot's way
+    (``in_way`` (N,) bool, see ``in_ways``; none if None), then the others; within each,
+    robots without a goal (``idle``: they lose nothing by moving), then the stalled ones,
+    then those standing at their goal; within each, the lowest priority (largest
+    ``priorities`` value) first."""
+    def rank(k: int) -> tuple[int, int, float]:
         kind = 0 if idle[k] else 1 if stalled[k] else 2
-        return kind, -float(priorities[k])
+        return 0 if in_way is not None and in_way[k] else 1, kind, -float(priorities[k])
 
     return sorted(group, key=rank)
+
+
+def in_ways(group: tuple[int, ...], stalled: np.ndarray, xy: np.ndarray, radii: np.ndarray,
+            ways: list[np.ndarray], clearance: float) -> np.ndarray:
+    """(N,) bool: the robots of ``group`` standing in the way of another, stalled robot of
+    it: ahead of it (on the side of its way's first waypoint) and nearer its way (``ways[s]``
+    (P, 2), from where it stands on) than their radii and ``clearance`` (m). A robot behind
+    a stalled one, or beside its way, frees nothing by moving."""
+    in_way = np.zeros(len(xy), dtype=bool)
+    for s in group:
+        way = np.asarray(ways[s], dtype=float).reshape(-1, 2)
+        if not stalled[s] or len(way) < 2:
+            continue
+        ahead = way[1] - xy[s]
+        for k in group:
+            if k != s and not in_way[k] and float(np.dot(xy[k] - xy[s], ahead)) > 0.0:
+                in_way[k] = (float(distance_to_polyline(xy[k], way))
+                             < radii[k] + radii[s] + clearance)
+    return in_way
 
 
 def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,

@@ -447,3 +447,57 @@ def test_a_robot_standing_inside_the_wall_distance_gets_away_instead_of_chatteri
     assert slack_ticks <= 10
     assert np.linalg.norm(states[0, :2] - goal) < 0.1
     assert _min_wall_distance(np.array(trace), wall) >= RADIUS
+
+
+def test_a_person_in_the_lane_is_passed_where_there_is_room():
+    # Issue 15 (seed 105 of the soak, an earlier controller), rebuilt small: a robot stands
+    # at a corridor's corner, the corner 0.6 m from it (its wall safety distance) at -60
+    # degrees, and a person shuffles in its lane 1.1 m ahead (0.12 m/s), waiting for it.
+    # Passing on the right, as the passing rule says, heads into the corner's barrier: the
+    # robot stood there for good, turning to and fro. There is room on the left.
+    corner = np.array([0.3, -0.52])
+    wall = Obstacles((Box("south", (corner[0] + 4.0, corner[1] - 0.5), (8.0, 1.0)),
+                      Box("north", (4.0, 3.1), (10.0, 0.2))))
+    path = RobotPath("a", PATH_OK, frozen_array([[0.0, 0.0], [8.0, 0.5]]))
+    person = HumanStates(("p",), frozen_array([[1.12, 0.0]]), frozen_array([[0.12, -0.02]]),
+                         frozen_array([0.25]))
+    controller = ClusterCbfController(("a",), wall, rate_hz=20.0)
+    states = np.array([[0.0, 0.0, -0.17, 0.0]])
+    for tick in range(300):  # 15 s
+        u, _ = controller.control(0.05 * tick, states, FleetPaths((path,)), person)
+        states = predict_states(states, np.c_[states[:, 3] + 0.05 * u[:, 0], u[:, 1]],
+                                controller.params.nominal, 0.05)
+    assert states[0, 0] > 2.5  # past the person
+
+
+def test_the_passing_side_has_room():
+    params = NominalParams()
+    path = RobotPath("r", PATH_OK, frozen_array([(0.0, 0.0), (8.0, 0.0)]))  # east
+    state = [0.0, 0.0, 0.0, 0.0]
+    person = [(1.1, 0.0, 0.1)]
+    walls_right = [(x, -0.6) for x in np.arange(-1.0, 3.0, 0.5)]
+    walls_both = walls_right + [(x, 0.6) for x in np.arange(-1.0, 3.0, 0.5)]
+    assert nominal_control(state, path, params, bodies=person)[1] < -0.1  # right, by rule
+    assert nominal_control(state, path, params, bodies=person, walls=walls_right)[1] > 0.1
+    # No more room on the left than on the right: the rule stands.
+    assert nominal_control(state, path, params, bodies=person, walls=walls_both)[1] < -0.1
+
+
+def test_a_robot_sent_aside_leads_its_cluster():
+    # Issue 15 (seeds 103 and 106 of the soak): the watchdog sent a robot aside, but in its
+    # cluster it was a follower in the leader's way, got the slow-down and stood, the
+    # leader standing behind it, for as long as the order lasted (three orders in a row).
+    states = np.array([[0.0, 0.0, 0.0, 0.0], [0.9, 0.0, math.pi, 0.0]])
+    controller = ClusterCbfController(("a", "b"), Obstacles(()), rate_hz=20.0)
+
+    def paths(yielding):
+        return FleetPaths((RobotPath("a", PATH_OK, frozen_array([[0.0, 0.0], [4.0, 0.0]])),
+                           RobotPath("b", PATH_OK, frozen_array([[0.9, 0.0], [0.9, 1.5]]),
+                                     yielding=yielding)))
+
+    u, _ = controller.control(0.0, states, paths(False))
+    assert u[1, 0] <= 0.0  # b, in a's way, waits as a follower
+    plan = controller.plan(states, paths(True))
+    assert plan.clusters == ((1, 0),)  # b leads
+    u, _ = controller.control(0.0, states, paths(True))
+    assert abs(u[1, 1]) > 0.5 or u[1, 0] > 0.0  # b turns or drives off to its spot

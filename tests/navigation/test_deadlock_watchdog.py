@@ -20,6 +20,7 @@ from mrta_drake.navigation.standstills import (
     Anchor,
     back_off_spot,
     blocked_groups,
+    in_ways,
     next_anchor,
     yield_order,
 )
@@ -151,6 +152,26 @@ def test_idle_robots_yield_before_stalled_ones_and_low_priority_first():
     idle = np.array([False, True, False, False])
     stalled = np.array([True, False, True, False])
     assert yield_order((0, 1, 2, 3), idle, stalled, np.arange(4.0)) == [1, 2, 0, 3]
+
+
+def test_a_robot_in_a_stalled_robots_way_yields_first():
+    # Issue 15 (seed 106 of the soak): robot 1, a room's holder, stands behind robot 0
+    # waiting at the queue's head slot, through which robot 1's way to the door leads;
+    # robot 2 has queued behind robot 1. Asked by priority, robot 2 (behind, freeing
+    # nothing) was sent aside 19 times over 400 s; robot 0 is the one to ask.
+    xy = np.array([[4.3, -25.3], [3.7, -25.3], [3.1, -25.3]])
+    ways = [xy[0:1], np.array([xy[1], (5.5, -25.35), (5.5, -26.6)]), xy[2:3]]
+    stalled = np.array([False, True, False])
+    idle = np.zeros(3, dtype=bool)
+    in_way = in_ways((0, 1, 2), stalled, xy, np.full(3, RADIUS), ways, clearance=0.3)
+    assert in_way.tolist() == [True, False, False]  # robot 2 is behind, not in the way
+    priorities = np.arange(3.0)
+    # Robot 1, the only stalled one, is passed over (it would make way for nobody).
+    assert yield_order((0, 1, 2), idle, stalled, priorities) == [1, 2, 0]
+    assert yield_order((0, 1, 2), idle, stalled, priorities, in_way) == [0, 1, 2]
+    beside = xy.copy()
+    beside[0] = (4.3, -24.1)  # 1.2 m beside the way: not in it
+    assert not in_ways((0, 1, 2), stalled, beside, np.full(3, RADIUS), ways, 0.3)[0]
 
 
 def test_an_anchor_moves_only_with_progress_and_goes_without_a_goal():
