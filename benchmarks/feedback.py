@@ -65,6 +65,8 @@ EARLIEST = LOOP | {"earliest_drop_offs": True}
 PREVIOUS = EARLIEST | {"drift_margin": 1.0}  # the default before write-offs
 DEFAULT = ("default: loop, earliest drop-offs, write off 5 s late, re-plan only for fewer "
            "late, nearest-second travel times")
+DEFAULT_SWITCHES = PREVIOUS | {"write_off_lateness": 5.0, "replan_only_if_fewer_late": True,
+                               "travel_time_rounding": "nearest"}
 VARIANTS = {  # name -> allocator params set (every switch the defaults could change)
     "open loop": OFF | {"learn_travel_times": False, "replan_on_delay": False},
     "learn only": OFF | {"learn_travel_times": True, "replan_on_delay": False},
@@ -82,8 +84,9 @@ VARIANTS = {  # name -> allocator params set (every switch the defaults could ch
     "previous default, write off 5 s late": PREVIOUS | {"write_off_lateness": 5.0},
     "previous default, write off 5 s late, re-plan only for fewer late": PREVIOUS | {
         "write_off_lateness": 5.0, "replan_only_if_fewer_late": True},
-    DEFAULT: PREVIOUS | {"write_off_lateness": 5.0, "replan_only_if_fewer_late": True,
-                         "travel_time_rounding": "nearest"},
+    DEFAULT: DEFAULT_SWITCHES,
+    "default, 10 s safety slack": DEFAULT_SWITCHES | {"safety_slack": 10.0},
+    "default, write off 10 s late": DEFAULT_SWITCHES | {"write_off_lateness": 10.0},
 }
 
 

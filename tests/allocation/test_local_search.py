@@ -103,8 +103,8 @@ def test_a_task_written_off_goes_after_the_one_that_can_be_on_time():
     written_off = improve(problem, earliest, LocalSearchParams(write_off=5.0))
     assert verify_allocation(problem, written_off) == ()
     assert written_off.drop_times() == {1: 42.0, 0: 84.0}
-    assert written_off.rank(problem, 5.0) == (1, 5.0, 42.0, 84.0)
-    assert written_off.rank(problem) == (1, 79.0, 126.0, 0.0)
+    assert written_off.rank(problem, 5.0) == (1, 5.0, 0.0, 42.0, 84.0)
+    assert written_off.rank(problem) == (1, 79.0, 0.0, 126.0, 0.0)
     kept = improve_keeping_verdict(problem, replace(earliest, status=INFEASIBLE, optimal=True),
                                    LocalSearchParams(write_off=5.0))
     assert (kept.routes, kept.status, kept.optimal) == (written_off.routes, INFEASIBLE, False)
