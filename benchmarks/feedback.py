@@ -87,7 +87,6 @@ VARIANTS = {  # name -> allocator params set (every switch the defaults could ch
     DEFAULT: DEFAULT_SWITCHES,
     "default, 10 s safety slack": DEFAULT_SWITCHES | {"safety_slack": 10.0},
     "default, write off 10 s late": DEFAULT_SWITCHES | {"write_off_lateness": 10.0},
-    "default, re-plan while late": DEFAULT_SWITCHES | {"replan_while_late": True},
 }
 
 
@@ -116,6 +115,7 @@ def figures(summaries: list[dict]) -> dict:
     return {
         "runs": len(summaries),
         "seeds": [s["seed"] for s in summaries],
+        "on_time_per_run": [s["tasks"]["on_time"] for s in summaries],
         "completed": sum(s["tasks"]["completed"] for s in summaries),
         "on_time": sum(s["tasks"]["on_time"] for s in summaries),
         "late": sum(s["tasks"]["late"] for s in summaries),
@@ -153,7 +153,21 @@ def report(output: dict, case: str, results: dict):
             gain = 100.0 * (f["on_time"] / base["on_time"] - 1.0)
             promises = (f"{100.0 * (f['broken_promises'] / base['broken_promises'] - 1.0):+.0f} %"
                         if base["broken_promises"] else "none in the open loop")
-            print(f"  {variant}: on time {gain:+.1f} %, broken promises {promises}")
+            print(f"  {variant}: on time {gain:+.1f} %, broken promises {promises}"
+                  + block_gains(base, f))
+
+
+def block_gains(base: dict, figures: dict, size: int = 20) -> str:
+    """The on-time change (%) of ``figures`` against ``base`` on each block of ``size``
+    consecutive seeds, when the case has more than one block (e.g. ``; 200-219 +9.2 %``)."""
+    if len(base["seeds"]) <= size or base["seeds"] != figures["seeds"]:
+        return ""
+    parts = []
+    for k in range(0, len(base["seeds"]), size):
+        seeds = base["seeds"][k:k + size]
+        was, now = (sum(f["on_time_per_run"][k:k + size]) for f in (base, figures))
+        parts.append(f"{seeds[0]}-{seeds[-1]} {100.0 * (now / was - 1.0):+.1f} %")
+    return "; " + ", ".join(parts)
 
 
 def main():

@@ -9,14 +9,13 @@ from mrta_drake.payloads import DROPOFF, RobotPlan
 
 LATE = "late"  # a drop-off planned on time is now predicted after its deadline
 DRIFT = "drift"  # a drop-off is now predicted more than the margin from its planned time
-FEWER_LATE = "fewer late"  # tasks late in the current routes, an allocation now has fewer late
 
 
 @dataclass(frozen=True)
 class Drift:
-    """Why to allocate again: ``kind`` (``LATE``, ``DRIFT`` or ``FEWER_LATE``), the ``tasks``
-    concerned and the largest change of a predicted drop-off time among them, ``seconds`` (s,
-    positive = later; for ``FEWER_LATE`` the most a task is late in the current routes)."""
+    """Why to allocate again: ``kind`` (``LATE`` or ``DRIFT``), the ``tasks`` concerned and
+    the largest change of a predicted drop-off time among them, ``seconds`` (s, positive =
+    later)."""
 
     kind: str
     tasks: tuple[int, ...]

@@ -35,10 +35,7 @@ class FeedbackParams:
     ``replan_interval`` does not limit it). With ``replan_only_if_fewer_late`` an allocation
     made on delay takes the allocator's routes only when they have fewer tasks late than the
     robots' current routes (re-timed); otherwise the robots keep their routes, so a re-plan
-    moves no task between robots for nothing. With ``replan_while_late`` a check that may
-    allocate again (``replan_interval``) and finds a task late in the robots' current routes
-    (re-timed; not a hopeless one) allocates again, and takes the allocation only when it has
-    fewer tasks late: a robot running ahead of its plan may yet save a task.
+    moves no task between robots for nothing.
 
     ``earliest_drop_offs``: every allocation is improved by local search
     (``allocation.local_search``: the fewest late tasks, then the least tardiness, then the
@@ -71,7 +68,6 @@ class FeedbackParams:
     replan_interval: float = 10.0
     retime_on_drift: bool = True
     replan_only_if_fewer_late: bool = True
-    replan_while_late: bool = False
     earliest_drop_offs: bool = True
     write_off_lateness: float | None = 5.0
     safety_slack: float = 0.0

@@ -17,9 +17,8 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem
 
-from mrta_drake.allocation.drift import DRIFT, FEWER_LATE, Drift, find_drift
+from mrta_drake.allocation.drift import DRIFT, find_drift
 from mrta_drake.allocation.feedback_params import OPEN_LOOP, FeedbackParams
-from mrta_drake.allocation.hopeless import hopeless_tasks
 from mrta_drake.allocation.local_search import improve_keeping_verdict
 from mrta_drake.allocation.problem import (
     UNKNOWN,
@@ -142,10 +141,7 @@ class TaskAllocator(LeafSystem):
     ``ReplanEvent``); with ``retime_on_drift`` a drift that turns nothing late only
     re-times the plan (same routes, times predicted now, no event); with
     ``replan_only_if_fewer_late`` a ``ReplanEvent`` keeps the robots' routes unless the
-    allocator's have fewer tasks late; with ``replan_while_late`` a check that may re-plan
-    and finds the current routes with a task late (not hopeless) allocates again when that
-    puts fewer tasks late (a ``ReplanEvent``, reason ``fewer late``; nothing otherwise);
-    with ``earliest_drop_offs`` every allocation is
+    allocator's have fewer tasks late; with ``earliest_drop_offs`` every allocation is
     improved by local search
     (``local_search.improve_keeping_verdict``, writing off tasks more than
     ``write_off_lateness`` late). Done and under-way actions are kept as for
@@ -262,8 +258,6 @@ class TaskAllocator(LeafSystem):
                 if drift is not None and (drift.kind == DRIFT and feedback.retime_on_drift
                                           or not may_replan):
                     drift = None
-                if drift is None and may_replan and feedback.replan_while_late:
-                    drift, allocation = self._saving(problem)
             if drift is None:
                 if current is not self._state(context):
                     state.get_mutable_abstract_state(self._state_index).set_value(current)
@@ -280,8 +274,10 @@ class TaskAllocator(LeafSystem):
                                            lost)
         in_service = [r for r in range(len(self._fleet)) if r not in out]
         if in_service:
-            if drift is None or drift.kind != FEWER_LATE:  # else made by _saving
-                allocation = self._allocate(problem)
+            allocation = self._allocator.allocate(problem)
+            if feedback.earliest_drop_offs:
+                allocation = improve_keeping_verdict(problem, allocation,
+                                                     feedback.local_search())
             if drift is not None and feedback.replan_only_if_fewer_late:
                 allocation = _kept_unless_fewer_late(problem, allocation)
         else:
@@ -309,31 +305,6 @@ class TaskAllocator(LeafSystem):
             dataclasses.replace(current, next_batch=arrived, plan=plan,
                                 events=(*current.events, event), out=out, lost=lost)
         )
-
-    def _allocate(self, problem: AllocationProblem) -> Allocation:
-        """The allocator's answer to ``problem``, improved by local search with
-        ``earliest_drop_offs``."""
-        allocation = self._allocator.allocate(problem)
-        if self._feedback.earliest_drop_offs:
-            allocation = improve_keeping_verdict(problem, allocation,
-                                                 self._feedback.local_search())
-        return allocation
-
-    def _saving(self, problem: AllocationProblem) -> tuple[Drift | None, Allocation | None]:
-        """With ``replan_while_late``: when the robots' current routes (their ``planned``
-        actions in ``problem``, re-timed) have a task late that is not hopeless and an
-        allocation now has fewer tasks late, that allocation and a ``FEWER_LATE`` drift
-        naming the late tasks; else (None, None)."""
-        kept = Allocation.of(problem, [robot.planned for robot in problem.robots])
-        late = sorted(set(kept.late_tasks) - set(hopeless_tasks(problem)))
-        if not late or verify_allocation(problem, kept):
-            return None, None
-        allocation = self._allocate(problem)
-        if len(allocation.late_tasks) >= len(kept.late_tasks):
-            return None, None
-        drops = kept.drop_times()
-        behind = max(drops[t] - problem.task(t).deadline for t in late)
-        return Drift(FEWER_LATE, tuple(late), behind), allocation
 
     def _planning_travel(self, current: _State) -> np.ndarray:
         """The travel times (s) to plan with: the scenario's in the open loop."""

@@ -9,18 +9,11 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
-from mrta_drake.allocation import (
-    FEASIBLE,
-    INFEASIBLE,
-    Action,
-    Allocation,
-    GreedyAllocator,
-    SmtAllocator,
-)
+from mrta_drake.allocation import FEASIBLE, INFEASIBLE, GreedyAllocator, SmtAllocator
 from mrta_drake.allocation.feedback_params import OPEN_LOOP
 from mrta_drake.allocation.task_allocator import AllocationEvent, ReplanEvent, TaskAllocator
 from mrta_drake.errors import InputError
-from mrta_drake.payloads import DROPOFF, PICKUP, FleetPlan, RobotProgress, Visit
+from mrta_drake.payloads import FleetPlan, RobotProgress, Visit
 from mrta_drake.scenario.schema import TaskBatch, TaskConfig
 
 TRAVEL = 10 * np.abs(np.subtract.outer(np.arange(5), np.arange(5)))
@@ -65,9 +58,6 @@ class FakeRobot(LeafSystem):
 
 
 def simulate(stream, starts, allocator, delay=0.0, feedback=OPEN_LOOP):
-    """The allocator and robots at ``starts``, each stop taking ``delay`` s more than
-    planned (one delay per robot when a list)."""
-    delays = delay if isinstance(delay, list) else [delay] * len(starts)
     builder = DiagramBuilder()
     names = [f"robot{k}" for k in range(len(starts))]
     allocator_system = builder.AddSystem(
@@ -75,7 +65,7 @@ def simulate(stream, starts, allocator, delay=0.0, feedback=OPEN_LOOP):
                       feedback=feedback))
     robots = []
     for k, (name, start) in enumerate(zip(names, starts, strict=True)):
-        robot = builder.AddSystem(FakeRobot(k, name, start, delays[k]))
+        robot = builder.AddSystem(FakeRobot(k, name, start, delay))
         builder.Connect(allocator_system.GetOutputPort("plan"), robot.GetInputPort("plan"))
         builder.Connect(robot.GetOutputPort("progress"),
                         allocator_system.get_progress_input_port(k))
@@ -206,51 +196,6 @@ def test_a_replan_moves_tasks_only_to_have_fewer_late(starts, assignment, kept):
     assert isinstance(replan, ReplanEvent) and replan.assignment == assignment
     assert ("current routes kept" in replan.note) == kept
     assert replan.late_tasks == ((1,) if kept else ())
-
-
-class FirstRoutes:
-    """Answers the first problem with fixed ``routes`` (task ids per robot, each picked up
-    and dropped off in turn), every later one as the greedy allocator does."""
-
-    def __init__(self, routes):
-        self.routes, self.calls = routes, 0
-
-    def allocate(self, problem):
-        self.calls += 1
-        if self.calls > 1:
-            return GreedyAllocator().allocate(problem)
-        return Allocation.of(problem, [[Action(task, kind) for task in route
-                                        for kind in (PICKUP, DROPOFF)] for route in self.routes])
-
-
-@pytest.mark.parametrize("replan_while_late", [False, True])
-def test_a_robot_ahead_of_its_plan_saves_a_late_task_when_replanning_while_late(
-        replan_while_late):
-    # Robot 0 (at 0) is planned to do task 0 (0 -> 3, due at 32 s), then task 1 (1 -> 0,
-    # due at 40 s): dropped at 64 s, late, as in any plan made at 0 s. Robot 1 (at 4) takes
-    # task 2 (4 -> 1) and runs ahead of its plan (every stop 8 s sooner): at 23 s it is free
-    # at 1, where it can drop task 1 off at 36 s. Re-planning while late, the next check
-    # (24 s) hands task 1 to it; else robot 0 keeps it and drops it off late.
-    stream = (TaskBatch(0.0, (TaskConfig(0, 3, 32.0), TaskConfig(1, 0, 40.0),
-                              TaskConfig(4, 1, 500.0))),)
-    feedback = replace(OPEN_LOOP, replan_on_delay=True, retime_on_drift=True, drift_margin=1.0,
-                       replan_interval=10.0, replan_while_late=replan_while_late)
-    simulator, allocator, robot = simulate(stream, [0, 4], FirstRoutes([[0, 1], [2]]),
-                                           [0.0, -8.0], feedback)
-    simulator.AdvanceTo(80.0)
-    first, *replans = allocator("events")
-    assert first.late_tasks == (1,)
-    drop = {visit.task: visit.time for k in (0, 1) for visit in robot(k).visits
-            if visit.action == DROPOFF}
-    if replan_while_late:
-        (replan,) = replans
-        assert isinstance(replan, ReplanEvent)
-        assert (replan.time, replan.reason, replan.late_tasks) == (
-            24.0, "fewer late: task 1 (+24 s)", ())
-        assert replan.assignment == (("robot0", ()), ("robot1", (1,)))
-        assert drop[1] <= 40.0
-    else:
-        assert replans == [] and drop[1] == pytest.approx(64.1)
 
 
 def test_a_drift_that_breaks_no_promise_retimes_the_plan():
