@@ -87,6 +87,7 @@ VARIANTS = {  # name -> allocator params set (every switch the defaults could ch
     DEFAULT: DEFAULT_SWITCHES,
     "default, 10 s safety slack": DEFAULT_SWITCHES | {"safety_slack": 10.0},
     "default, write off 10 s late": DEFAULT_SWITCHES | {"write_off_lateness": 10.0},
+    "default, smt objective lateness": DEFAULT_SWITCHES | {"objective": "lateness"},
 }
 
 
