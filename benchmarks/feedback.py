@@ -7,7 +7,8 @@ The cases below, each run with every variant of the allocator's feedback switche
   ``scenarios/sweeps/hospital_20_seeds.yaml``, over 20 seeds the sweeps do not use
   (200-219); busy_check: the same on forty further seeds (220-259, ``--check-seeds``), to
   check a default chosen on the first twenty; busy_pooled: both together (printed and
-  stored when both ran);
+  stored when both ran, with each block of 20 seeds' on-time change); busy_unseen: twenty
+  more (260-279, ``--unseen-seeds``), run once a default is chosen, not pooled;
 - paper: ``scenarios/hospital_6_robots.yaml`` as it is (its 3+2 stream, the ten people),
   600 s;
 - six_plus_six: ``scenarios/hospital_6_plus_6.yaml`` (a 6+6 stream after the original's
@@ -27,6 +28,7 @@ each variant's change of on-time tasks and broken promises against the open loop
     python benchmarks/feedback.py --seeds 4 --variants "open loop" "learn only"
     python benchmarks/feedback.py --cases two_floor paper --variants "open loop"
     python benchmarks/feedback.py --cases busy_check --check-seeds 220 221 222
+    python benchmarks/feedback.py --cases busy_unseen --variants "open loop"
 
 Prints the tables and writes benchmarks/results/feedback.json, keeping the variants and
 cases an earlier invocation wrote there and this one did not run.
@@ -53,6 +55,7 @@ SINGLE_RUNS = {"paper": PAPER, "six_plus_six": ROOT / "scenarios" / "hospital_6_
                "two_floor": ROOT / "scenarios" / "two_floor_6_robots.yaml"}
 SEEDS = list(range(200, 220))
 CHECK_SEEDS = list(range(220, 260))
+UNSEEN_SEEDS = list(range(260, 280))
 PARAMS = "blocks.allocator.params."
 
 OFF = {"earliest_drop_offs": False, "write_off_lateness": None,  # the switches a variant
@@ -176,6 +179,8 @@ def main():
     parser.add_argument("--seeds", type=int, default=len(SEEDS), help="busy seeds to run")
     parser.add_argument("--check-seeds", type=int, nargs="*", default=CHECK_SEEDS,
                         help="the busy_check case's seeds (default 220-259)")
+    parser.add_argument("--unseen-seeds", type=int, nargs="*", default=UNSEEN_SEEDS,
+                        help="the busy_unseen case's seeds (default 260-279)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--variants", nargs="*", default=list(VARIANTS),
                         help="variant names (default: all)")
@@ -187,6 +192,8 @@ def main():
                           {k: v for k, v in busy.fixed.items()}, busy.plugins, busy.source),
         "busy_check": SweepSpec(busy.scenario, {"seed": args.check_seeds}, dict(busy.fixed),
                                 busy.plugins, busy.source),
+        "busy_unseen": SweepSpec(busy.scenario, {"seed": args.unseen_seeds}, dict(busy.fixed),
+                                 busy.plugins, busy.source),
     } | {name: SweepSpec(str(path), {"seed": [0]}, {}, [], str(path))
          for name, path in SINGLE_RUNS.items()}
     path = RESULTS / "feedback.json"
