@@ -59,17 +59,23 @@ UNSEEN_SEEDS = list(range(260, 280))
 PARAMS = "blocks.allocator.params."
 
 OFF = {"earliest_drop_offs": False, "write_off_lateness": None,  # the switches a variant
-       "replan_only_if_fewer_late": False, "travel_time_rounding": "up"}  # leaves unless set
+       "replan_only_if_fewer_late": False, "travel_time_rounding": "up",  # leaves unless set
+       "safety_slack": 0.0}
+# Switches added after runs were cached, at the value those runs had: left out of a run
+# directory's name at that value, so the cached runs stay valid.
+IMPLIED = {"safety_slack": 0.0}
 DRIFT_10 = OFF | {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": False,
                   "drift_margin": 10.0}  # an earlier default: allocate again on a 10 s drift
 LOOP = OFF | {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": True,
               "drift_margin": 3.0}  # learn, re-plan when late, re-time on a 3 s drift
 EARLIEST = LOOP | {"earliest_drop_offs": True}
 PREVIOUS = EARLIEST | {"drift_margin": 1.0}  # the default before write-offs
+PREVIOUS_DEFAULT = ("previous default: loop, earliest drop-offs, write off 5 s late, re-plan "
+                    "only for fewer late, nearest-second travel times, no safety slack")
 DEFAULT = ("default: loop, earliest drop-offs, write off 5 s late, re-plan only for fewer "
-           "late, nearest-second travel times")
-DEFAULT_SWITCHES = PREVIOUS | {"write_off_lateness": 5.0, "replan_only_if_fewer_late": True,
-                               "travel_time_rounding": "nearest"}
+           "late, nearest-second travel times, 10 s safety slack")
+BEFORE_SLACK = PREVIOUS | {"write_off_lateness": 5.0, "replan_only_if_fewer_late": True,
+                           "travel_time_rounding": "nearest"}
 VARIANTS = {  # name -> allocator params set (every switch the defaults could change)
     "open loop": OFF | {"learn_travel_times": False, "replan_on_delay": False},
     "learn only": OFF | {"learn_travel_times": True, "replan_on_delay": False},
@@ -87,10 +93,10 @@ VARIANTS = {  # name -> allocator params set (every switch the defaults could ch
     "previous default, write off 5 s late": PREVIOUS | {"write_off_lateness": 5.0},
     "previous default, write off 5 s late, re-plan only for fewer late": PREVIOUS | {
         "write_off_lateness": 5.0, "replan_only_if_fewer_late": True},
-    DEFAULT: DEFAULT_SWITCHES,
-    "default, 10 s safety slack": DEFAULT_SWITCHES | {"safety_slack": 10.0},
-    "default, write off 10 s late": DEFAULT_SWITCHES | {"write_off_lateness": 10.0},
-    "default, smt objective lateness": DEFAULT_SWITCHES | {"objective": "lateness"},
+    PREVIOUS_DEFAULT: BEFORE_SLACK,
+    "previous default, write off 10 s late": BEFORE_SLACK | {"write_off_lateness": 10.0},
+    "previous default, smt objective lateness": BEFORE_SLACK | {"objective": "lateness"},
+    DEFAULT: BEFORE_SLACK | {"safety_slack": 10.0},
 }
 
 
@@ -98,7 +104,8 @@ def run_case(name: str, spec: SweepSpec, variant: dict, workers: int) -> list[di
     """The summaries of ``spec``'s runs with the allocator params ``variant``."""
     fixed = dict(spec.fixed) | {PARAMS + key: value for key, value in variant.items()}
     spec = SweepSpec(spec.scenario, spec.grid, fixed, spec.plugins, spec.source)
-    slug = "_".join(f"{key}={value}" for key, value in sorted(variant.items()))
+    slug = "_".join(f"{key}={value}" for key, value in sorted(variant.items())
+                    if key not in IMPLIED or IMPLIED[key] != value)
     out = RUNS / name / slug
     result = run_sweep(spec, str(out), workers=workers)
     summaries = []

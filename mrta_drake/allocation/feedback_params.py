@@ -44,12 +44,13 @@ class FeedbackParams:
     None: never) that search writes off a task planned more than that late: it goes after
     the tasks that can still be on time instead of as early as it can (``Allocation.rank``);
     with ``safety_slack`` (s, 0: none) it ranks, after the fewest late tasks and the least
-    tardiness, the least room short of that slack before the deadlines: among plans equally
-    late, the one giving the tightest promises more room.
+    tardiness, the least room short of that slack before the deadlines: among plans as late,
+    the one giving the tightest promises more room.
 
     ``learn_travel_times``, ``replan_on_delay``, ``retime_on_drift``,
     ``replan_only_if_fewer_late`` and ``earliest_drop_offs`` are on by default, with a write-off
-    after 5 s and legs rounded to the nearest second (measured better: docs/allocation.md);
+    after 5 s, legs rounded to the nearest second and a 10 s safety slack (measured better:
+    docs/allocation.md);
     ``learn_travel_times``, ``replan_on_delay`` and ``earliest_drop_offs`` false, with no
     margin, is the open loop (``OPEN_LOOP``): plans made only when batches arrive or robots
     break down, from the scenario's matrix, as the allocator answers them.
@@ -70,7 +71,7 @@ class FeedbackParams:
     replan_only_if_fewer_late: bool = True
     earliest_drop_offs: bool = True
     write_off_lateness: float | None = 5.0
-    safety_slack: float = 0.0
+    safety_slack: float = 10.0
 
     def __post_init__(self):
         self.estimator()  # checks the estimator's fields
