@@ -16,10 +16,11 @@ Our recipe ("points"): locations are random points on a floor of the hospital ma
     python benchmarks/allocation.py            # full run (takes long on 2 cores)
     python benchmarks/allocation.py --quick    # a few small instances
     python benchmarks/allocation.py --tight-only   # the tight regime alone (~15 min)
+    python benchmarks/allocation.py --single-only  # the single batches alone, with CPU s
 
 Prints tables and writes benchmarks/results/allocation.json (``--tight-only``:
 benchmarks/results/allocation_tight.json, or ``allocation_tight_points.json`` with
-``--tight-recipe points``).
+``--tight-recipe points``; ``--single-only``: benchmarks/results/allocation_single.json).
 """
 
 import argparse
@@ -65,6 +66,7 @@ RESULTS = pathlib.Path(__file__).parent / "results" / "allocation.json"
 TIGHT_RESULTS = {"smrta": pathlib.Path(__file__).parent / "results" / "allocation_tight.json",
                  "points": pathlib.Path(__file__).parent / "results" /
                  "allocation_tight_points.json"}
+SINGLE_RESULTS = pathlib.Path(__file__).parent / "results" / "allocation_single.json"
 TIGHT_SCALES = (0.5, 0.35)  # deadlines scaled: the tight regime
 ROUTING_SECONDS = 10.0  # OR-Tools' guided local search per instance
 
@@ -145,8 +147,10 @@ def run_single_batches(sizes, capacities, seeds):
                 row = {"tasks": num_tasks, "robots": num_robots, "capacity": capacity,
                        "seed": seed}
                 for name, allocator in allocators.items():
+                    cpu = time.process_time()
                     allocation, seconds = solve(allocator, problem)
                     row[name] = {"status": allocation.status, "seconds": round(seconds, 3),
+                                 "cpu_seconds": round(time.process_time() - cpu, 3),
                                  "late": len(allocation.late_tasks),
                                  "makespan": allocation.makespan()}
                 rows.append(row)
@@ -337,6 +341,19 @@ def _tight_totals(rows, scales, names):
     return totals
 
 
+def print_cpu_per_size(rows):
+    """The most and the mean CPU seconds per allocate call of each size, per allocator."""
+    names = ("smt", "smt_search_only", "greedy")
+    print("CPU s per call: tasks robots | " + " | ".join(f"{n} max mean" for n in names))
+    for size in dict.fromkeys((row["tasks"], row["robots"]) for row in rows):
+        mine = [row for row in rows if (row["tasks"], row["robots"]) == size]
+        cells = []
+        for name in names:
+            cpu = [row[name]["cpu_seconds"] for row in mine]
+            cells.append(f"{max(cpu):6.3f} {float(np.mean(cpu)):6.3f}")
+        print(f"  {size[0]:3d} {size[1]:3d} | " + " | ".join(cells))
+
+
 def format_single_row(row):
     cells = [f"{row['tasks']:3d} {row['robots']:3d} {row['capacity']:2d}"]
     for name in ("smt", "smt_search_only", "greedy"):
@@ -366,15 +383,19 @@ def main():
     parser.add_argument("--quick", action="store_true", help="a few small instances")
     parser.add_argument("--tight-only", action="store_true",
                         help="only the tight regime (deadlines scaled by 0.5 and 0.35)")
+    parser.add_argument("--single-only", action="store_true",
+                        help="only the single batches (and their CPU seconds per size)")
     parser.add_argument("--tight-recipe", choices=sorted(TRAVEL_RECIPES), default="smrta",
                         help="the tight regime's instances: SMrTa's recipe or ours (points)")
     args = parser.parse_args()
     single_sizes = [(t, r) for t in (10, 15, 20, 25, 30) for r in (5, 10, 15, 20)]
-    print(f"tight regime ({args.tight_recipe}): deadlines scaled by {TIGHT_SCALES}, capacity 2, "
-          f"seed 0; smt default budget, greedy, ortools {ROUTING_SECONDS:g} s")
-    tight_regime = run_tight_regime(single_sizes[:2] if args.quick else single_sizes,
-                                    TIGHT_SCALES, 1.0 if args.quick else ROUTING_SECONDS,
-                                    args.tight_recipe)
+    tight_regime = None
+    if not args.single_only:
+        print(f"tight regime ({args.tight_recipe}): deadlines scaled by {TIGHT_SCALES}, capacity "
+              f"2, seed 0; smt default budget, greedy, ortools {ROUTING_SECONDS:g} s")
+        tight_regime = run_tight_regime(single_sizes[:2] if args.quick else single_sizes,
+                                        TIGHT_SCALES, 1.0 if args.quick else ROUTING_SECONDS,
+                                        args.tight_recipe)
     if args.tight_only:
         write_results(TIGHT_RESULTS[args.tight_recipe], args.quick, tight_regime=tight_regime)
         return
@@ -393,6 +414,11 @@ def main():
     summary = summarize(rows)
     for name, values in summary.items():
         print(f"  {name:16s} {values}")
+    if args.single_only:
+        print_cpu_per_size(rows)
+        write_results(SINGLE_RESULTS, args.quick, single_batch=rows,
+                      single_batch_summary=summary)
+        return
 
     print("objective makespan (capacity 2, time limit 10 s):")
     makespan = run_objective(objective_sizes, (0,), "makespan", 10.0)

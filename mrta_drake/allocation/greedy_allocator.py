@@ -53,15 +53,8 @@ class _Insertion:
         self.problem = problem
         robots = problem.robots
         self.routes = [list(route) for route in routes] if routes else [[] for _ in robots]
-        self.where = {}
-        self.release = {}
-        self.deadline = {}
-        for task in problem.tasks:
-            for kind, location in ((PICKUP, task.pickup), (DROPOFF, task.dropoff)):
-                action = Action(task.id, kind)
-                self.where[action] = location
-                self.release[action] = task.release
-            self.deadline[Action(task.id, DROPOFF)] = task.deadline
+        self.tasks = {task.id: task for task in problem.tasks}
+        self.travel = problem.travel.tolist()  # (s) read as Python numbers: the same sums
 
     def run(self) -> Allocation:
         problem = self.problem
@@ -84,20 +77,22 @@ class _Insertion:
         start = self.problem.robots[robot]
         load, time, here = len(start.carrying), start.ready_time, start.location
         late, tardiness = 0, 0.0
-        travel, service = self.problem.travel, self.problem.service_time
+        travel, service, tasks = self.travel, self.problem.service_time, self.tasks
         for action in route:
+            task = tasks[action.task]
             if action.kind == PICKUP:
                 load += 1
                 if load > start.capacity:
                     return None
+                there = task.pickup
             else:
                 load -= 1
-            there = self.where[action]
-            time = max(time, self.release[action]) + travel[here, there] + service
+                there = task.dropoff
+            time = max(time, task.release) + travel[here][there] + service
             here = there
-            if action.kind == DROPOFF and time > self.deadline[action]:
+            if action.kind == DROPOFF and time > task.deadline:
                 late += 1
-                tardiness += time - self.deadline[action]
+                tardiness += time - task.deadline
         return late, tardiness, time
 
     def _insert_pair(self, task: int):

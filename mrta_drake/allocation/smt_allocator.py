@@ -7,6 +7,7 @@ may do any number of actions, so an ``INFEASIBLE`` answer is a proof. docs/alloc
 gives the formulas.
 """
 
+import ctypes
 import itertools
 import math
 import time as wallclock
@@ -127,6 +128,111 @@ class _OutOfBudget(Exception):
     """The budget or the time limit ran out while the encoding was being built."""
 
 
+class _Terms:
+    """Makes z3 terms through z3's C API (``z3.Z3_mk_*``), without the argument checks and
+    conversions of z3's Python functions: a term costs a fraction of the Python work.
+
+    Each method makes exactly the C calls of the z3 function it names, and returns a new
+    Python reference (``z3.AstRef``) as that function does. z3 numbers its terms in the
+    order they are made and reuses the numbers of terms it frees (when their last reference
+    goes), and its answers depend on those numbers: code that makes the same calls and holds
+    the returned references as long as code calling z3's functions gets the same terms,
+    numbered alike, and the same answers.
+    """
+
+    def __init__(self, ctx: z3.Context):
+        self.ctx = ctx
+        self.ref = ctx.ref()
+        self._bool = z3.Z3_mk_bool_sort(self.ref)
+        self._real = z3.Z3_mk_real_sort(self.ref)
+
+    def bool(self, name: str) -> z3.BoolRef:
+        """``z3.Bool(name)``."""
+        symbol = z3.Z3_mk_string_symbol(self.ref, name)
+        return z3.BoolRef(z3.Z3_mk_const(self.ref, symbol, self._bool), self.ctx)
+
+    def real(self, name: str) -> z3.ArithRef:
+        """``z3.Real(name)``."""
+        symbol = z3.Z3_mk_string_symbol(self.ref, name)
+        return z3.ArithRef(z3.Z3_mk_const(self.ref, symbol, self._real), self.ctx)
+
+    def value(self, value: bool) -> z3.BoolRef:
+        """``z3.BoolVal(value)``."""
+        if value:
+            return z3.BoolRef(z3.Z3_mk_true(self.ref), self.ctx)
+        return z3.BoolRef(z3.Z3_mk_false(self.ref), self.ctx)
+
+    def number(self, value: float) -> z3.RatNumRef:
+        """``z3.RealVal(value)`` (made from ``str(value)``)."""
+        return z3.RatNumRef(z3.Z3_mk_numeral(self.ref, str(value), self._real), self.ctx)
+
+    def negation(self, a: z3.BoolRef) -> z3.BoolRef:
+        """``z3.Not(a)``."""
+        return z3.BoolRef(z3.Z3_mk_not(self.ref, a.ast), self.ctx)
+
+    def any(self, *args: z3.BoolRef) -> z3.BoolRef:
+        """``z3.Or(*args)``."""
+        return z3.BoolRef(z3.Z3_mk_or(self.ref, len(args), _array(args)), self.ctx)
+
+    def all(self, *args: z3.BoolRef) -> z3.BoolRef:
+        """``z3.And(*args)``."""
+        return z3.BoolRef(z3.Z3_mk_and(self.ref, len(args), _array(args)), self.ctx)
+
+    def implies(self, a: z3.BoolRef, b: z3.BoolRef) -> z3.BoolRef:
+        """``z3.Implies(a, b)``."""
+        return z3.BoolRef(z3.Z3_mk_implies(self.ref, a.ast, b.ast), self.ctx)
+
+    def equal(self, a: z3.BoolRef, b: z3.BoolRef) -> z3.BoolRef:
+        """``a == b``."""
+        return z3.BoolRef(z3.Z3_mk_eq(self.ref, a.ast, b.ast), self.ctx)
+
+    def at_least(self, a: z3.ArithRef, b) -> z3.BoolRef:
+        """``a >= b``, ``b`` a real term or a number."""
+        if not isinstance(b, z3.AstRef):
+            b = self.number(b)
+        return z3.BoolRef(z3.Z3_mk_ge(self.ref, a.ast, b.ast), self.ctx)
+
+    def at_most(self, a: z3.ArithRef, b) -> z3.BoolRef:
+        """``a <= b``, ``b`` a real term or a number."""
+        if not isinstance(b, z3.AstRef):
+            b = self.number(b)
+        return z3.BoolRef(z3.Z3_mk_le(self.ref, a.ast, b.ast), self.ctx)
+
+    def plus(self, a: z3.ArithRef, b: float) -> z3.ArithRef:
+        """``a + b``, ``b`` a number."""
+        b = self.number(b)
+        return z3.ArithRef(z3.Z3_mk_add(self.ref, 2, _array((a, b))), self.ctx)
+
+    def pb_equal(self, pairs, k: int) -> z3.BoolRef:
+        """``z3.PbEq(pairs, k)``: ``pairs`` of (literal, whole coefficient)."""
+        return z3.BoolRef(z3.Z3_mk_pbeq(self.ref, len(pairs), *_pb(pairs), k), self.ctx)
+
+    def pb_at_most(self, pairs, k: int) -> z3.BoolRef:
+        """``z3.PbLe(pairs, k)``."""
+        return z3.BoolRef(z3.Z3_mk_pble(self.ref, len(pairs), *_pb(pairs), k), self.ctx)
+
+    def prefer(self, solver: z3.Solver, literal: z3.BoolRef, value: bool):
+        """``solver.set_initial_value(literal, value)`` (no term made: true and false are
+        z3's own, never freed)."""
+        value = z3.Z3_mk_true(self.ref) if value else z3.Z3_mk_false(self.ref)
+        z3.Z3_solver_set_initial_value(self.ref, solver.solver, literal.ast, value)
+
+    def count_at_most(self, args, k: int) -> z3.BoolRef:
+        """``z3.AtMost(*args, k)``."""
+        return z3.BoolRef(z3.Z3_mk_atmost(self.ref, len(args), _array(args), k), self.ctx)
+
+
+def _array(terms) -> ctypes.Array:
+    """The C array of ``terms``' ASTs."""
+    return (z3.Ast * len(terms))(*[term.ast for term in terms])
+
+
+def _pb(pairs):
+    """The C arrays of literals and coefficients of (literal, coefficient) ``pairs``."""
+    return (_array([literal for literal, _ in pairs]),
+            (ctypes.c_int * len(pairs))(*[coefficient for _, coefficient in pairs]))
+
+
 class _Encoding:
     """The z3 variables and constraints of one problem.
 
@@ -135,16 +241,18 @@ class _Encoding:
     actions of different tasks that may share a robot: ``first[a, b]`` (``a`` before ``b``
     when they do).
 
-    Every term lives in ``solver``'s context. ``check_limit`` is called now and then while
-    the constraints are added; it raises ``_OutOfBudget`` to stop. It is not kept, so the
-    encoding holds no reference back to its caller and is freed with it.
+    Every term lives in ``solver``'s context, made by ``_Terms`` as z3's Python functions
+    would make it (the same terms, numbered alike, so the same answers). ``check_limit`` is
+    called now and then while the constraints are added; it raises ``_OutOfBudget`` to
+    stop. It is not kept, so the encoding holds no reference back to its caller and is freed
+    with it.
     """
 
     def __init__(self, problem: AllocationProblem, solver: z3.Solver,
                  check_limit: Callable[[], None]):
         self.problem = problem
         self.solver = solver
-        self.ctx = ctx = solver.ctx
+        self.terms = terms = _Terms(solver.ctx)
         robots, travel, service = problem.robots, problem.travel, problem.service_time
         self.carrier = {task.id: problem.carrier(task.id) for task in problem.tasks}
         self.actions = []
@@ -152,15 +260,15 @@ class _Encoding:
             if self.carrier[task.id] is None:
                 self.actions.append(Action(task.id, PICKUP))
             self.actions.append(Action(task.id, DROPOFF))
-        self.time = {action: z3.Real(f"t_{action.key}", ctx) for action in self.actions}
-        self.on_time = {task.id: z3.Bool(f"on_time_{task.id}", ctx) for task in problem.tasks}
+        self.time = {action: terms.real(f"t_{action.key}") for action in self.actions}
+        self.on_time = {task.id: terms.bool(f"on_time_{task.id}") for task in problem.tasks}
         self.robots_of = {
             task.id: range(len(robots)) if self.carrier[task.id] is None
             else (self.carrier[task.id],)
             for task in problem.tasks
         }
         self.assigned = {
-            (task.id, r): z3.Bool(f"robot_{task.id}_{r}", ctx)
+            (task.id, r): terms.bool(f"robot_{task.id}_{r}")
             for task in problem.tasks
             for r in self.robots_of[task.id]
         }
@@ -172,7 +280,7 @@ class _Encoding:
             if k % 1024 == 0:
                 check_limit()
             if a.task != b.task and self._same_robot(a.task, b.task) is not False:
-                self.first[a, b] = z3.Bool(f"first_{a.key}_{b.key}", self.ctx)
+                self.first[a, b] = terms.bool(f"first_{a.key}_{b.key}")
                 self._add_order(a, b, travel, service)
         self._add_capacity(check_limit)
         self._add_releases(travel, service, check_limit)
@@ -182,32 +290,40 @@ class _Encoding:
     def location(self, action: Action) -> int:
         return self.problem.location(action)
 
+    def _add(self, *constraints: z3.BoolRef):
+        """Asserts ``constraints`` in order, and lets go of them last first, as
+        ``z3.Solver.add`` does (the order z3 frees terms in decides the numbers it reuses)."""
+        for k in range(len(constraints)):
+            z3.Z3_solver_assert(self.terms.ref, self.solver.solver, constraints[k].ast)
+
     def _add_tasks(self, travel, service):
-        problem, solver = self.problem, self.solver
+        problem, terms = self.problem, self.terms
         for task in problem.tasks:
             drop = self.time[Action(task.id, DROPOFF)]
             carrier = self.carrier[task.id]
             if carrier is None:
                 choices = [self.assigned[task.id, r] for r in self.robots_of[task.id]]
-                solver.add(z3.PbEq([(choice, 1) for choice in choices], 1))
+                self._add(terms.pb_equal([(choice, 1) for choice in choices], 1))
                 pick = self.time[Action(task.id, PICKUP)]
                 for r, robot in enumerate(problem.robots):
                     arrive = robot.ready_time + travel[robot.location, task.pickup] + service
-                    solver.add(z3.Implies(self.assigned[task.id, r], pick >= arrive))
+                    self._add(terms.implies(self.assigned[task.id, r],
+                                            terms.at_least(pick, arrive)))
                     if arrive + travel[task.pickup, task.dropoff] + service > task.deadline:
-                        solver.add(z3.Or(z3.Not(self.assigned[task.id, r]),
-                                         z3.Not(self.on_time[task.id])))
+                        self._add(terms.any(terms.negation(self.assigned[task.id, r]),
+                                            terms.negation(self.on_time[task.id])))
                 soonest = earliest_pickup(problem, task)
                 leg = float(travel[task.pickup, task.dropoff] + service)
-                solver.add(pick >= soonest, drop >= pick + leg)
+                self._add(terms.at_least(pick, soonest),
+                          terms.at_least(drop, terms.plus(pick, leg)))
                 self.earliest[Action(task.id, PICKUP)] = soonest
                 self.earliest[Action(task.id, DROPOFF)] = soonest + leg
             else:
                 robot = problem.robots[carrier]
                 arrive = robot.ready_time + travel[robot.location, task.dropoff] + service
-                solver.add(self.assigned[task.id, carrier], drop >= arrive)
+                self._add(self.assigned[task.id, carrier], terms.at_least(drop, arrive))
                 self.earliest[Action(task.id, DROPOFF)] = arrive
-            solver.add(z3.Implies(self.on_time[task.id], drop <= task.deadline))
+            self._add(terms.implies(self.on_time[task.id], terms.at_most(drop, task.deadline)))
 
     def _same_robot(self, i: int, j: int):
         """True, False or a Boolean saying tasks ``i`` and ``j`` are done by one robot."""
@@ -222,33 +338,36 @@ class _Encoding:
         elif carrier_j is not None:
             same = self.assigned[i, carrier_j]
         else:
-            same = z3.Bool(f"same_{key[0]}_{key[1]}", self.ctx)
+            terms = self.terms
+            same = terms.bool(f"same_{key[0]}_{key[1]}")
             for r in range(len(self.problem.robots)):
                 on_i, on_j = self.assigned[i, r], self.assigned[j, r]
-                self.solver.add(z3.Or(z3.Not(on_i), z3.Not(on_j), same))
-                self.solver.add(z3.Or(z3.Not(same), z3.Not(on_i), on_j))
+                self._add(terms.any(terms.negation(on_i), terms.negation(on_j), same))
+                self._add(terms.any(terms.negation(same), terms.negation(on_i), on_j))
         self.same[key] = same
         return same
 
     def before(self, a: Action, b: Action):
         """The literal for ``a`` before ``b`` on their (shared) robot."""
         if a.task == b.task:
-            return z3.BoolVal(a.kind == PICKUP, self.ctx)
+            return self.terms.value(a.kind == PICKUP)
         if (a, b) in self.first:
             return self.first[a, b]
-        return z3.Not(self.first[b, a])
+        return self.terms.negation(self.first[b, a])
 
     def _add_order(self, a: Action, b: Action, travel, service):
+        terms = self.terms
         same = self._same_robot(a.task, b.task)
-        guard = [] if same is True else [z3.Not(same)]
+        guard = [] if same is True else [terms.negation(same)]
         order = self.first[a, b]
-        for x, y, x_first in ((a, b, order), (b, a, z3.Not(order))):
+        for x, y, x_first in ((a, b, order), (b, a, terms.negation(order))):
             leg = float(travel[self.location(x), self.location(y)] + service)
-            self.solver.add(z3.Or(*guard, z3.Not(x_first), self.time[y] >= self.time[x] + leg))
+            self._add(terms.any(*guard, terms.negation(x_first),
+                                terms.at_least(self.time[y], terms.plus(self.time[x], leg))))
 
     def _add_capacity(self, check_limit: Callable[[], None]):
         """At each pickup the items on board (itself included) fit the robot."""
-        problem, solver = self.problem, self.solver
+        problem, terms = self.problem, self.terms
         for pickup in self.actions:
             if pickup.kind != PICKUP:
                 continue
@@ -258,11 +377,11 @@ class _Encoding:
                 if other.id == pickup.task or not self._shares(pickup.task, other.id):
                     continue
                 drop = Action(other.id, DROPOFF)
-                aboard = z3.Bool(f"aboard_{other.id}_at_{pickup.key}", self.ctx)
+                aboard = terms.bool(f"aboard_{other.id}_at_{pickup.key}")
                 condition = [self._same_robot(pickup.task, other.id), self.before(pickup, drop)]
                 if self.carrier[other.id] is None:
                     condition.append(self.before(Action(other.id, PICKUP), pickup))
-                solver.add(z3.Or(*[z3.Not(c) for c in condition], aboard))
+                self._add(terms.any(*[terms.negation(c) for c in condition], aboard))
                 on_board.append(aboard)
             if not on_board:
                 continue
@@ -272,7 +391,8 @@ class _Encoding:
                     for r, robot in enumerate(problem.robots)
                     if robot.capacity == capacity
                 ]
-                solver.add(z3.Implies(z3.Or(*users), z3.AtMost(*on_board, capacity - 1)))
+                self._add(terms.implies(terms.any(*users),
+                                        terms.count_at_most(on_board, capacity - 1)))
 
     def _shares(self, i: int, j: int) -> bool:
         return self._same_robot(i, j) is not False
@@ -280,7 +400,7 @@ class _Encoding:
     def _add_releases(self, travel, service, check_limit: Callable[[], None]):
         """A pickup released after some robot is ready may wait for its release at the
         previous location: bound its time by the leg from its immediate predecessor."""
-        problem, solver = self.problem, self.solver
+        problem, terms = self.problem, self.terms
         soonest = min(robot.ready_time for robot in problem.robots)
         for task in problem.tasks:
             pickup = Action(task.id, PICKUP)
@@ -291,32 +411,33 @@ class _Encoding:
                 a.task, task.id)]
             for r in self.robots_of[task.id]:
                 robot = problem.robots[r]
-                alone = [z3.Not(z3.And(self._on_robot(c, r), self.before(c, pickup)))
+                alone = [terms.negation(terms.all(self._on_robot(c, r), self.before(c, pickup)))
                          for c in others]
                 leg = float(travel[robot.location, task.pickup] + service)
-                solver.add(z3.Implies(z3.And(self.assigned[task.id, r], *alone),
-                                      self.time[pickup] >= task.release + leg))
+                self._add(terms.implies(terms.all(self.assigned[task.id, r], *alone),
+                                        terms.at_least(self.time[pickup], task.release + leg)))
             for a in others:
                 between = [
-                    z3.Not(z3.And(self._same_robot(c.task, task.id), self.before(a, c),
-                                  self.before(c, pickup)))
+                    terms.negation(terms.all(self._same_robot(c.task, task.id),
+                                             self.before(a, c), self.before(c, pickup)))
                     for c in others if c != a and self._shares(a.task, c.task)
                 ]
                 leg = float(travel[self.location(a), task.pickup] + service)
-                solver.add(z3.Implies(
-                    z3.And(self._same_robot(a.task, task.id), self.before(a, pickup), *between),
-                    self.time[pickup] >= task.release + leg,
+                self._add(terms.implies(
+                    terms.all(self._same_robot(a.task, task.id), self.before(a, pickup),
+                              *between),
+                    terms.at_least(self.time[pickup], task.release + leg),
                 ))
 
     def _on_robot(self, action: Action, r: int):
         if self.carrier[action.task] is not None:
-            return z3.BoolVal(self.carrier[action.task] == r, self.ctx)
+            return self.terms.value(self.carrier[action.task] == r)
         return self.assigned[action.task, r]
 
     def _break_symmetries(self):
         """Interchangeable robots take tasks in id order (each one's lowest task id is
         below the next one's); interchangeable tasks are picked up in id order."""
-        problem, solver = self.problem, self.solver
+        problem, terms = self.problem, self.terms
         open_tasks = [task.id for task in problem.tasks if self.carrier[task.id] is None]
         classes = {}
         for r, robot in enumerate(problem.robots):
@@ -327,7 +448,7 @@ class _Encoding:
             for r, s in zip(members, members[1:], strict=False):
                 for k, task in enumerate(open_tasks):
                     earlier = [self.assigned[t, r] for t in open_tasks[:k]]
-                    solver.add(z3.Implies(self.assigned[task, s], z3.Or(*earlier, self.ctx)))
+                    self._add(terms.implies(self.assigned[task, s], terms.any(*earlier)))
         twins = {}
         for task in problem.tasks:
             if self.carrier[task.id] is None:
@@ -336,9 +457,9 @@ class _Encoding:
         for members in twins.values():
             for i, j in zip(members, members[1:], strict=False):
                 # Twins are interchangeable only while their deadlines are asserted alike.
-                solver.add(z3.Implies(
-                    self.on_time[i] == self.on_time[j],
-                    self.time[Action(i, PICKUP)] <= self.time[Action(j, PICKUP)],
+                self._add(terms.implies(
+                    terms.equal(self.on_time[i], self.on_time[j]),
+                    terms.at_most(self.time[Action(i, PICKUP)], self.time[Action(j, PICKUP)]),
                 ))
 
     def _bound_on_time_per_robot(self, travel, service):
@@ -350,7 +471,7 @@ class _Encoding:
         reach)``; ``done[i, r]`` stands for "on robot ``r`` and on time". Each bound that
         can cut anything is added and kept in ``robot_bounds`` as (robot, number of tasks by
         deadline, room in s)."""
-        problem, solver = self.problem, self.solver
+        problem, terms = self.problem, self.terms
         self.robot_bounds = []
         open_tasks = sorted((task for task in problem.tasks if self.carrier[task.id] is None),
                             key=lambda task: (task.deadline, task.id))
@@ -370,12 +491,12 @@ class _Encoding:
                 continue
             done = []
             for task, weight in zip(open_tasks[:bounds[-1][0]], weights, strict=False):
-                literal = z3.Bool(f"done_{task.id}_{r}", self.ctx)
-                solver.add(z3.Or(z3.Not(self.assigned[task.id, r]),
-                                 z3.Not(self.on_time[task.id]), literal))
+                literal = terms.bool(f"done_{task.id}_{r}")
+                self._add(terms.any(terms.negation(self.assigned[task.id, r]),
+                                    terms.negation(self.on_time[task.id]), literal))
                 done.append((literal, weight))
             for count, room in bounds:
-                solver.add(z3.PbLe(done[:count], room))
+                self._add(terms.pb_at_most(done[:count], room))
                 self.robot_bounds.append((r, count, room))
 
     def routes(self, model: z3.ModelRef) -> tuple[tuple[Action, ...], ...]:
@@ -391,15 +512,15 @@ class _Encoding:
 
     def hint(self, allocation: Allocation):
         """Prefer the assignments and orders of ``allocation`` in the search."""
-        solver, times = self.solver, {}
+        prefer, times = self.terms.prefer, {}
         for r, (route, route_times) in enumerate(
             zip(allocation.routes, allocation.times, strict=True)
         ):
             for action, time in zip(route, route_times, strict=True):
                 times[action] = time
-                solver.set_initial_value(self.assigned[action.task, r], True)
+                prefer(self.solver, self.assigned[action.task, r], True)
         for (a, b), literal in self.first.items():
-            solver.set_initial_value(literal, times[a] < times[b])
+            prefer(self.solver, literal, times[a] < times[b])
 
 
 class _Solve:

@@ -15,6 +15,7 @@ so that one ``MathematicalProgram`` per (robots, padded rows) is built once and 
 its coefficients and bounds are updated.
 """
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -160,8 +161,6 @@ def _pairwise_sum(a):
     """The sum of ``a`` exactly as numpy's ``sum`` adds it, so that decisions match numpy's
     to the bit: blocks of at most 128 with eight accumulators; a longer range is split in
     two (the first part a multiple of 8 long) and the parts' sums added."""
-    if len(a) <= 128:
-        return _block_sum(a, 0, len(a))
     tasks = np.empty((128, 3), np.int64)  # start, length, halves already queued
     sums = np.empty(128)
     tasks[0, 0], tasks[0, 1], tasks[0, 2] = 0, len(a), 0
@@ -184,7 +183,7 @@ def _pairwise_sum(a):
     return sums[0]
 
 
-@numba.njit(numba.float64(numba.float64[::1], numba.int64, numba.int64), cache=True)
+@compiled_helper
 def _block_sum(a, start, n):
     if n < 8:
         total = -0.0
@@ -225,8 +224,14 @@ def check_nominal(G, b, u_nominal, clipped) -> tuple[bool, bool]:
     """Whether ``G``, ``b`` and ``u_nominal`` are all finite, and whether then ``clipped``
     (the nominal clipped to the input bounds) meets every row ``G u >= b``: it is then the
     QP's optimum, compiled."""
-    if not (np.all(np.isfinite(G)) and np.all(np.isfinite(b))
-            and np.all(np.isfinite(u_nominal))):
+    finite = True  # element by element: np.all(np.isfinite(...)) compiles numba's generic code
+    for row in range(len(b)):
+        finite = finite and math.isfinite(b[row])
+        for column in range(G.shape[1]):
+            finite = finite and math.isfinite(G[row, column])
+    for column in range(len(u_nominal)):
+        finite = finite and math.isfinite(u_nominal[column])
+    if not finite:
         return False, False
     for row in range(len(b)):
         value = 0.0

@@ -9,6 +9,7 @@ import numpy as np
 
 from mrta_drake.control.barriers import pair_other, point_terms, rhs
 from mrta_drake.control.cbf_params import CbfParams
+from mrta_drake.stack.compiled_helper import compiled_helper
 
 WALL, HUMAN, ROBOT = 0, 1, 2  # row kinds
 _MIN_SCALE = 1e-3  # m; rows for points closer than this are scaled as if at this distance
@@ -57,17 +58,22 @@ def safety_rows(states, hits, hit_mask, human_positions, human_velocities, mover
 
 @numba.njit(cache=True)
 def empty_rows(m, k):
-    """Arrays for m rows over k robots: ``SafetyRows``' fields, ``G`` zero."""
+    """Arrays for m rows over k robots: ``SafetyRows``' fields, ``G`` zero, ``other`` -1."""
+    other = np.empty(m, np.int64)
+    for row in range(m):  # not np.full: numba compiles its generic code for that
+        other[row] = -1
     return (np.zeros((m, 2 * k)), np.empty(m), np.empty(m, np.int64), np.empty(m),
-            np.empty(m, np.int64), np.full(m, -1, np.int64), np.empty((m, 2)))
+            np.empty(m, np.int64), other, np.empty((m, 2)))
 
 
 @numba.njit(cache=True)
 def count_rows(states, mask, humans, movers, radius2):
     """The number of rows ``safety_rows`` makes (``humans``: how many)."""
     k = len(states)
-    m = mask.sum() + k * humans
+    m = k * humans
     for i in range(k):
+        for ray in range(mask.shape[1]):  # not mask.sum(): numba compiles its generic code
+            m += mask[i, ray]
         for q in range(len(movers)):
             m += near(states[i], movers[q], radius2)
         for j in range(i + 1, k):
@@ -88,7 +94,7 @@ def fill_rows(states, hits, mask, humans, human_velocities, movers, params, G, b
     Rows in order: walls, humans, movers (each robot by robot), pairs."""
     k, rays, count = len(states), mask.shape[1], len(humans)
     radius2 = params[9] * params[9]
-    row = 0
+    row = np.int64(0)  # not a literal: see _NO_OTHER
     for what in (WALL, HUMAN, ROBOT):
         base = 3 * what  # safety distance, alpha1, alpha2 of this kind in params
         points = rays if what == WALL else count if what == HUMAN else len(movers)
@@ -111,7 +117,7 @@ def fill_rows(states, hits, mask, humans, human_velocities, movers, params, G, b
                     terms = point_terms(x, y, theta, v, movers[q, 0], movers[q, 1],
                                         speed * np.cos(heading), speed * np.sin(heading),
                                         params[base])
-                _put_row(row, terms, i, -1, 0.0, 0.0, what, params[base + 1],
+                _put_row(row, terms, i, _NO_OTHER, 0.0, 0.0, what, params[base + 1],
                          params[base + 2], G, b, kind, h, member, other, normal)
                 row += 1
     for i in range(k):
@@ -123,20 +129,17 @@ def fill_rows(states, hits, mask, humans, human_velocities, movers, params, G, b
                                  states[j, 0], states[j, 1], speed * np.cos(heading),
                                  speed * np.sin(heading), params[6])
             other_a, other_w = pair_other(terms[5], terms[6], heading, speed)
-            _put_row(row, terms, i, j, other_a, other_w, ROBOT, params[7], params[8], G, b,
+            _put_row(row, terms, i, j, other_a, other_w, _PAIR, params[7], params[8], G, b,
                      kind, h, member, other, normal)
             row += 1
 
 
-_INDICES = numba.int64[::1]
-_ROW_SIGNATURE = numba.void(  # explicit: literal row, j and what arguments would compile 4 copies
-    numba.int64, numba.types.UniTuple(numba.float64, 8), numba.int64, numba.int64,
-    numba.float64, numba.float64, numba.int64, numba.float64, numba.float64,
-    numba.float64[:, ::1], numba.float64[::1], _INDICES, numba.float64[::1], _INDICES, _INDICES,
-    numba.float64[:, ::1])
+# numpy integers, not Python ones (so is ``fill_rows``' first ``row``): numba would compile
+# ``_put_row`` once more for each literal integer argument.
+_NO_OTHER, _PAIR = np.int64(-1), np.int64(ROBOT)
 
 
-@numba.njit(_ROW_SIGNATURE, cache=True)
+@compiled_helper
 def _put_row(row, terms, i, j, other_a, other_w, what, alpha1, alpha2, G, b, kind, h, member,
              other, normal):
     """Row ``row`` for robot i (and robot j >= 0 of a pair), divided by |r| (at least

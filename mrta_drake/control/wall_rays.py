@@ -63,13 +63,15 @@ def _wall_hits(states, angles, in_body_frame, ray_range, obstacles, hits, mask):
     """``WallRays`` into ``hits`` (N, R, 2) and ``mask`` (N, R) (``obstacles``:
     ``Obstacles.compiled``)."""
     n, rays = len(states), len(angles)
-    dx, dy = np.empty((n, rays)), np.empty((n, rays))
+    # Element by element: np.full and a sliced copy compile numba's generic code for each.
+    origins, dx, dy, dist = (np.empty((n, 2)), np.empty((n, rays)), np.empty((n, rays)),
+                             np.empty((n, rays)))
     for i in range(n):
+        origins[i, 0], origins[i, 1] = states[i, 0], states[i, 1]
         for r in range(rays):
             angle = angles[r] + states[i, 2] if in_body_frame else angles[r]
-            dx[i, r], dy[i, r] = np.cos(angle), np.sin(angle)
-    dist = np.full((n, rays), ray_range)
-    cast_rays_into(states[:, :2].copy(), dx, dy, *obstacles, dist)
+            dx[i, r], dy[i, r], dist[i, r] = np.cos(angle), np.sin(angle), ray_range
+    cast_rays_into(origins, dx, dy, *obstacles, dist)
     for i in range(n):
         for r in range(rays):
             hits[i, r, 0] = states[i, 0] + dist[i, r] * dx[i, r]

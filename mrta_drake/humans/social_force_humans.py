@@ -394,7 +394,7 @@ def _yielding_velocities(p, direction, speeds, radii, robot_p, robot_v, robot_r,
     on its left, else 0 (the person slows to a stand). People who do not yield
     (``yield_to_robots`` off) walk on at ``speed e``."""
     reach, wait = constants[_YIELD_DISTANCE], constants[_WAITING_GAP]
-    desired = np.empty_like(p)
+    desired = np.empty((len(p), 2))
     if constants[_YIELDS] == 0.0:
         for i in range(len(p)):
             desired[i, 0], desired[i, 1] = speeds[i] * direction[i, 0], speeds[i] * direction[i, 1]
@@ -434,10 +434,9 @@ def _room(x, y, ux, uy, radius, width, obstacles) -> bool:
     """True when the obstacles leave at least ``width`` (m) beside a robot of ``radius`` at
     (``x``, ``y``), along the unit vector (``ux``, ``uy``)."""
     reach = radius + width
-    hit = np.full((1, 1), reach)
-    origin = np.empty((1, 2))
-    origin[0, 0], origin[0, 1] = x, y
-    cast_rays_into(origin, np.full((1, 1), ux), np.full((1, 1), uy), *obstacles, hit)
+    hit, origin, dx, dy = np.empty((1, 1)), np.empty((1, 2)), np.empty((1, 1)), np.empty((1, 1))
+    hit[0, 0], origin[0, 0], origin[0, 1], dx[0, 0], dy[0, 0] = reach, x, y, ux, uy
+    cast_rays_into(origin, dx, dy, *obstacles, hit)
     return hit[0, 0] >= reach
 
 
@@ -574,7 +573,7 @@ def _gaps(p, radii, q, q_radii) -> np.ndarray:
 @compiled_helper
 def _apart(p, radii) -> np.ndarray:
     """Shifts (a, 2) that move each overlapping pair of people half the overlap apart."""
-    shift = np.zeros_like(p)
+    shift = np.zeros((len(p), 2))
     for i in range(len(p)):
         for j in range(len(p)):
             ox, oy = p[i, 0] - p[j, 0], p[i, 1] - p[j, 1]
@@ -590,7 +589,7 @@ def _apart(p, radii) -> np.ndarray:
 @compiled_helper
 def _away(p, radii, q, q_radii, floor) -> np.ndarray:
     """Shifts (a, 2) that move people straight away from robots q until each gap >= floor."""
-    shift = np.zeros_like(p)
+    shift = np.zeros((len(p), 2))
     for i in range(len(p)):
         for j in range(len(q)):
             ox, oy = p[i, 0] - q[j, 0], p[i, 1] - q[j, 1]
@@ -625,7 +624,7 @@ def _taken(goal, p, radii, robot_p, robot_r) -> np.ndarray:
 @compiled_helper
 def _outward(p, closest, clearance) -> np.ndarray:
     """Unit vectors (n, 2) pointing from the obstacle out to each point (zero if undefined)."""
-    out = np.zeros_like(p)
+    out = np.zeros((len(p), 2))
     for i in range(len(p)):
         sign = -1.0 if clearance[i] < 0 else 1.0
         ox, oy = sign * (p[i, 0] - closest[i, 0]), sign * (p[i, 1] - closest[i, 1])
@@ -637,7 +636,7 @@ def _outward(p, closest, clearance) -> np.ndarray:
 
 @compiled_helper
 def _cap_speed(v, max_speed: float) -> np.ndarray:
-    out = np.empty_like(v)
+    out = np.empty((len(v), 2))
     for i in range(len(v)):
         scale = min(1.0, max_speed / max(math.sqrt(v[i, 0] ** 2 + v[i, 1] ** 2), 1e-12))
         out[i, 0], out[i, 1] = v[i, 0] * scale, v[i, 1] * scale

@@ -14,6 +14,7 @@ from mrta_drake.navigation.standstills import (
     Anchor,
     back_off_spot,
     blocked_groups,
+    near_walls,
     next_anchor,
     yield_order,
 )
@@ -116,9 +117,12 @@ class DeadlockWatchdog(LeafSystem):
        ``standstill_time`` before the next order. A group with no spot for anyone is tried
        again at the next update. A stalled robot in no group but with people within
        ``block_gap`` of it backs off the same way, to a spot off their ways (a person
-       waiting for a robot to pass and the robot waiting for the person).
+       waiting for a robot to pass and the robot waiting for the person); one with nobody
+       near but nearer a wall than ``wall_clearance`` backs off to a spot clear of walls
+       (``_back_off_alone``).
     4. An order holds until ``yield_time`` after its robot reached its spot (within
-       ``progress_distance``), or after the order if it has not reached it by then: then
+       ``progress_distance``; an order without blockers ends there), or after the order
+       if it has not reached it by then: then
        it is a miss, and its robot counts as stalled since the order. Robots with fewer
        misses within ``retry_window`` are asked first (a stable sort of ``yield_order``),
        and a robot's spots keep ``progress_distance`` from those it missed, so a
@@ -195,7 +199,7 @@ class DeadlockWatchdog(LeafSystem):
         for k in np.flatnonzero(stalled):
             if k in grouped or self._robots[k] in backing:
                 continue
-            order = self._make_way_for_people(k, anchors[k], states, context, now, misses)
+            order = self._back_off_alone(k, anchors[k], states, context, now, misses)
             if order is not None:
                 active, history = active + (order,), history + (order,)
                 backing.add(order.robot)
@@ -223,7 +227,8 @@ class DeadlockWatchdog(LeafSystem):
             k = self._robots.index(order.robot)
             if (order.arrived is None and float(np.hypot(*(states[k, :2] - order.point)))
                     <= self._params.progress_distance):
-                order = replace(order, arrived=now, until=now + self._params.yield_time)
+                hold = self._params.yield_time if order.blockers else 0.0  # see _back_off_alone
+                order = replace(order, arrived=now, until=now + hold)
             if order.until > now + 1e-9:
                 kept.append(order)
             elif order.arrived is None:
@@ -268,26 +273,36 @@ class DeadlockWatchdog(LeafSystem):
         return np.array([xy] + [m.point for m in misses if m.robot == self._robots[k]],
                         dtype=float).reshape(-1, 2)
 
-    def _make_way_for_people(self, k, anchor, states, context, now, misses
-                             ) -> BackOff | None:
-        """The back-off of robot ``k``, stalled alone with people within ``block_gap`` of
-        it, to a spot off each such person's way (from the person on through where the
-        robot stands, ``search_reach`` long), or None: a person who waits for the robot
-        to pass and a robot that waits for the person would stand there for good."""
-        if not self._humans.HasValue(context):
-            return None
-        humans: HumanStates = self._humans.Eval(context)
+    def _back_off_alone(self, k, anchor, states, context, now, misses) -> BackOff | None:
+        """The back-off of robot ``k``, stalled with no robot within ``block_gap`` of it,
+        or None:
+
+        - with people within ``block_gap`` of it, to a spot off each such person's way
+          (from the person on through where the robot stands, ``search_reach`` long): a
+          person who waits for the robot to pass and a robot that waits for the person
+          would stand there for good;
+        - with nobody near but a wall nearer than ``wall_clearance`` to its centre, to the
+          nearest spot clear of walls (no blockers; the order ends when it gets there):
+          only the walls hold it, e.g. a robot pushed round a corner by a passing one to
+          within the controller's wall distance, whose path runs on past the corner, where
+          the controller will not drive it (triple_H, seed 0: 32 s); from the spot its
+          path is planned again. Farther from walls, nothing holds it, and a robot cut off
+          from messages stands by design: no order."""
+        humans: HumanStates = (self._humans.Eval(context) if self._humans.HasValue(context)
+                               else NO_HUMANS)
         people = np.asarray(humans.positions).reshape(-1, 2)
         radii = np.asarray(humans.radii).reshape(-1)
         xy = states[:, :2]
         with np.errstate(invalid="ignore"):  # people absent from the run are NaN
             near = np.flatnonzero(np.linalg.norm(people - xy[k], axis=-1) - radii
                                   - self._radii[k] <= self._params.block_gap)
-        broken = (self._disturbances.Eval(context).broken
-                  if self._disturbances.HasValue(context) else ())
-        if len(near) == 0 or k in broken:
-            return None
+        disturbances = (self._disturbances.Eval(context)
+                        if self._disturbances.HasValue(context) else NO_DISTURBANCES)
         p = self._params
+        if k in disturbances.broken or (len(near) == 0 and (
+                k in disturbances.cut_off  # it stands until messages return
+                or not near_walls(xy[k], self._costmap, p.wall_clearance))):
+            return None
         ways = [(_way_through(people[j], xy[k], p.search_reach), radii[j]) for j in near]
         spot = back_off_spot(k, xy, self._radii, ways, people, radii, self._costmap,
                              p.search_reach, p.spot_clearance, p.wall_clearance,

@@ -347,15 +347,31 @@ class Roadways:
         exit node) along the lanes, without lift rides, to the roadway node nearest ``xy``
         it leads to, then ``xy`` (a robot's start spot, m)."""
         start = self.place(from_location)
-        xy = np.asarray(xy, dtype=float)
+        reached = self._without_lifts(start.exit_node)
+        nearest = self._nearest(reached, xy)
+        return _without_repeats([start.point, *start.entry[::-1],
+                                 *(self.node_position(n) for n in reached[nearest]), xy])
+
+    def reaches_spot(self, from_location: int, xy) -> bool:
+        """Whether the roadway node nearest ``xy`` (m) is reached from ``from_location``'s
+        exit node along the lanes without lift rides: for a building's levels side by side,
+        whether ``xy`` is on the location's level."""
+        reached = self._without_lifts(self.place(from_location).exit_node)
+        return self._nearest(reached, xy) == self._nearest(self.graph.nodes, xy)
+
+    def _without_lifts(self, node: str) -> dict:
+        """The shortest paths (node lists) from ``node`` to every node it reaches along the
+        lanes without lift rides, by node."""
         graph = self.graph
         ground = nx.subgraph_view(graph, filter_edge=lambda a, b: not graph.edges[a, b].get(
             "lift", False))
-        reached = nx.single_source_dijkstra_path(ground, start.exit_node, weight="length")
-        nearest = min(reached, key=lambda n: (float(np.linalg.norm(self.node_position(n) - xy)),
-                                              str(n)))
-        return _without_repeats([start.point, *start.entry[::-1],
-                                 *(self.node_position(n) for n in reached[nearest]), xy])
+        return nx.single_source_dijkstra_path(ground, node, weight="length")
+
+    def _nearest(self, nodes, xy) -> str:
+        """Of ``nodes``, the one nearest ``xy`` (m; ties by name)."""
+        xy = np.asarray(xy, dtype=float)
+        return min(nodes, key=lambda n: (float(np.linalg.norm(self.node_position(n) - xy)),
+                                         str(n)))
 
     def route_from_point(self, xy, to_location: int) -> np.ndarray | None:
         """The polyline (k, 2) from the roadway node nearest ``xy`` that leads to

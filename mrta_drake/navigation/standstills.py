@@ -145,6 +145,17 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
     return None
 
 
+def near_walls(xy, costmap: Costmap, wall_clearance: float) -> bool:
+    """Whether a centre at ``xy`` is nearer than ``wall_clearance`` to a wall, as
+    ``back_off_spot`` judges a spot (not ``FREE`` on ``costmap`` within the grid steps of
+    ``SEARCH_STEP`` beyond its inflation radius)."""
+    steps = math.ceil((wall_clearance - costmap.params.inflation_radius) / SEARCH_STEP - 1e-9)
+    offsets = np.arange(-steps - 1, steps + 2) * SEARCH_STEP
+    points = np.asarray(xy, dtype=float) + np.stack(
+        np.meshgrid(offsets, offsets, indexing="ij"), axis=-1)
+    return not _eroded(costmap.cost_at(points) == FREE, steps)[steps + 1, steps + 1]
+
+
 def _eroded(mask: np.ndarray, steps: int) -> np.ndarray:
     """``mask`` where every point within ``steps`` 4-connected moves is set too (the
     border counts as unset)."""

@@ -290,10 +290,13 @@ class WaypointPolicy:
     is never redone. Without stops the robot parks (unless ``parking`` is off): at a location
     with parking spots it drives to the first one no other robot is within
     ``parking_clearance`` of (park), off the point; at a location without any (a dead end
-    of an imported building, where an idle robot would box in the next one), it drives back
-    along the lanes to ``home``, its start spot (world frame, m; home: asking for
-    single-file segments on the way as when driving), and waits there; elsewhere, or with
-    no home (it started on a location), the target is inactive and it stands still.
+    of an imported building, where an idle robot would box in the next one), or where
+    every one is taken and it has a home (idle robots would pile up round the point), it
+    drives back along the lanes to ``home``, its start spot (world frame, m; home: asking for
+    single-file segments on the way as when driving), and waits there; where that is on
+    another level or another robot stands on it, to the nearest free one of ``spots`` (the
+    other robots' start spots) on its level (``_home_spot``); elsewhere, or with no such
+    spot (it started on a location), the target is inactive and it stands still.
     A parked robot given a stop starts it as if standing on the location's point.
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
@@ -325,9 +328,11 @@ class WaypointPolicy:
         start_location: int | None = None,
         params: WaypointParams = WaypointParams(),
         home: tuple[float, float] | None = None,
+        spots: Sequence[tuple[float, float]] = (),
     ):
         self._robot = robot_names[index]
         self._home = home
+        self._spots = tuple(spot for spot in spots if spot != home)
         self._index = index
         self._roadways = roadways
         self._params = params
@@ -433,11 +438,12 @@ class WaypointPolicy:
                     or _distance(robots.xy, place.point) > self._params.reach_tolerance):
                 return _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0,
                                 since=None)
-            if not len(place.parking):
-                return self._go_home(s, place, lanes)
             others = np.delete(robots.states[:, :2], self._index, axis=0)
+            spot = self._free_parking(place, others)
+            if spot is None and (self._home is not None or not len(place.parking)):
+                return self._go_home(s, place, lanes, others)
             return replace(s, phase=RobotMode.PARK, stop=None, route=(), since=None,
-                           index=self._free_parking(place, others))
+                           index=len(place.parking) - 1 if spot is None else spot)
         xy = robots.xy
         if s.stop is None:
             return self._start(s, stop, xy, lanes, t)
@@ -461,15 +467,35 @@ class WaypointPolicy:
                 return _points_or_none(roadways.leg(old.id, stop.location))
         return self._drive_to(s, stop, route, lanes, t)
 
-    def _go_home(self, s: _Drive, place, lanes: Roadways) -> _Drive:
-        """With nothing to do at ``place``, which has no parking spot: back along the lanes
-        to the start spot (home), unless there is none (a robot that started on a
-        location) or it is by the point; else stand (idle)."""
-        if self._home is None or _distance(self._home, place.point) <= \
-                self._params.reach_tolerance:
+    def _go_home(self, s: _Drive, place, lanes: Roadways, others: np.ndarray) -> _Drive:
+        """With nothing to do at ``place`` and no parking spot free there: back along the
+        lanes to the start spot (``_home_spot``), unless there is none or it is by the
+        point; else stand (idle)."""
+        home = self._home_spot(place, lanes, others)
+        if home is None or _distance(home, place.point) <= self._params.reach_tolerance:
             return _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0, since=None)
-        route = _points(lanes.leg_to_spot(place.id, self._home))
+        route = _points(lanes.leg_to_spot(place.id, home))
         return replace(s, phase=RobotMode.HOME, stop=None, route=route, index=0, since=None)
+
+    def _home_spot(self, place, lanes: Roadways, others: np.ndarray
+                   ) -> tuple[float, float] | None:
+        """Where a robot with nothing to do at ``place`` waits: its own start spot (home)
+        where the lanes lead there without a lift ride and no other robot (``others``,
+        (N - 1, 2)) stands within ``parking_clearance`` of it; else, the nearest such of
+        the other robots' start spots (``spots``); else its home if the lanes lead there;
+        else None. A robot that rode a lift away from home (a building's levels) would
+        otherwise drive for a home on another level and stand at the lift (the two-floor
+        clinic, 10 robots, seed 0: robot7 from 200 s to the end, in robot2's way)."""
+        def free(spot) -> bool:
+            return not len(others) or float(np.min(np.linalg.norm(
+                others - np.asarray(spot), axis=1))) > self._params.parking_clearance
+
+        own = [] if self._home is None else [self._home]
+        here = [spot for spot in own + sorted(
+            self._spots, key=lambda spot: _distance(spot, place.point))
+            if lanes.reaches_spot(place.id, spot)]
+        return next((spot for spot in here if free(spot)),
+                    own[0] if own and own[0] in here else None)
 
     def _drive_to(self, s: _Drive, stop: Stop, route, lanes: Roadways, t: float) -> _Drive:
         """Drive to ``stop`` along ``route(lanes)`` (a function of the roadways: waypoints,
@@ -503,14 +529,14 @@ class WaypointPolicy:
                        route=route or (), index=0,
                        detours=s.detours + (Detour(t, changed, route is not None),))
 
-    def _free_parking(self, place, others: np.ndarray) -> int:
-        """Index of the first of ``place``'s parking spots with no other robot near it (the
-        last spot if all are taken)."""
+    def _free_parking(self, place, others: np.ndarray) -> int | None:
+        """Index of the first of ``place``'s parking spots with no other robot near it
+        (None if all are taken, or it has none)."""
         for k, spot in enumerate(place.parking):
             if not len(others) or np.min(np.linalg.norm(others - spot, axis=1)) > \
                     self._params.parking_clearance:
                 return k
-        return len(place.parking) - 1
+        return None
 
     def _start(self, s: _Drive, stop: Stop, xy, lanes: Roadways, t: float) -> _Drive:
         """Begin ``stop`` from standing (at the start, or after finishing a stop)."""

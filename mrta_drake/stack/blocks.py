@@ -94,6 +94,12 @@ class BuildContext:
         return (float(x), float(y))
 
     @property
+    def homes(self) -> tuple[tuple[float, float], ...]:
+        """Every robot's start spot that is not on a location (``home``), in robot order."""
+        return tuple(home for home in map(self.home, range(len(self.scenario.robots)))
+                     if home is not None)
+
+    @property
     def obstacles(self):
         return self.floor_plan.obstacles
 
@@ -304,7 +310,8 @@ def _roadway_waypoints() -> BlockType:
     def make(ctx: BuildContext, params: WaypointParams):
         params = _waypoint_params(ctx, params)
         return FleetWaypoints([
-            WaypointPolicy(ctx.robot_names, k, ctx.roadways, location, params, ctx.home(k))
+            WaypointPolicy(ctx.robot_names, k, ctx.roadways, location, params, ctx.home(k),
+                           ctx.homes)
             for k, location in enumerate(ctx.start_locations)], rate_hz=ctx.rates.waypoints)
 
     return BlockType(WaypointParams, make)
@@ -316,7 +323,7 @@ def _roadway_per_robot_waypoints() -> BlockType:
     def make(ctx: BuildContext, params: WaypointParams, index: int):
         return WaypointGenerator(ctx.robot_names, index, ctx.roadways,
                                  ctx.start_locations[index], _waypoint_params(ctx, params),
-                                 ctx.home(index), rate_hz=ctx.rates.waypoints)
+                                 ctx.home(index), ctx.homes, rate_hz=ctx.rates.waypoints)
 
     return BlockType(WaypointParams, make, per_robot=True)
 

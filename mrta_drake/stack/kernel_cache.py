@@ -4,20 +4,20 @@ in two processes at once when it does not.
 The first run after installing (or with an empty ``NUMBA_CACHE_DIR``, or after a kernel's source
 changed) compiles the kernels, which takes tens of seconds once; later runs load them from the
 cache in well under a second. The entry kernels of the quickstart's stack (those Python calls;
-they compile the helpers they call), their argument types and the CPU s each took to compile
-are listed in ``kernel_signatures.json``, in the order the quickstart first calls them,
+they compile the helpers they call), their argument types, the CPU s each took to compile and
+the compiled functions each calls (directly or not) are listed in ``kernel_signatures.json``,
+in the order the quickstart first calls them,
 written by ``python -m mrta_drake.stack.kernel_cache record`` (run it again when a kernel's
 argument types change: ``tests/stack/test_kernel_cache.py`` says when).
 
 ``cold_kernel_seconds`` reads the cache index of each entry kernel (one small file read each,
 nothing compiled) and estimates how long compiling the missing ones will take, so that the
 CLI can say so before the run starts. ``Compilation`` starts a second process
-that compiles the later half of the missing kernels (by compile time) into the shared cache
-while this one loads the scenario and builds the diagram (compiling what that calls) and
-then compiles the rest of the earlier half (``compile_kernels``); the run then loads
-everything from the cache. Numba writes each cache entry whole, and a kernel
-compiled twice (a helper both halves call) is the same machine code, so nothing depends on
-which process compiled what.
+that compiles part of the missing kernels (``split``) into the shared cache while this one
+loads the scenario and builds the diagram (compiling what that calls) and then compiles the
+rest of its part (``compile_kernels``); the run then loads everything from the cache. Numba
+writes each cache entry whole, and a function compiled twice (one of numba's own both parts
+call) is the same machine code, so nothing depends on which process compiled what.
 """
 
 import dataclasses
@@ -32,21 +32,34 @@ import sys
 MANIFEST = pathlib.Path(__file__).with_name("kernel_signatures.json")
 QUICKSTART = ("scenarios/hospital_6_robots.yaml", "--duration", "60")
 # CPU s the second process spends besides compiling its kernels (starting Python, importing
-# numba and the kernels' modules, compiling numba's own helpers and the shared ones again):
-# its CPU time less its kernels' in the quickstart, on the benchmark host (docs/benchmarks.md).
-CHILD_START_S = 3.0
+# numba and the kernels' modules, compiling numba's own helpers again): its CPU time less its
+# kernels' in the quickstart, on the benchmark host (docs/benchmarks.md, "The first run").
+CHILD_START_S = 2.1
+# CPU s this process spends, once the second has started, on work other than compiling before
+# the run (loading the scenario, building the diagram): its CPU time from starting the second
+# process to the end of ``Compilation.finish`` less its kernels', measured alike.
+PARENT_AHEAD_S = 1.5
 
 
 @dataclasses.dataclass(frozen=True)
 class EntryKernel:
     """An entry kernel: ``module``'s ``njit(cache=True)`` function ``name``, the argument
-    types it is called with (numba's spelling of each signature) and the CPU s compiling it
-    (with every helper it compiled first) took on the benchmark host."""
+    types it is called with (numba's spelling of each signature), the CPU s compiling it
+    (with every helper it compiled first) took on the benchmark host, the compiled
+    functions (``module.name``) it calls, directly or through others, and whether loading
+    the scenario or building the diagram calls it (``building``: before the run)."""
 
     module: str
     name: str
     cpu_s: float
     signatures: tuple[str, ...]
+    helpers: tuple[str, ...] = ()
+    building: bool = False
+
+    @property
+    def functions(self) -> frozenset[str]:
+        """The compiled functions compiling this kernel compiles: its own and its helpers."""
+        return frozenset((f"{self.module}.{self.name}", *self.helpers))
 
     @property
     def dispatcher(self):
@@ -55,8 +68,8 @@ class EntryKernel:
 
 def _read_manifest(path: pathlib.Path) -> tuple[EntryKernel, ...]:
     kernels = json.loads(path.read_text(encoding="utf-8"))["kernels"]
-    return tuple(EntryKernel(k["module"], k["name"], k["cpu_s"], tuple(k["signatures"]))
-                 for k in kernels)
+    return tuple(EntryKernel(k["module"], k["name"], k["cpu_s"], tuple(k["signatures"]),
+                             tuple(k["helpers"]), k["building"]) for k in kernels)
 
 
 ENTRY_KERNELS = _read_manifest(MANIFEST)
@@ -80,20 +93,38 @@ def missing_kernels() -> tuple[EntryKernel, ...]:
     return tuple(k for k in ENTRY_KERNELS if not is_cached(k.dispatcher))
 
 
+def groups(kernels: tuple[EntryKernel, ...]) -> list[list[EntryKernel]]:
+    """``kernels`` in groups that share no compiled function (each process compiles the
+    helpers its kernels call for itself, so kernels sharing one stay together), in the order
+    of each group's first kernel."""
+    found: list[tuple[frozenset[str], list[EntryKernel]]] = []
+    for kernel in kernels:
+        functions, members = kernel.functions, [kernel]
+        for group in [g for g in found if g[0] & functions]:
+            found.remove(group)
+            functions, members = functions | group[0], group[1] + members
+        found.append((functions, members))
+    order = {kernel: i for i, kernel in enumerate(kernels)}
+    return sorted((sorted(g[1], key=order.__getitem__) for g in found),
+                  key=lambda g: order[g[0]])
+
+
 def split(kernels: tuple[EntryKernel, ...]) -> tuple[tuple[EntryKernel, ...],
                                                      tuple[EntryKernel, ...]]:
-    """``kernels`` in two halves of about equal compile time: the one compiled here and the
-    one for a second process. Kernels of one package (``mrta_drake.control``, ...) share
-    helpers, which each process compiles for itself, so a package's kernels stay together;
-    the package of the first kernel (the first the run calls, as the scenario loads) stays
-    here, the others go, largest first, to the half with less so far."""
-    packages: dict[str, list[EntryKernel]] = {}
-    for kernel in kernels:
-        packages.setdefault(kernel.module.rpartition(".")[0], []).append(kernel)
-    groups = list(packages.values())
-    halves = ([*groups[0]], []) if groups else ([], [])
-    for group in sorted(groups[1:], key=lambda g: -sum(k.cpu_s for k in g)):
-        min(halves, key=lambda h: sum(k.cpu_s for k in h)).extend(group)
+    """``kernels`` in two parts that finish about together: the one compiled here and the
+    one for a second process. The groups (``groups``) of the first kernel and of those
+    loading the scenario or building the diagram calls (this process calls them before the
+    second could have compiled them) stay here; the others go, largest first, to the part
+    that would finish first so far, this process starting ``PARENT_AHEAD_S`` behind with its
+    other work, the second ``CHILD_START_S`` behind with its start-up."""
+    found = groups(kernels)
+    pinned = [g for i, g in enumerate(found) if i == 0 or any(k.building for k in g)]
+    halves = ([k for g in pinned for k in g], [])
+    ahead = (PARENT_AHEAD_S, CHILD_START_S)
+    for group in sorted((g for g in found if g not in pinned),
+                        key=lambda g: -sum(k.cpu_s for k in g)):
+        side = min((0, 1), key=lambda h: ahead[h] + sum(k.cpu_s for k in halves[h]))
+        halves[side].extend(group)
     order = {kernel: i for i, kernel in enumerate(kernels)}
     here, there = (tuple(sorted(h, key=order.__getitem__)) for h in halves)
     return here, there
@@ -153,14 +184,15 @@ class Compilation:
 
     @staticmethod
     def estimate(kernels: tuple[EntryKernel, ...]) -> float:
-        """Estimated wall s of compiling ``kernels``: the sum of their CPU s in one process;
-        with two, the larger half's, the second's with ``CHILD_START_S`` more (0.0 for
-        none)."""
+        """Estimated wall s compiling ``kernels`` adds to the run: the sum of their CPU s in
+        one process; with two, the CPU s of this process's part, or of the second's with
+        its start-up (``CHILD_START_S``) less this process's other work meanwhile
+        (``PARENT_AHEAD_S``) when that ends later (0.0 for none)."""
         if processes() == 1 or not kernels:
             return sum(k.cpu_s for k in kernels)
         here, there = split(kernels)
-        return max(sum(k.cpu_s for k in here),
-                   sum(k.cpu_s for k in there) + (CHILD_START_S if there else 0.0))
+        return max(sum(k.cpu_s for k in here), sum(k.cpu_s for k in there) + CHILD_START_S
+                   - PARENT_AHEAD_S if there else 0.0)
 
     def finish(self) -> None:
         """Compiles this process's half and waits for the child's."""
@@ -176,37 +208,59 @@ class Compilation:
 
 
 def _record(out: pathlib.Path) -> None:
-    """Runs the quickstart here with numba's cache in an empty folder and writes the entry
-    kernels it compiled (in order, with their signatures and compile CPU s) to ``out``."""
+    """Runs the quickstart's simulation here (one process) with numba's cache in an empty
+    folder and writes the entry kernels it compiled (in order, with their signatures, compile
+    CPU s, the compiled functions each calls and whether it was called before the run) to
+    ``out``."""
     import tempfile
     import time
 
-    with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as results:
+    with tempfile.TemporaryDirectory() as cache:
         os.environ["NUMBA_CACHE_DIR"] = cache
         from numba.core import event
 
-        from mrta_drake.tools import cli
+        from mrta_drake.scenario.loading import load_scenario
+        from mrta_drake.stack.simulate import simulate
 
-        entries, open_ = {}, []
+        entries, open_, compiled, begun, building = {}, [], set(), set(), set()
 
         class Listener(event.Listener):
             def on_start(self, ev):
+                if not open_:  # an entry kernel (numba compiles one function at a time)
+                    function = ev.data["dispatcher"].py_func
+                    begun.add((function.__module__, function.__name__))
                 open_.append(time.process_time())
 
             def on_end(self, ev):
                 seconds = time.process_time() - open_.pop()
                 function = ev.data["dispatcher"].py_func
-                if not open_ and function.__module__.startswith("mrta_drake."):
-                    key = (function.__module__, function.__name__)
-                    entries[key] = entries.get(key, 0.0) + seconds
+                if function.__module__.startswith("mrta_drake."):
+                    compiled.add(ev.data["dispatcher"])
+                    if not open_:
+                        key = (function.__module__, function.__name__)
+                        entries[key] = entries.get(key, 0.0) + seconds
 
         event.register("numba:compile", Listener())
-        cli.main(["run", *QUICKSTART, "--out", results, "--no-plots"])
+        scenario = pathlib.Path(__file__).resolve().parents[2] / QUICKSTART[0]
+        simulate(load_scenario(str(scenario)), duration=float(QUICKSTART[2]), plots=False,
+                 before_run=lambda: building.update(begun))
+    names = {id(result.library): f"{d.py_func.__module__}.{d.py_func.__name__}"
+             for d in compiled for result in d.overloads.values()}
     kernels = []
     for (module, name), seconds in entries.items():
         dispatcher = getattr(importlib.import_module(module), name)
+        libraries = [result.library for result in dispatcher.overloads.values()]
+        helpers, seen = set(), set()
+        while libraries:  # every library linked into the kernel's, directly or not
+            library = libraries.pop()
+            if id(library) not in seen:
+                seen.add(id(library))
+                helpers.add(names.get(id(library)))
+                libraries.extend(library._linking_libraries)  # numba's, as ``_cache`` above
+        helpers -= {None, f"{module}.{name}"}
         kernels.append({"module": module, "name": name, "cpu_s": round(seconds, 2),
-                        "signatures": [str(s) for s in dispatcher.signatures]})
+                        "signatures": [str(s) for s in dispatcher.signatures],
+                        "helpers": sorted(helpers), "building": (module, name) in building})
     out.write_text(json.dumps({"command": "python -m mrta_drake.stack.kernel_cache record",
                                "run": "mrta-sim run " + " ".join(QUICKSTART),
                                "kernels": kernels}, indent=1) + "\n", encoding="utf-8")

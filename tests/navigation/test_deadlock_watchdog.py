@@ -27,6 +27,7 @@ from mrta_drake.payloads import (
     Breakdown,
     Disturbances,
     HumanStates,
+    Outage,
     WaypointTarget,
     frozen_array,
 )
@@ -199,10 +200,18 @@ def _orders_for_robots_that_never_move(duration: float, states=(4.7, 0.0, 0.0, 0
     """The watchdog's orders for two robots in an open room that never move (whatever they
     are told), by default nose to nose, each with its goal behind the other (a goal None:
     no active target); ``people``: ``HumanStates`` standing there."""
+    watchdog, context, simulator = _standing_robots(states, goals, people)
+    simulator.AdvanceTo(duration)
+    return watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
+
+
+def _standing_robots(states, goals, people=None):
+    """The watchdog of ``_orders_for_robots_that_never_move``, its context (robot states
+    fixed) and a simulator of it, at 0 s."""
     obstacles = Obstacles((Box("south", (5.0, -4.1), (10.0, 0.2)),
                            Box("north", (5.0, 4.1), (10.0, 0.2))))
     watchdog = DeadlockWatchdog(NAMES, [RADIUS, RADIUS],
-                                Costmap.from_obstacles(obstacles, (0.0, 10.0, -4.0, 4.0)),
+                                Costmap.from_obstacles(obstacles, (0.0, 10.0, -4.5, 4.5)),
                                 rate_hz=2.0)
     context = watchdog.CreateDefaultContext()
     watchdog.GetInputPort("robot_state").FixValue(context, np.array(states))
@@ -211,9 +220,7 @@ def _orders_for_robots_that_never_move(duration: float, states=(4.7, 0.0, 0.0, 0
             context, WaypointTarget(name, goal is not None, goal, None, True))
     if people is not None:
         watchdog.GetInputPort("human_states").FixValue(context, people)
-    simulator = Simulator(watchdog, context)
-    simulator.AdvanceTo(duration)
-    return watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
+    return watchdog, context, Simulator(watchdog, context)
 
 
 def test_a_missed_order_is_not_given_again():
@@ -264,3 +271,40 @@ def test_a_robot_is_never_sent_to_where_it_stands():
         goals=((8.0, 0.0), None))
     assert history[0].robot == "r1"
     assert math.dist(history[0].point, (4.45, 0.55)) > WatchdogParams().progress_distance
+
+
+@pytest.mark.parametrize("y, cut_off, ordered", [(-3.45, False, True), (-2.0, False, False),
+                                                 (-3.45, True, False)])
+def test_a_robot_stalled_alone_by_a_wall_backs_off_clear_of_it(y, cut_off, ordered):
+    # r0 heads east along the south wall (face at y = -4) and stands, nobody near; r1 is
+    # far off and idle. 0.55 m from the wall (inside the controller's wall distance, as a
+    # robot pushed round a corner) only the wall holds it: it is sent clear of walls. 2 m
+    # from it nothing does: no order; nor for a robot cut off from messages (it stands
+    # until they return).
+    states = (5.0, y, 0.0, 0.0, 1.0, 3.0, 0.0, 0.0)
+    watchdog, context, simulator = _standing_robots(states, ((8.0, y), None))
+    if cut_off:
+        outage = Outage(0, 0.0, math.inf, np.array(states, dtype=float).reshape(2, 4))
+        watchdog.GetInputPort("disturbances").FixValue(context, Disturbances(outages=(outage,)))
+    simulator.AdvanceTo(20.0)
+    history = watchdog.GetOutputPort("back_offs").Eval(context).history
+    if not ordered:
+        assert history == ()
+        return
+    assert [(order.robot, order.blockers) for order in history] == [("r0", ())]
+    assert history[0].point[1] + 4.0 >= WatchdogParams().wall_clearance
+    assert math.dist(history[0].point, (5.0, y)) > WatchdogParams().progress_distance
+
+
+def test_an_order_without_blockers_ends_when_its_robot_gets_there():
+    # r0 stalled alone by the wall (as above) reaches its spot: it drives on at once, where
+    # a robot making way for others stands yield_time there.
+    watchdog, context, simulator = _standing_robots((5.0, -3.45, 0.0, 0.0, 1.0, 3.0, 0.0, 0.0),
+                                                    ((8.0, -3.45), None))
+    simulator.AdvanceTo(16.0)
+    order = watchdog.GetOutputPort("back_offs").Eval(context).active[0]
+    watchdog.GetInputPort("robot_state").FixValue(
+        context, np.array([*order.point, 0.0, 0.0, 1.0, 3.0, 0.0, 0.0]))
+    simulator.AdvanceTo(17.0)
+    orders = watchdog.GetOutputPort("back_offs").Eval(context)
+    assert orders.active == () and len(orders.history) == 1

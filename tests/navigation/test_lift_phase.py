@@ -64,13 +64,16 @@ class RelocatedRobots(FakeRobots):
 class LiftWorld(World):
     """World's set-up with the two-level roadways and a lift bank."""
 
-    def __init__(self, starts, plan_source, cabin_size=0.0):
+    def __init__(self, starts, plan_source, cabin_size=0.0, homes=None):
+        """``homes``: start spots (x, y) off the locations instead, one per robot (each
+        robot's home; all of them its spots)."""
         self.roadways = roadways = two_level_world()
         self.robots = [f"r{i}" for i in range(len(starts))]
         builder = DiagramBuilder()
         plan = builder.AddSystem(plan_source)
         queues = builder.AddSystem(RoomQueues(self.robots, roadways.location_ids, rate_hz=10.0))
-        fake = builder.AddSystem(RelocatedRobots([roadways.place(s).point for s in starts]))
+        fake = builder.AddSystem(RelocatedRobots(homes or [roadways.place(s).point
+                                                           for s in starts]))
         lift = LiftSpec("lift", (LiftStop("L1", CABIN, 0.0, "L1/cab"),
                                  LiftStop("L2", (CABIN[0] + SHIFT, CABIN[1]), 4.0, "L2/cab")),
                         "L1", cabin_size, cabin_size)
@@ -81,7 +84,8 @@ class LiftWorld(World):
         self.generators = []
         for i, (robot, start) in enumerate(zip(self.robots, starts, strict=True)):
             generator = builder.AddSystem(WaypointGenerator(
-                self.robots, i, roadways, start, WaypointParams(), rate_hz=10.0))
+                self.robots, i, roadways, start, WaypointParams(),
+                None if homes is None else homes[i], homes or (), rate_hz=10.0))
             for source, out, sink, into in (
                     (plan, "plan", generator, "plan"),
                     (fake, "state", generator, "robot_state"),
@@ -133,3 +137,18 @@ def test_two_robots_with_the_same_trip_ride_one_cabin_together():
     assert len(arrivals) == 2 and arrivals[0][2] == arrivals[1][2]  # one ride
     _, _, positions, _ = world.log[-1]
     assert (positions[:, 0] > SHIFT - 10.0).all()
+
+
+def test_a_robot_idle_on_another_level_than_its_home_waits_at_a_start_spot_there():
+    # r0 starts at its home on L1 and serves B on L2; r1 starts at its home on L2 and
+    # serves A on L1. Neither location has a parking spot: each then waits at the other's
+    # start spot, free and on its own level, not driving for its home across the levels
+    # (on a building, a robot would stand at the lift for good, in the others' way).
+    homes = [(20.0, 0.0), (20.0 + SHIFT, 0.0)]
+    world = LiftWorld([None, None], fixed([1], [0]), cabin_size=2.5, homes=homes)
+    world.run(until=200)
+    assert [v.location for v in world.progress(0).visits] == [1]
+    assert [v.location for v in world.progress(1).visits] == [0]
+    _, _, positions, targets = world.log[-1]
+    np.testing.assert_allclose(positions, homes[::-1], atol=0.05)
+    assert all(t.active and t.current in map(tuple, homes) for t in targets)

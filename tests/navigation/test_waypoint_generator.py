@@ -322,6 +322,25 @@ def test_a_robot_done_at_a_room_without_parking_drives_back_to_its_start_spot():
     assert stays.distance(positions, 0, B) < 1.0 and not targets[0].active
 
 
+def test_a_robot_done_at_a_room_whose_parking_spots_are_taken_drives_home():
+    # Three robots serve B, which has two parking spots: the first two park there, the
+    # third finds both taken and drives back home (before, it stood beside the point: on
+    # battle_royale, seed 2, four robots so piled in goal_A's corner for 30-37 s).
+    homes = [(10.0, 0.0), (20.0, 0.0), (0.0, 0.0)]
+    world = World([None] * 3, fixed([B], [B], [B]), start_known=False, parking=True,
+                  homes=homes)
+    world.run(until=150.0)
+    assert all([v.location for v in world.progress(i).visits] == [B] for i in range(3))
+    _, final, positions, _ = world.log[-1]
+    spots = world.roadways.place(B).parking
+    parked = [min(np.linalg.norm(np.subtract(p, spot)) for spot in spots) < 1e-6
+              for p in positions]
+    at_home = [np.linalg.norm(np.subtract(p, home)) < 0.05
+               for p, home in zip(positions, homes, strict=True)]
+    assert sum(parked) == 2 and sum(at_home) == 1 and not any(np.logical_and(parked, at_home))
+    assert final.room(B).holder is None
+
+
 def fleet(*routes) -> FleetPlan:
     """Robot ``r<i>`` gets the stops ``routes[i]`` ((key, location) pairs)."""
     return FleetPlan(tuple(RobotPlan(f"r{i}", tuple(Stop(k, loc) for k, loc in stops))

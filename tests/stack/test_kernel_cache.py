@@ -41,9 +41,8 @@ def fresh_kernels(tmp_path, monkeypatch):
 def test_a_kernel_is_cached_once_compiled(fresh_kernels):
     first, second = fresh_kernels
     assert not kernel_cache.is_cached(first.twice)
-    two = 4.0 + kernel_cache.CHILD_START_S  # the second's half and its start-up
-    assert kernel_cache.cold_kernel_seconds() == (two if kernel_cache.processes() == 2
-                                                  else 9.0)
+    assert kernel_cache.cold_kernel_seconds() == (_two_processes(5.0, 4.0)
+                                                  if kernel_cache.processes() == 2 else 9.0)
     assert first.twice(2) == 4
     assert kernel_cache.is_cached(first.twice)
     assert kernel_cache.missing_kernels() == kernel_cache.ENTRY_KERNELS[1:]
@@ -52,19 +51,35 @@ def test_a_kernel_is_cached_once_compiled(fresh_kernels):
     assert kernel_cache.cold_kernel_seconds() == 0.0
 
 
-def test_the_halves_keep_a_package_together_and_the_first_kernel_here():
+def _two_processes(here: float, there: float) -> float:
+    """The estimate for kernels of ``here`` and ``there`` CPU s compiled in two processes."""
+    return max(here, there + kernel_cache.CHILD_START_S - kernel_cache.PARENT_AHEAD_S)
+
+
+def test_the_halves_share_no_compiled_function_and_keep_the_first_kernel_here():
     here, there = kernel_cache.split(kernel_cache.ENTRY_KERNELS)
     assert here[0] == kernel_cache.ENTRY_KERNELS[0]
     assert sorted(here + there, key=kernel_cache.ENTRY_KERNELS.index) == list(
         kernel_cache.ENTRY_KERNELS)
-    packages = [{k.module.rpartition(".")[0] for k in half} for half in (here, there)]
-    assert not packages[0] & packages[1]
+    functions = [frozenset().union(*(k.functions for k in half)) for half in (here, there)]
+    assert not functions[0] & functions[1]
+    assert there  # the quickstart's kernels do not all share one helper
+
+
+def test_kernels_sharing_a_helper_stay_together():
+    first, shares, alone = (EntryKernel("m", name, seconds, (), helpers) for name, seconds,
+                            helpers in (("a", 1.0, ("m.h",)), ("b", 9.0, ("m.h",)),
+                                        ("c", 5.0, ())))
+    assert kernel_cache.groups((first, alone, shares)) == [[first, shares], [alone]]
+    assert kernel_cache.split((first, alone, shares)) == ((first, shares), (alone,))
+    builds = EntryKernel("m", "d", 20.0, (), (), building=True)  # called before the run
+    assert kernel_cache.split((first, alone, builds)) == ((first, builds), (alone,))
 
 
 def test_the_cli_announces_a_cold_cache_and_compiles_in_two_processes(fresh_kernels, capsys):
     first, second = fresh_kernels
     compilation = cli._start_compiling()
-    seconds = round(4.0 + kernel_cache.CHILD_START_S) if kernel_cache.processes() == 2 else 9
+    seconds = round(_two_processes(5.0, 4.0)) if kernel_cache.processes() == 2 else 9
     assert capsys.readouterr().err == f"compiling kernels, once, ~{seconds} s\n"
     compilation.finish()
     assert kernel_cache.is_cached(first.twice) and kernel_cache.is_cached(second.twice)

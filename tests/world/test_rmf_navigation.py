@@ -7,6 +7,7 @@ import pytest
 
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.roadways import Roadways
+from mrta_drake.navigation.single_file import SingleFileParams
 from mrta_drake.world.rmf_building import load_building
 from mrta_drake.world.rmf_navigation import (
     BuildingNavigationParams,
@@ -179,3 +180,27 @@ def test_navigation_params_check_themselves():
         BuildingNavigationParams(queue_slots=0)
     with pytest.raises(InputError, match="head_gap: must be > 0 m"):
         BuildingNavigationParams(head_gap=-1.0)
+
+
+def test_a_room_behind_a_single_file_door_queues_beyond_the_door():
+    # The two-floor clinic's rooms: a 1.6 m door (a single-file lane) into a room with
+    # two-way lanes and an unnamed holding point before the task point. A robot waiting at
+    # the holding point would stand at the door, in the way out of the robot serving there
+    # (and hold the door's segment): the queue waits in the corridor beyond the door, the
+    # door and the room's lanes are the entry, and no parking spot stays in the room.
+    building = load_building(Path(__file__).parents[2] / "models" / "two_floor_clinic"
+                             / "two_floor_clinic.building.yaml")
+    world = level_world(building, "L1", PARAMS.graph)
+    navigation = level_navigation(building, "L1", world.floor_plan, PARAMS)
+    nodes = navigation.roadways.nodes
+    doors = [(np.array(nodes[s.nodes[0]]), np.array(nodes[s.nodes[-1]]))
+             for s in navigation.single_file]
+    stand = SingleFileParams().stand_distance
+    for location in navigation.locations:  # every task location is in such a room
+        for slot in location.queue:
+            gaps = [np.linalg.norm(np.asarray(slot) - (a + np.clip(np.dot(
+                np.asarray(slot) - a, b - a) / np.dot(b - a, b - a), 0.0, 1.0) * (b - a)))
+                for a, b in doors]
+            assert min(gaps) > stand, (location.name, slot)
+        assert 5.5 < location.queue[0][1] < 8.5, location.name  # in the corridor
+        assert len(location.entry) >= 3 and location.parking == [], location.name
