@@ -7,7 +7,8 @@ The cases below, each run with every variant of the allocator's feedback switche
   ``scenarios/sweeps/hospital_20_seeds.yaml``, over 20 seeds the sweeps do not use
   (200-219); busy_check: the same on forty further seeds (220-259, ``--check-seeds``), to
   check a default chosen on the first twenty; busy_pooled: both together (printed and
-  stored when both ran);
+  stored when both ran, with each block of 20 seeds' on-time change); busy_unseen: twenty
+  more (260-279, ``--unseen-seeds``), run once a default is chosen, not pooled;
 - paper: ``scenarios/hospital_6_robots.yaml`` as it is (its 3+2 stream, the ten people),
   600 s;
 - six_plus_six: ``scenarios/hospital_6_plus_6.yaml`` (a 6+6 stream after the original's
@@ -27,6 +28,7 @@ each variant's change of on-time tasks and broken promises against the open loop
     python benchmarks/feedback.py --seeds 4 --variants "open loop" "learn only"
     python benchmarks/feedback.py --cases two_floor paper --variants "open loop"
     python benchmarks/feedback.py --cases busy_check --check-seeds 220 221 222
+    python benchmarks/feedback.py --cases busy_unseen --variants "open loop"
 
 Prints the tables and writes benchmarks/results/feedback.json, keeping the variants and
 cases an earlier invocation wrote there and this one did not run.
@@ -53,18 +55,27 @@ SINGLE_RUNS = {"paper": PAPER, "six_plus_six": ROOT / "scenarios" / "hospital_6_
                "two_floor": ROOT / "scenarios" / "two_floor_6_robots.yaml"}
 SEEDS = list(range(200, 220))
 CHECK_SEEDS = list(range(220, 260))
+UNSEEN_SEEDS = list(range(260, 280))
 PARAMS = "blocks.allocator.params."
 
 OFF = {"earliest_drop_offs": False, "write_off_lateness": None,  # the switches a variant
-       "replan_only_if_fewer_late": False, "travel_time_rounding": "up"}  # leaves unless set
+       "replan_only_if_fewer_late": False, "travel_time_rounding": "up",  # leaves unless set
+       "safety_slack": 0.0}
+# Switches added after runs were cached, at the value those runs had: left out of a run
+# directory's name at that value, so the cached runs stay valid.
+IMPLIED = {"safety_slack": 0.0}
 DRIFT_10 = OFF | {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": False,
                   "drift_margin": 10.0}  # an earlier default: allocate again on a 10 s drift
 LOOP = OFF | {"learn_travel_times": True, "replan_on_delay": True, "retime_on_drift": True,
               "drift_margin": 3.0}  # learn, re-plan when late, re-time on a 3 s drift
 EARLIEST = LOOP | {"earliest_drop_offs": True}
 PREVIOUS = EARLIEST | {"drift_margin": 1.0}  # the default before write-offs
+PREVIOUS_DEFAULT = ("previous default: loop, earliest drop-offs, write off 5 s late, re-plan "
+                    "only for fewer late, nearest-second travel times, no safety slack")
 DEFAULT = ("default: loop, earliest drop-offs, write off 5 s late, re-plan only for fewer "
-           "late, nearest-second travel times")
+           "late, nearest-second travel times, 10 s safety slack")
+BEFORE_SLACK = PREVIOUS | {"write_off_lateness": 5.0, "replan_only_if_fewer_late": True,
+                           "travel_time_rounding": "nearest"}
 VARIANTS = {  # name -> allocator params set (every switch the defaults could change)
     "open loop": OFF | {"learn_travel_times": False, "replan_on_delay": False},
     "learn only": OFF | {"learn_travel_times": True, "replan_on_delay": False},
@@ -82,8 +93,10 @@ VARIANTS = {  # name -> allocator params set (every switch the defaults could ch
     "previous default, write off 5 s late": PREVIOUS | {"write_off_lateness": 5.0},
     "previous default, write off 5 s late, re-plan only for fewer late": PREVIOUS | {
         "write_off_lateness": 5.0, "replan_only_if_fewer_late": True},
-    DEFAULT: PREVIOUS | {"write_off_lateness": 5.0, "replan_only_if_fewer_late": True,
-                         "travel_time_rounding": "nearest"},
+    PREVIOUS_DEFAULT: BEFORE_SLACK,
+    "previous default, write off 10 s late": BEFORE_SLACK | {"write_off_lateness": 10.0},
+    "previous default, smt objective lateness": BEFORE_SLACK | {"objective": "lateness"},
+    DEFAULT: BEFORE_SLACK | {"safety_slack": 10.0},
 }
 
 
@@ -91,7 +104,8 @@ def run_case(name: str, spec: SweepSpec, variant: dict, workers: int) -> list[di
     """The summaries of ``spec``'s runs with the allocator params ``variant``."""
     fixed = dict(spec.fixed) | {PARAMS + key: value for key, value in variant.items()}
     spec = SweepSpec(spec.scenario, spec.grid, fixed, spec.plugins, spec.source)
-    slug = "_".join(f"{key}={value}" for key, value in sorted(variant.items()))
+    slug = "_".join(f"{key}={value}" for key, value in sorted(variant.items())
+                    if key not in IMPLIED or IMPLIED[key] != value)
     out = RUNS / name / slug
     result = run_sweep(spec, str(out), workers=workers)
     summaries = []
@@ -112,6 +126,7 @@ def figures(summaries: list[dict]) -> dict:
     return {
         "runs": len(summaries),
         "seeds": [s["seed"] for s in summaries],
+        "on_time_per_run": [s["tasks"]["on_time"] for s in summaries],
         "completed": sum(s["tasks"]["completed"] for s in summaries),
         "on_time": sum(s["tasks"]["on_time"] for s in summaries),
         "late": sum(s["tasks"]["late"] for s in summaries),
@@ -149,7 +164,21 @@ def report(output: dict, case: str, results: dict):
             gain = 100.0 * (f["on_time"] / base["on_time"] - 1.0)
             promises = (f"{100.0 * (f['broken_promises'] / base['broken_promises'] - 1.0):+.0f} %"
                         if base["broken_promises"] else "none in the open loop")
-            print(f"  {variant}: on time {gain:+.1f} %, broken promises {promises}")
+            print(f"  {variant}: on time {gain:+.1f} %, broken promises {promises}"
+                  + block_gains(base, f))
+
+
+def block_gains(base: dict, figures: dict, size: int = 20) -> str:
+    """The on-time change (%) of ``figures`` against ``base`` on each block of ``size``
+    consecutive seeds, when the case has more than one block (e.g. ``; 200-219 +9.2 %``)."""
+    if len(base["seeds"]) <= size or base["seeds"] != figures["seeds"]:
+        return ""
+    parts = []
+    for k in range(0, len(base["seeds"]), size):
+        seeds = base["seeds"][k:k + size]
+        was, now = (sum(f["on_time_per_run"][k:k + size]) for f in (base, figures))
+        parts.append(f"{seeds[0]}-{seeds[-1]} {100.0 * (now / was - 1.0):+.1f} %")
+    return "; " + ", ".join(parts)
 
 
 def main():
@@ -157,6 +186,8 @@ def main():
     parser.add_argument("--seeds", type=int, default=len(SEEDS), help="busy seeds to run")
     parser.add_argument("--check-seeds", type=int, nargs="*", default=CHECK_SEEDS,
                         help="the busy_check case's seeds (default 220-259)")
+    parser.add_argument("--unseen-seeds", type=int, nargs="*", default=UNSEEN_SEEDS,
+                        help="the busy_unseen case's seeds (default 260-279)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--variants", nargs="*", default=list(VARIANTS),
                         help="variant names (default: all)")
@@ -168,6 +199,8 @@ def main():
                           {k: v for k, v in busy.fixed.items()}, busy.plugins, busy.source),
         "busy_check": SweepSpec(busy.scenario, {"seed": args.check_seeds}, dict(busy.fixed),
                                 busy.plugins, busy.source),
+        "busy_unseen": SweepSpec(busy.scenario, {"seed": args.unseen_seeds}, dict(busy.fixed),
+                                 busy.plugins, busy.source),
     } | {name: SweepSpec(str(path), {"seed": [0]}, {}, [], str(path))
          for name, path in SINGLE_RUNS.items()}
     path = RESULTS / "feedback.json"

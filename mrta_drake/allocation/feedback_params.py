@@ -3,6 +3,7 @@ meets execution"), shared by every ``TaskAllocator`` block whatever allocator it
 
 import dataclasses
 import inspect
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,11 +42,15 @@ class FeedbackParams:
     earliest drop-offs), so that a task planned on time has as much room for delays as the
     search finds, whatever the allocator's own objective. With ``write_off_lateness`` (s,
     None: never) that search writes off a task planned more than that late: it goes after
-    the tasks that can still be on time instead of as early as it can (``Allocation.rank``).
+    the tasks that can still be on time instead of as early as it can (``Allocation.rank``);
+    with ``safety_slack`` (s, 0: none) it ranks, after the fewest late tasks and the least
+    tardiness, the least room short of that slack before the deadlines: among plans as late,
+    the one giving the tightest promises more room.
 
     ``learn_travel_times``, ``replan_on_delay``, ``retime_on_drift``,
     ``replan_only_if_fewer_late`` and ``earliest_drop_offs`` are on by default, with a write-off
-    after 5 s and legs rounded to the nearest second (measured better: docs/allocation.md);
+    after 5 s, legs rounded to the nearest second and a 10 s safety slack (measured better:
+    docs/allocation.md);
     ``learn_travel_times``, ``replan_on_delay`` and ``earliest_drop_offs`` false, with no
     margin, is the open loop (``OPEN_LOOP``): plans made only when batches arrive or robots
     break down, from the scenario's matrix, as the allocator answers them.
@@ -66,12 +71,13 @@ class FeedbackParams:
     replan_only_if_fewer_late: bool = True
     earliest_drop_offs: bool = True
     write_off_lateness: float | None = 5.0
+    safety_slack: float = 10.0
 
     def __post_init__(self):
         self.estimator()  # checks the estimator's fields
         self.travel_time_model(np.zeros((1, 1)))  # and the rounding
         require_non_negative(self, "prior_samples", "planning_margin", "drift_margin",
-                             "replan_interval")
+                             "replan_interval", "safety_slack")
         if self.write_off_lateness is not None:
             require_non_negative(self, "write_off_lateness")
         parent = getattr(super(), "__post_init__", None)
@@ -84,9 +90,8 @@ class FeedbackParams:
 
     def local_search(self) -> LocalSearchParams:
         """The local search of ``earliest_drop_offs``."""
-        if self.write_off_lateness is None:
-            return LocalSearchParams()
-        return LocalSearchParams(write_off=float(self.write_off_lateness))
+        write_off = math.inf if self.write_off_lateness is None else self.write_off_lateness
+        return LocalSearchParams(write_off=float(write_off), slack=float(self.safety_slack))
 
     def travel_time_model(self, prior) -> TravelTimeModel:
         """The model planning with the scenario's matrix ``prior`` (s)."""

@@ -1,9 +1,10 @@
 """Local search on routes: improves an allocation by moving tasks between and within robots.
 
 An allocation is ranked by ``Allocation.rank``: fewest late tasks, then least total
-tardiness (s), then least total drop-off time (s); with ``write_off`` a task planned more
-than that late counts only that much tardiness and its drop-off time ranks after the others'
-(it goes after the tasks that can still be on time). Three moves, tried in a fixed order until
+tardiness (s), then (with ``slack``) the least room short of ``slack`` before the deadlines,
+then least total drop-off time (s); with ``write_off`` a task planned more than that late
+counts only that much tardiness and its drop-off time ranks after the others' (it goes after
+the tasks that can still be on time). Three moves, tried in a fixed order until
 none improves the rank (first improvement, no randomness, so the same allocation always
 improves to the same answer):
 
@@ -35,19 +36,22 @@ class LocalSearchParams:
     """``max_rounds``: at most this many rounds of relocate, swap and 2-opt;
     ``max_evaluations``: at most this many routes evaluated (a count, not a time, so the
     answer is the same on any host), checked before each task a move tries; ``write_off``
-    (s): the rank's (``Allocation.rank``), infinite by default."""
+    and ``slack`` (s): the rank's (``Allocation.rank``), infinite and 0 by default."""
 
     max_rounds: int = MAX_ROUNDS
     max_evaluations: int = MAX_EVALUATIONS
     write_off: float = math.inf
+    slack: float = 0.0
 
     def __post_init__(self):
         for name in ("max_rounds", "max_evaluations"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
                 raise InputError(None, name, f"must be a whole number >= 0, got {value!r}")
-        if not self.write_off >= 0:
-            raise InputError(None, "write_off", f"must be >= 0 s, got {self.write_off!r}")
+        for name in ("write_off", "slack"):
+            value = getattr(self, name)
+            if not value >= 0:
+                raise InputError(None, name, f"must be >= 0 s, got {value!r}")
 
 
 def improve(problem: AllocationProblem, allocation: Allocation,
@@ -55,12 +59,14 @@ def improve(problem: AllocationProblem, allocation: Allocation,
     """``allocation`` improved by relocate, swap and 2-opt moves until none helps; never
     ranks worse than ``allocation``. The status is recomputed (``FEASIBLE`` when every task
     is on time, else ``UNKNOWN``)."""
-    search = _Routes(problem, allocation.routes, params.max_evaluations, params.write_off)
+    search = _Routes(problem, allocation.routes, params.max_evaluations, params.write_off,
+                     params.slack)
     for _ in range(params.max_rounds):
         if not (search.relocate() or search.swap() or search.two_opt()):
             break
     improved = Allocation.of(problem, search.routes)
-    if improved.rank(problem, params.write_off) < allocation.rank(problem, params.write_off):
+    rank = (params.write_off, params.slack)
+    if improved.rank(problem, *rank) < allocation.rank(problem, *rank):
         return improved
     return allocation
 
@@ -82,13 +88,15 @@ def improve_keeping_verdict(problem: AllocationProblem, allocation: Allocation,
 
 
 class _Routes:
-    """The routes being improved, with each one's cost (late, tardiness, drop-off times)."""
+    """The routes being improved, with each one's cost (late, tardiness, room short of the
+    slack, drop-off times)."""
 
     def __init__(self, problem: AllocationProblem, routes, max_evaluations: int,
-                 write_off: float):
+                 write_off: float, slack: float):
         self.problem = problem
         self.evaluations_left = max_evaluations
         self.write_off = write_off
+        self.slack = slack
         self.travel = problem.travel.tolist()
         self.service = problem.service_time
         self.task = {task.id: task for task in problem.tasks}
@@ -96,14 +104,15 @@ class _Routes:
         self.costs = [self.cost(r, route) for r, route in enumerate(self.routes)]
 
     def cost(self, robot: int, route: list[Action]):
-        """(late tasks, tardiness, sum of drop-off times of the tasks not written off, and of
-        those written off; see ``Allocation.rank``) of ``route`` for robot index ``robot``, or
-        None when it overloads the robot or drops an item not on board."""
+        """(late tasks, tardiness, room short of the slack, sum of drop-off times of the tasks
+        not written off, and of those written off; see ``Allocation.rank``) of ``route`` for
+        robot index ``robot``, or None when it overloads the robot or drops an item not on
+        board."""
         self.evaluations_left -= 1
         start = self.problem.robots[robot]
         on_board = set(start.carrying)
         time, here = float(start.ready_time), start.location
-        late, tardiness, drops, written_off = 0, 0.0, 0.0, 0.0
+        late, tardiness, short, drops, written_off = 0, 0.0, 0.0, 0.0, 0.0
         for action in route:
             task = self.task[action.task]
             if action.kind == PICKUP:
@@ -126,21 +135,21 @@ class _Routes:
                     written_off += time
                     continue
                 drops += time
+                short += min(max(0.0, behind + self.slack), self.slack)
                 if behind > 0:
                     late += 1
                     tardiness += behind
-        return late, tardiness, drops, written_off
+        return late, tardiness, short, drops, written_off
 
     def _better(self, new_costs, old_costs) -> bool:
         new = _sum(new_costs)
         old = _sum(old_costs)
         if new[0] != old[0]:
             return new[0] < old[0]
-        if abs(new[1] - old[1]) > TOLERANCE:
-            return new[1] < old[1]
-        if abs(new[2] - old[2]) > TOLERANCE:
-            return new[2] < old[2]
-        return new[3] < old[3] - TOLERANCE
+        for a, b in zip(new[1:], old[1:], strict=True):
+            if abs(a - b) > TOLERANCE:
+                return a < b
+        return False
 
     def _best_insertion(self, robot: int, route: list[Action], task: int):
         """The cheapest route and its cost with ``task``'s pickup and drop-off inserted into
@@ -226,10 +235,11 @@ class _Routes:
 
 def _sum(costs):
     """The costs added up field by field, in order (as ``sum`` adds)."""
-    late, tardiness, drops, written_off = 0, 0, 0, 0
+    late, tardiness, short, drops, written_off = 0, 0, 0, 0, 0
     for cost in costs:
         late += cost[0]
         tardiness += cost[1]
-        drops += cost[2]
-        written_off += cost[3]
-    return late, tardiness, drops, written_off
+        short += cost[2]
+        drops += cost[3]
+        written_off += cost[4]
+    return late, tardiness, short, drops, written_off

@@ -275,23 +275,27 @@ class Allocation:
             max(0.0, time - problem.task(t).deadline) for t, time in self.drop_times().items()
         )
 
-    def rank(self, problem: AllocationProblem,
-             write_off: float = math.inf) -> tuple[int, float, float, float]:
-        """What the heuristics minimize, in order: late tasks, total tardiness (s), total
-        drop-off time (s) of the tasks not written off, and of those written off. A task
-        whose drop-off is more than ``write_off`` (s) after its deadline is written off: its
-        tardiness counts as ``write_off``, so it may go after every task that can still be
-        on time (the default writes off nothing)."""
-        late, tardiness, kept, written_off = len(self.late_tasks), 0.0, 0.0, 0.0
+    def rank(self, problem: AllocationProblem, write_off: float = math.inf,
+             slack: float = 0.0) -> tuple[int, float, float, float, float]:
+        """What the heuristics minimize, in order: late tasks, total tardiness (s), the room
+        short of ``slack`` (s), total drop-off time (s) of the tasks not written off, and of
+        those written off. A task whose drop-off is more than ``write_off`` (s) after its
+        deadline is written off: its tardiness counts as ``write_off``, so it may go after
+        every task that can still be on time (the default writes off nothing). A task not
+        written off dropped off less than ``slack`` before its deadline is short of room by
+        the difference (at most ``slack``: late tasks count in full), so that among plans
+        equally late the tasks on time with little room get more (the default: none)."""
+        late, tardiness, short, kept, written_off = len(self.late_tasks), 0.0, 0.0, 0.0, 0.0
         for t, time in self.drop_times().items():
-            behind = max(0.0, time - problem.task(t).deadline)
+            behind = time - problem.task(t).deadline
             if behind > write_off:
                 tardiness += write_off
                 written_off += time
             else:
-                tardiness += behind
+                tardiness += max(0.0, behind)
+                short += min(max(0.0, behind + slack), slack)
                 kept += time
-        return late, tardiness, kept, written_off
+        return late, tardiness, short, kept, written_off
 
 
 def keeping_planned(problem: AllocationProblem) -> AllocationProblem:

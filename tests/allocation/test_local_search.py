@@ -103,14 +103,34 @@ def test_a_task_written_off_goes_after_the_one_that_can_be_on_time():
     written_off = improve(problem, earliest, LocalSearchParams(write_off=5.0))
     assert verify_allocation(problem, written_off) == ()
     assert written_off.drop_times() == {1: 42.0, 0: 84.0}
-    assert written_off.rank(problem, 5.0) == (1, 5.0, 42.0, 84.0)
-    assert written_off.rank(problem) == (1, 79.0, 126.0, 0.0)
+    assert written_off.rank(problem, 5.0) == (1, 5.0, 0.0, 42.0, 84.0)
+    assert written_off.rank(problem) == (1, 79.0, 0.0, 126.0, 0.0)
     kept = improve_keeping_verdict(problem, replace(earliest, status=INFEASIBLE, optimal=True),
                                    LocalSearchParams(write_off=5.0))
     assert (kept.routes, kept.status, kept.optimal) == (written_off.routes, INFEASIBLE, False)
 
 
-def test_write_off_must_not_be_negative():
+@pytest.mark.parametrize("name", ["write_off", "slack"])
+def test_write_off_and_slack_must_not_be_negative(name):
     with pytest.raises(InputError) as error:
-        LocalSearchParams(write_off=-1.0)
-    assert str(error.value).startswith("write_off: ")
+        LocalSearchParams(**{name: -1.0})
+    assert str(error.value).startswith(f"{name}: ")
+
+
+@pytest.mark.parametrize("slack, drops", [(0.0, {0: 12.0, 1: 54.0}),
+                                          (5.0, {0: 12.0, 1: 54.0}),
+                                          (10.0, {1: 32.0, 0: 74.0})])
+def test_a_safety_slack_gives_the_tightest_promise_more_room(slack, drops):
+    """One robot at 0 carrying one item at a time, locations on a line 10 s apart: task 0
+    (0 -> 1, due at 100 s) first drops both off soonest (12 s and 54 s) but leaves task 1
+    (0 -> 3, due at 60 s) 6 s of room; task 1 first gives it 28 s and task 0 still 26 s.
+    With a slack above 6 s the search takes the second."""
+    travel = 10 * np.abs(np.subtract.outer(np.arange(4), np.arange(4)))
+    problem = AllocationProblem(travel, (RobotStart("r", 0, capacity=1),),
+                                (Task(0, 0, 1, deadline=100.0), Task(1, 0, 3, deadline=60.0)))
+    start = Allocation.of(problem, [[Action(0, PICKUP), Action(0, DROPOFF),
+                                     Action(1, PICKUP), Action(1, DROPOFF)]])
+    improved = improve(problem, start, LocalSearchParams(slack=slack))
+    assert improved.drop_times() == drops
+    assert start.rank(problem, slack=slack)[2] == max(0.0, slack - 6.0)
+    assert improved.rank(problem, slack=slack)[:3] == (0, 0.0, 0.0)
