@@ -15,7 +15,7 @@ from tests.system.run_fingerprint import _without_wall_clock
 HOSPITAL = pathlib.Path(__file__).resolve().parents[2] / "scenarios/hospital_6_robots.yaml"
 DURATION = 90.0  # s: 6 allocations
 BUSY_STREAM = {"rate": 0.1, "batch_size": [1, 3], "slack": [1.2, 3.0]}
-TINY_BUDGET = 3000  # z3 resource units: runs out in every allocation with a real search
+TINY_BUDGET = 1500  # z3 resource units: runs out in the allocations with a real search
 
 
 def allocations(result) -> list[dict]:
