@@ -352,12 +352,13 @@ class Roadways:
         return _without_repeats([start.point, *start.entry[::-1],
                                  *(self.node_position(n) for n in reached[nearest]), xy])
 
-    def reaches_spot(self, from_location: int, xy) -> bool:
-        """Whether the roadway node nearest ``xy`` (m) is reached from ``from_location``'s
-        exit node along the lanes without lift rides: for a building's levels side by side,
-        whether ``xy`` is on the location's level."""
+    def spots_reached(self, from_location: int, spots) -> list:
+        """Of ``spots`` ((x, y) m each), in their order, those whose nearest roadway node is
+        reached from ``from_location``'s exit node along the lanes without lift rides: for a
+        building's levels side by side, the spots on the location's level."""
         reached = self._without_lifts(self.place(from_location).exit_node)
-        return self._nearest(reached, xy) == self._nearest(self.graph.nodes, xy)
+        return [spot for spot in spots
+                if self._nearest(reached, spot) == self._nearest(self.graph.nodes, spot)]
 
     def _without_lifts(self, node: str) -> dict:
         """The shortest paths (node lists) from ``node`` to every node it reaches along the

@@ -486,15 +486,10 @@ class WaypointPolicy:
         else None. A robot that rode a lift away from home (a building's levels) would
         otherwise drive for a home on another level and stand at the lift (the two-floor
         clinic, 10 robots, seed 0: robot7 from 200 s to the end, in robot2's way)."""
-        def free(spot) -> bool:
-            return not len(others) or float(np.min(np.linalg.norm(
-                others - np.asarray(spot), axis=1))) > self._params.parking_clearance
-
         own = [] if self._home is None else [self._home]
-        here = [spot for spot in own + sorted(
-            self._spots, key=lambda spot: _distance(spot, place.point))
-            if lanes.reaches_spot(place.id, spot)]
-        return next((spot for spot in here if free(spot)),
+        here = lanes.spots_reached(place.id, own + sorted(
+            self._spots, key=lambda spot: _distance(spot, place.point)))
+        return next((spot for spot in here if self._free(spot, others)),
                     own[0] if own and own[0] in here else None)
 
     def _drive_to(self, s: _Drive, stop: Stop, route, lanes: Roadways, t: float) -> _Drive:
@@ -532,11 +527,14 @@ class WaypointPolicy:
     def _free_parking(self, place, others: np.ndarray) -> int | None:
         """Index of the first of ``place``'s parking spots with no other robot near it
         (None if all are taken, or it has none)."""
-        for k, spot in enumerate(place.parking):
-            if not len(others) or np.min(np.linalg.norm(others - spot, axis=1)) > \
-                    self._params.parking_clearance:
-                return k
-        return None
+        return next((k for k, spot in enumerate(place.parking) if self._free(spot, others)),
+                    None)
+
+    def _free(self, spot, others: np.ndarray) -> bool:
+        """Whether no other robot (``others``, (N - 1, 2), m) stands within
+        ``parking_clearance`` of ``spot`` (m)."""
+        return not len(others) or float(np.min(np.linalg.norm(
+            others - np.asarray(spot, dtype=float), axis=1))) > self._params.parking_clearance
 
     def _start(self, s: _Drive, stop: Stop, xy, lanes: Roadways, t: float) -> _Drive:
         """Begin ``stop`` from standing (at the start, or after finishing a stop)."""
