@@ -21,6 +21,7 @@ call) is the same machine code, so nothing depends on which process compiled wha
 """
 
 import dataclasses
+import gc
 import importlib
 import json
 import os
@@ -275,7 +276,11 @@ def main(argv=None) -> int:
         _record(MANIFEST)
         return 0
     if len(argv) == 2 and argv[0] == "compile":
+        # This process compiles and exits: collecting garbage (and walking numba's compiler
+        # state, as its teardown would) only costs time on the cold run's critical path.
+        gc.disable()
         compile_kernels(EntryKernel(**k) for k in json.loads(argv[1]))
+        gc.freeze()
         return 0
     print("usage: python -m mrta_drake.stack.kernel_cache record | compile KERNELS",
           file=sys.stderr)
