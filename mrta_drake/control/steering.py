@@ -11,14 +11,23 @@ from mrta_drake.control.cbf_params import CbfParams
 from mrta_drake.control.nominal import wrap_angle
 from mrta_drake.control.safety_rows import SafetyRows
 
+# rad: a blocked robot heads this far past the blocking point's tangent, away from the point.
+# At the tangent itself the push's coefficient in the point's row is zero, its sign left to
+# rounding: a robot at its wall distance turned onto the tangent and stood there, the row
+# barring any push at -0.002 (issue 15). Driving on at 0.3 rad (17 degrees) past the
+# tangent it leaves the point; along a straight wall the points ahead bar it less than at
+# the tangent.
+PAST_TANGENT = 0.3
+
 
 def steer_blocked(u_nominal, states, rows: SafetyRows, lower, upper,
                   params: CbfParams) -> np.ndarray:
     """The nominal inputs (k, 2) of a QP's robots ``states`` (k, 4), with a new yaw rate for
     every robot that stands (|v| < ``coordination.stall_speed``) and whose nominal push
     forward breaks a safety row: it turns towards the tangent of the most blocking obstacle
-    point nearer its goal heading. The rows are judged at the nominal clipped to the hard
-    bounds ``lower``, ``upper`` (k, 2), the inputs the robots can be commanded."""
+    point nearer its goal heading, ``PAST_TANGENT`` beyond it (away from the point). The
+    rows are judged at the nominal clipped to the hard bounds ``lower``, ``upper`` (k, 2),
+    the inputs the robots can be commanded."""
     u = np.array(u_nominal, dtype=float).reshape(-1, 2)
     steer(u, np.ascontiguousarray(states, dtype=float).reshape(-1, 4),
           *(np.ascontiguousarray(a) for a in (rows.G, rows.b, rows.member, rows.other,
@@ -60,7 +69,8 @@ def steer(u, states, G, b, member, other, normal, stall_speed, k_theta, lower, u
         sign = 1.0 if member[row] == j else -1.0
         obstacle = math.atan2(-(sign * normal[row, 1]), -(sign * normal[row, 0]))
         desired = states[j, 2] + u[j, 1] / k_theta
-        best = obstacle + 0.5 * math.pi
-        if abs(wrap_angle(obstacle - 0.5 * math.pi - desired)) < abs(wrap_angle(best - desired)):
-            best = obstacle - 0.5 * math.pi
+        turn = 0.5 * math.pi + PAST_TANGENT
+        best = obstacle + turn
+        if abs(wrap_angle(obstacle - turn - desired)) < abs(wrap_angle(best - desired)):
+            best = obstacle - turn
         u[j, 1] = k_theta * wrap_angle(best - states[j, 2])
