@@ -301,7 +301,9 @@ class WaypointPolicy:
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
     current stop is elsewhere and it is more than ``release_distance`` from the room's
-    point, or, with no stop left, once it is more than ``reach_tolerance`` from the point
+    point or waits at a slot of that stop's queue (within ``waypoint_tolerance``: out of the
+    room, it must not keep it from the robots queueing for it while it queues nearby), or,
+    with no stop left, once it is more than ``reach_tolerance`` from the point
     (at once where there is no parking spot, or where another robot stands on the spot it
     drives to: every spot was taken). It keeps naming that room in ``release`` until the
     queues no longer show it as the holder.
@@ -768,12 +770,18 @@ class WaypointPolicy:
                     return queue.room
                 continue
             point = self._roadways.place(queue.room).point
-            if (
-                s.stop.location != queue.room
-                and _distance(robots.xy, point) > self._params.release_distance
+            if s.stop.location != queue.room and (
+                _distance(robots.xy, point) > self._params.release_distance
+                or self._at_slot(s, robots.xy)
             ):
                 return queue.room
         return None
+
+    def _at_slot(self, s: _Drive, xy) -> bool:
+        """Whether the robot waits at its queue slot (within ``waypoint_tolerance``)."""
+        return s.phase == RobotMode.QUEUE and _distance(
+            xy, self._roadways.place(s.stop.location).queue[s.index]) <= \
+            self._params.waypoint_tolerance
 
 
 _OUTPUTS = ("target", "queue_request", "progress", "lift_request")  # _Outputs' payloads

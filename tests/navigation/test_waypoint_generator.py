@@ -360,6 +360,23 @@ def test_a_robot_done_at_a_room_drives_home_on_its_level_though_another_robot_st
     np.testing.assert_allclose(positions, [homes[0], (10.3, 0.0)], atol=0.35)
 
 
+def test_a_robot_waiting_at_its_next_stops_queue_releases_the_room_it_left():
+    # r0 serves A, then queues for B, which r1 holds for three stops; B's queue slots lie
+    # within release_distance (30 m here) of A's point: waiting at a slot, r0 gives A back
+    # all the same (before, it kept A while it queued nearby: on the office, seed 4, robot5
+    # held patrol_D1 waiting at patrol_A1's queue, and the robots queueing for patrol_D1
+    # gridlocked behind it to the end of the run).
+    params = WaypointParams(service_time=40.0, release_distance=30.0)
+    world = World([A, B], fixed([A, B], [B, B, B]), params=params)
+    world.run(until=100.0)
+    _, queues, positions, _ = world.log[-1]
+    assert [v.location for v in world.progress(0).visits] == [A]
+    assert queues.room(B).holder == "r1" and "r0" in queues.room(B).waiting
+    slots = world.roadways.place(B).queue
+    assert min(np.linalg.norm(slots - positions[0], axis=1)) < 0.05
+    assert queues.room(A).holder is None
+
+
 def fleet(*routes) -> FleetPlan:
     """Robot ``r<i>`` gets the stops ``routes[i]`` ((key, location) pairs)."""
     return FleetPlan(tuple(RobotPlan(f"r{i}", tuple(Stop(k, loc) for k, loc in stops))
