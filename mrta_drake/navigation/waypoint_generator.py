@@ -294,14 +294,16 @@ class WaypointPolicy:
     every one is taken and it has a home (idle robots would pile up round the point), it
     drives back along the lanes to ``home``, its start spot (world frame, m; home: asking for
     single-file segments on the way as when driving), and waits there; where that is on
-    another level or another robot stands on it, to the nearest free one of ``spots`` (the
-    other robots' start spots) on its level (``_home_spot``); elsewhere, or with no such
-    spot (it started on a location), the target is inactive and it stands still.
+    another level, to the nearest free parking spot on its level, else the nearest free one
+    of ``spots`` (the other robots' start spots) there (``_home_spot``); elsewhere, or with
+    no such spot (it started on a location), the target is inactive and it stands still.
     A parked robot given a stop starts it as if standing on the location's point.
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
     current stop is elsewhere and it is more than ``release_distance`` from the room's
-    point, or, with no stop left, once it is more than ``reach_tolerance`` from the point
+    point or waits at a slot of that stop's queue (within ``waypoint_tolerance``: out of the
+    room, it must not keep it from the robots queueing for it while it queues nearby), or,
+    with no stop left, once it is more than ``reach_tolerance`` from the point
     (at once where there is no parking spot, or where another robot stands on the spot it
     drives to: every spot was taken). It keeps naming that room in ``release`` until the
     queues no longer show it as the holder.
@@ -333,6 +335,10 @@ class WaypointPolicy:
         self._robot = robot_names[index]
         self._home = home
         self._spots = tuple(spot for spot in spots if spot != home)
+        starts = (*self._spots, *([] if home is None else [home]))
+        self._parking = tuple(  # the locations' parking spots that are no robot's start
+            _point(spot) for i in roadways.location_ids for spot in roadways.place(i).parking
+            if all(_distance(spot, start) > params.parking_clearance for start in starts))
         self._index = index
         self._roadways = roadways
         self._params = params
@@ -480,17 +486,23 @@ class WaypointPolicy:
     def _home_spot(self, place, lanes: Roadways, others: np.ndarray
                    ) -> tuple[float, float] | None:
         """Where a robot with nothing to do at ``place`` waits: its own start spot (home)
-        where the lanes lead there without a lift ride and no other robot (``others``,
-        (N - 1, 2)) stands within ``parking_clearance`` of it; else, the nearest such of
-        the other robots' start spots (``spots``); else its home if the lanes lead there;
-        else None. A robot that rode a lift away from home (a building's levels) would
-        otherwise drive for a home on another level and stand at the lift (the two-floor
-        clinic, 10 robots, seed 0: robot7 from 200 s to the end, in robot2's way)."""
-        own = [] if self._home is None else [self._home]
-        here = lanes.spots_reached(place.id, own + sorted(
-            self._spots, key=lambda spot: _distance(spot, place.point)))
-        return next((spot for spot in here if self._free(spot, others)),
-                    own[0] if own and own[0] in here else None)
+        where the lanes lead there without a lift ride (taken or not: a robot waiting on
+        another's start spot would box in its owner coming home, as on the one-level
+        office); else the nearest of the locations' parking spots the lanes lead to
+        without a lift ride and no other robot (``others``, (N - 1, 2)) stands within
+        ``parking_clearance`` of; else the nearest such of the other robots' start spots
+        (``spots``); else None. A robot that rode a lift away from home (a building's
+        levels) would otherwise drive for a home on another level and stand at the lift
+        (the two-floor clinic, 10 robots, seed 0: robot7 from 200 s to the end, in
+        robot2's way)."""
+        if self._home is not None and lanes.spots_reached(place.id, [self._home]):
+            return self._home
+
+        def nearest(spots):
+            return sorted(spots, key=lambda spot: _distance(spot, place.point))
+
+        here = lanes.spots_reached(place.id, nearest(self._parking) + nearest(self._spots))
+        return next((spot for spot in here if self._free(spot, others)), None)
 
     def _drive_to(self, s: _Drive, stop: Stop, route, lanes: Roadways, t: float) -> _Drive:
         """Drive to ``stop`` along ``route(lanes)`` (a function of the roadways: waypoints,
@@ -758,12 +770,18 @@ class WaypointPolicy:
                     return queue.room
                 continue
             point = self._roadways.place(queue.room).point
-            if (
-                s.stop.location != queue.room
-                and _distance(robots.xy, point) > self._params.release_distance
+            if s.stop.location != queue.room and (
+                _distance(robots.xy, point) > self._params.release_distance
+                or self._at_slot(s, robots.xy)
             ):
                 return queue.room
         return None
+
+    def _at_slot(self, s: _Drive, xy) -> bool:
+        """Whether the robot waits at its queue slot (within ``waypoint_tolerance``)."""
+        return s.phase == RobotMode.QUEUE and _distance(
+            xy, self._roadways.place(s.stop.location).queue[s.index]) <= \
+            self._params.waypoint_tolerance
 
 
 _OUTPUTS = ("target", "queue_request", "progress", "lift_request")  # _Outputs' payloads

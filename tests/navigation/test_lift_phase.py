@@ -19,9 +19,11 @@ SHIFT = 100.0  # m between the two levels' loops
 CABIN = (10.0, -3.0)  # on L1; on L2 shifted by SHIFT
 
 
-def two_level_world() -> Roadways:
+def two_level_world(parking: bool = False) -> Roadways:
     """The loop of test_waypoint_generator on each level (rooms A at x = 5 on L1 and
-    B at x = 25 on L2), a lift cabin south of node S10 on each, rides both ways."""
+    B at x = 25 on L2), a lift cabin south of node S10 on each, rides both ways; with
+    ``parking``, a room at x = 15 on each level (ids 2 on L1, 3 on L2) with a parking spot
+    2 m east of its point."""
     nodes, edges, locations = {}, [], []
     for level, dx in (("L1", 0.0), ("L2", SHIFT)):
         xs = (0, 10, 20, 30)
@@ -37,6 +39,12 @@ def two_level_world() -> Roadways:
             id=len(locations), point=[x + dx, 5.0],
             queue=[[x + dx + 1.0, 1.5], [x + dx + 2.0, 1.5]], entry=[[x + dx, 2.5]],
             exit_node=f"{level}/N{x - 5}", approach_node=f"{level}/N{x + 5}"))
+    for dx in (0.0, SHIFT) if parking else ():
+        level = "L1" if dx == 0.0 else "L2"
+        locations.append(LocationConfig(
+            id=len(locations), point=[15 + dx, 5.0], queue=[[16 + dx, 1.5]],
+            entry=[[15 + dx, 2.5]], exit_node=f"{level}/N10", approach_node=f"{level}/N20",
+            parking=[[17 + dx, 5.0]]))
     rides = [LiftEdgeConfig("lift", "L1/cab", "L2/cab", "L1", "L2", 5.0),
              LiftEdgeConfig("lift", "L2/cab", "L1/cab", "L2", "L1", 5.0)]
     return Roadways(RoadwaysConfig(nodes=nodes, edges=edges, lift_edges=rides), locations)
@@ -64,10 +72,10 @@ class RelocatedRobots(FakeRobots):
 class LiftWorld(World):
     """World's set-up with the two-level roadways and a lift bank."""
 
-    def __init__(self, starts, plan_source, cabin_size=0.0, homes=None):
+    def __init__(self, starts, plan_source, cabin_size=0.0, homes=None, parking=False):
         """``homes``: start spots (x, y) off the locations instead, one per robot (each
-        robot's home; all of them its spots)."""
-        self.roadways = roadways = two_level_world()
+        robot's home; all of them its spots); ``parking``: see ``two_level_world``."""
+        self.roadways = roadways = two_level_world(parking)
         self.robots = [f"r{i}" for i in range(len(starts))]
         builder = DiagramBuilder()
         plan = builder.AddSystem(plan_source)
@@ -152,3 +160,16 @@ def test_a_robot_idle_on_another_level_than_its_home_waits_at_a_start_spot_there
     _, _, positions, targets = world.log[-1]
     np.testing.assert_allclose(positions, homes[::-1], atol=0.05)
     assert all(t.active and t.current in map(tuple, homes) for t in targets)
+
+
+def test_a_robot_idle_on_another_level_than_its_home_prefers_a_parking_spot_there():
+    # As above, with a room on each level whose parking spot is no robot's start: each
+    # robot waits there, not at the other's start spot (its owner's way home).
+    homes = [(20.0, 0.0), (20.0 + SHIFT, 0.0)]
+    world = LiftWorld([None, None], fixed([1], [0]), cabin_size=2.5, homes=homes,
+                      parking=True)
+    world.run(until=200)
+    assert [v.location for v in world.progress(0).visits] == [1]
+    assert [v.location for v in world.progress(1).visits] == [0]
+    _, _, positions, _ = world.log[-1]
+    np.testing.assert_allclose(positions, [(17.0 + SHIFT, 5.0), (17.0, 5.0)], atol=0.05)

@@ -97,19 +97,23 @@ class World:
     """Robots ``r0, r1, ...`` starting on the points of ``starts`` (location ids)."""
 
     def __init__(self, starts, plan_source, start_known=True, params=None, parking=False,
-                 homes=None):
-        """``homes``: start spots (x, y) off the locations instead, one per robot."""
+                 homes=None, at=None):
+        """``homes``: start spots (x, y) off the locations instead, one per robot (each
+        robot's home; all of them its spots); ``at``: where the robots stand at first (x, y)
+        if not there."""
         self.roadways = roadways = loop_world(parking)
         self.robots = [f"r{i}" for i in range(len(starts))]
         builder = DiagramBuilder()
         plan = builder.AddSystem(plan_source)
         queues = builder.AddSystem(RoomQueues(self.robots, roadways.location_ids, rate_hz=10.0))
-        fake = builder.AddSystem(FakeRobots(homes or [roadways.place(s).point for s in starts]))
+        fake = builder.AddSystem(FakeRobots(at or homes or [roadways.place(s).point
+                                                             for s in starts]))
         self.generators = []
         for i, (robot, start) in enumerate(zip(self.robots, starts, strict=True)):
             generator = builder.AddSystem(WaypointGenerator(
                 self.robots, i, roadways, start if start_known else None,
-                params or WaypointParams(), None if homes is None else homes[i], rate_hz=10.0,
+                params or WaypointParams(), None if homes is None else homes[i], homes or (),
+                rate_hz=10.0,
             ))
             builder.Connect(plan.GetOutputPort("plan"), generator.GetInputPort("plan"))
             builder.Connect(fake.GetOutputPort("state"), generator.GetInputPort("robot_state"))
@@ -339,6 +343,38 @@ def test_a_robot_done_at_a_room_whose_parking_spots_are_taken_drives_home():
                for p, home in zip(positions, homes, strict=True)]
     assert sum(parked) == 2 and sum(at_home) == 1 and not any(np.logical_and(parked, at_home))
     assert final.room(B).holder is None
+
+
+def test_a_robot_done_at_a_room_drives_home_on_its_level_though_another_robot_stands_there():
+    # r1 (home at 20, 0) stands idle on r0's home (10, 0) as r0 serves B, which has no
+    # parking spot: r0 drives back to its own home all the same. Before, it drove to r1's
+    # free start spot instead, and stood there when r1 came home (the one-level office,
+    # seed 0: 10 of 25 tasks, robots waiting at each other's start spots in the lanes).
+    homes = [(10.0, 0.0), (20.0, 0.0)]
+    world = World([None, None], fixed([B], []), start_known=False, homes=homes,
+                  at=[homes[0], (10.3, 0.0)])
+    world.run(until=120.0)
+    assert [v.location for v in world.progress(0).visits] == [B]
+    _, _, positions, targets = world.log[-1]
+    assert targets[0].active and targets[0].current == homes[0]
+    np.testing.assert_allclose(positions, [homes[0], (10.3, 0.0)], atol=0.35)
+
+
+def test_a_robot_waiting_at_its_next_stops_queue_releases_the_room_it_left():
+    # r0 serves A, then queues for B, which r1 holds for three stops; B's queue slots lie
+    # within release_distance (30 m here) of A's point: waiting at a slot, r0 gives A back
+    # all the same (before, it kept A while it queued nearby: on the office, seed 4, robot5
+    # held patrol_D1 waiting at patrol_A1's queue, and the robots queueing for patrol_D1
+    # gridlocked behind it to the end of the run).
+    params = WaypointParams(service_time=40.0, release_distance=30.0)
+    world = World([A, B], fixed([A, B], [B, B, B]), params=params)
+    world.run(until=100.0)
+    _, queues, positions, _ = world.log[-1]
+    assert [v.location for v in world.progress(0).visits] == [A]
+    assert queues.room(B).holder == "r1" and "r0" in queues.room(B).waiting
+    slots = world.roadways.place(B).queue
+    assert min(np.linalg.norm(slots - positions[0], axis=1)) < 0.05
+    assert queues.room(A).holder is None
 
 
 def fleet(*routes) -> FleetPlan:
