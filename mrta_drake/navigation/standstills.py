@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mrta_drake.navigation.costmap import FREE, Costmap
+from mrta_drake.navigation.costmap import FREE, INSCRIBED, Costmap
 
 SEARCH_STEP = 0.1  # m between the points searched for a back-off spot
 
@@ -104,7 +104,9 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
     or None: searched on a grid of ``SEARCH_STEP`` within ``reach`` of it, moving between
     neighbouring points (4-connected) where its centre may be: on the costmap's ``FREE``
     cells (beyond its inflation radius from walls, where the controller keeps a robot
-    anyway), no nearer another robot than ``clearance`` (surface to surface), except within
+    anyway), or, within the inflation radius of where it stands, on cells no costlier
+    than that (never lethal: it gets out of a door, or off a wall it was pushed to), no
+    nearer another robot than ``clearance`` (surface to surface), except within
     ``clearance`` of where it stands, and there no nearer than it is now. A spot is such a
     point at least ``wall_clearance`` from walls (the free points eroded by the grid steps
     beyond the inflation radius), at least ``clearance`` (surface to surface) from every
@@ -132,9 +134,16 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
     # it is squeezed against is no way out (the controller keeps their distance).
     start_gaps = np.linalg.norm(xy[others] - xy[k], axis=-1) - radii[others] - radii[k]
     moved = np.hypot(*np.moveaxis(points - xy[k], -1, 0))
-    free = costmap.cost_at(points) == FREE
+    cost = costmap.cost_at(points)
+    free = cost == FREE
+    # A robot standing nearer a wall than the inflation radius (pushed there, or in a
+    # door or narrow corridor) leaves through cells no costlier than where it stands,
+    # within that radius of it: else every neighbour is closed to it and it never gets
+    # a spot (the hotel, seed 4: robot6 squeezed against a wall's end, 26 s, no order).
+    leaving = ((cost <= min(int(costmap.cost_at(xy[k:k + 1])[0]), INSCRIBED))
+               & (moved <= costmap.params.inflation_radius))
     squeezed = robot_gaps < clearance
-    passable = (free & (moved <= reach)
+    passable = ((free | leaving) & (moved <= reach)
                 & (~squeezed | ((robot_gaps >= start_gaps - 1e-9)
                                 & (moved[..., None] <= clearance))).all(axis=-1))
     with np.errstate(invalid="ignore"):  # people absent from the run are NaN

@@ -195,6 +195,22 @@ def test_no_spot_when_the_only_way_out_is_through_the_blocker():
     assert spot is not None and spot[0] < 12.0
 
 
+@pytest.mark.parametrize("gap", [0.0, 0.1])
+def test_a_robot_pushed_against_a_wall_still_gets_a_spot(gap):
+    # The hotel (rmf_demos), seed 4: robot6, pushed to within 3 mm of a wall's end, stood
+    # in robot3's way for 26 s with no order: every point around it lay within the
+    # costmap's inflation radius, so the search never left where it stood. It leaves
+    # through cells no nearer the wall than it is, to a spot clear of walls and r0's way.
+    obstacles = Obstacles((Box("south", (0.0, -0.1), (20.0, 0.2)),))
+    costmap = Costmap.from_obstacles(obstacles, (-10.0, 10.0, -0.5, 6.0))
+    xy = np.array([[-1.0, 0.9], [0.0, RADIUS + gap]])  # r0 drives east along the wall
+    ways = [(np.array([xy[0], (5.0, 0.9)]), RADIUS)]
+    spot = back_off_spot(1, xy, np.full(2, RADIUS), ways, np.zeros((0, 2)), np.zeros(0),
+                         costmap, 4.0, 0.3, 0.8)
+    assert spot is not None
+    assert spot[1] >= 0.8 and spot[1] - 0.9 >= 2 * RADIUS + 0.3 - 1e-9
+
+
 @pytest.mark.parametrize("field, value", [("standstill_time", 0.0), ("yield_time", -1.0),
                                           ("search_reach", 0.0), ("block_gap", -0.1)])
 def test_params_refuse_bad_values(field, value):
