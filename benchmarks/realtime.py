@@ -192,14 +192,12 @@ def quickstart(cache: str) -> dict:
     ``cache`` is the numba cache folder (empty: the first run after installing)."""
     env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=os.pathsep.join(
         [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]))
-    with tempfile.TemporaryDirectory() as out:
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        wall = time.perf_counter()
-        done = subprocess.run([sys.executable, "-m", "mrta_drake.tools.cli", *QUICKSTART,
-                               "--out", out], cwd=ROOT, env=env, capture_output=True,
-                              text=True)
-        wall = time.perf_counter() - wall
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    wall = time.perf_counter()
+    done = subprocess.run([sys.executable, "-m", "mrta_drake.tools.cli", *QUICKSTART],
+                          cwd=ROOT, env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - wall
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if done.returncode:
         raise SystemExit(f"quickstart failed: {done.stderr.strip()}")
     cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)

@@ -1,6 +1,7 @@
 """The ``mrta-sim`` command line."""
 
 import argparse
+import gc
 import sys
 
 from mrta_drake.errors import InputError
@@ -99,6 +100,8 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    """Runs the command ``argv`` (default: this process's command line, ``sys.argv[1:]``,
+    after which the process exits) and returns its exit code."""
     args = _parser().parse_args(argv)
     try:
         return _COMMANDS[args.command](args)
@@ -112,14 +115,32 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    finally:
+        if argv is None:  # the process exits next: its teardown need not walk the heap
+            gc.freeze()
 
 
 def _run(args) -> int:
+    # Start-up (imports, loading, building) makes little cyclic garbage, and what it builds
+    # lives as long as the run: collecting meanwhile only walks the growing heap again and
+    # again (``_before_run`` turns collecting back on).
+    gc.disable()
     compiling = _start_compiling()  # first: a second process may start compiling at once
     try:
         return _run_scenario(args, compiling)
     finally:
         compiling.cancel()  # when the run failed before it was done
+        gc.unfreeze()  # collectable again by a caller that goes on (tests, a benchmark)
+        gc.enable()
+
+
+def _before_run(compiling) -> None:
+    """Finishes compiling the kernels, then moves every object start-up made to the
+    collector's permanent generation (``gc.freeze``: not walked by the collections during
+    the run) and turns collecting back on for what the run makes."""
+    compiling.finish()
+    gc.freeze()
+    gc.enable()
 
 
 def _run_scenario(args, compiling) -> int:
@@ -142,7 +163,8 @@ def _run_scenario(args, compiling) -> int:
     result = simulate(scenario, duration=args.duration, meshcat=meshcat,
                       record_html=args.record, out_dir=args.out,
                       progress=not args.quiet and sys.stderr.isatty(), realtime_rate=realtime,
-                      plots=args.plots, before_run=compiling.finish)
+                      plots=args.plots,
+                      before_run=lambda: _before_run(compiling))
     print(format_summary(result.summary))
     if args.record:
         print(f"replay written to {args.record}")
