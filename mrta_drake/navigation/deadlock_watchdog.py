@@ -8,7 +8,7 @@ import numpy as np
 from pydrake.common.value import Value
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
-from mrta_drake.errors import require_non_negative, require_positive
+from mrta_drake.errors import InputError, require_non_negative, require_positive
 from mrta_drake.navigation.costmap import Costmap
 from mrta_drake.navigation.standstills import (
     Anchor,
@@ -42,10 +42,13 @@ class WatchdogParams:
     (surface to surface). The robot chosen to yield drives to the nearest spot within
     ``search_reach`` at least ``spot_clearance`` from every other robot and person and from
     its blockers' ways to their targets, its centre ``wall_clearance`` from walls, and
-    stands there for ``yield_time``; never to a spot within ``progress_distance`` of where
-    it stands (that makes no way). An order is *missed* when its robot did not reach the
-    spot in that time; for ``retry_window`` after a miss, the robot is asked to yield only
-    after robots that missed fewer orders, and never to a spot within
+    stands there for ``yield_time``; never to a spot nearer than ``back_off_distance`` to
+    where it stands: it counts as there within ``progress_distance`` of the spot (and the
+    controller stops leading a robot within its ``arrival_radius``, 0.5 m, of its path's
+    end), so a nearer spot makes no way (soak seed 107: a robot sent eleven times to spots
+    0.51 m off moved 3.5 cm each time). An order is *missed* when its robot did not reach
+    the spot in that time; for ``retry_window`` after a miss, the robot is asked to yield
+    only after robots that missed fewer orders, and never to a spot within
     ``progress_distance`` of the one it missed. ``enabled`` off: no watchdog in the diagram
     (as in the paper)."""
 
@@ -55,6 +58,7 @@ class WatchdogParams:
     goal_tolerance: float = 1.0
     block_gap: float = 0.6
     search_reach: float = 8.0
+    back_off_distance: float = 1.0
     wall_clearance: float = 0.8
     spot_clearance: float = 0.3
     yield_time: float = 15.0
@@ -63,8 +67,11 @@ class WatchdogParams:
     def __post_init__(self):
         require_positive(self, "standstill_time", "yield_time", "retry_window", unit=" s")
         require_positive(self, "progress_distance", "goal_tolerance", "search_reach",
-                         "wall_clearance", unit=" m")
+                         "wall_clearance", "back_off_distance", unit=" m")
         require_non_negative(self, "block_gap", "spot_clearance", unit=" m")
+        if not self.back_off_distance > self.progress_distance:
+            raise InputError(None, "back_off_distance", f"must be > progress_distance "
+                             f"({self.progress_distance!r} m), got {self.back_off_distance!r}")
 
 
 @dataclass(frozen=True)
@@ -250,7 +257,7 @@ class DeadlockWatchdog(LeafSystem):
         stalled_here = [k for k in group if stalled[k]]
         broken = (self._disturbances.Eval(context).broken
                   if self._disturbances.HasValue(context) else ())
-        missed_spots = {k: self._spots_to_avoid(k, xy[k], misses) for k in group}
+        missed_spots = {k: self._spots_to_avoid(k, misses) for k in group}
         all_ways = [_way(xy[j], targets[j]) for j in range(len(xy))]
         in_way = in_ways(group, stalled, xy, self._radii, all_ways, p.spot_clearance)
         for k in sorted(yield_order(group, idle, stalled, self._priorities, in_way),
@@ -263,7 +270,8 @@ class DeadlockWatchdog(LeafSystem):
                                  np.asarray(humans.positions).reshape(-1, 2),
                                  np.asarray(humans.radii).reshape(-1), self._costmap,
                                  p.search_reach, p.spot_clearance, p.wall_clearance,
-                                 avoid=missed_spots[k], avoid_radius=p.progress_distance)
+                                 avoid=missed_spots[k], avoid_radius=p.progress_distance,
+                                 min_move=p.back_off_distance)
             if spot is not None:
                 since = min(anchors[j].since for j in stalled_here)
                 return BackOff(self._robots[k], spot, now, now + p.yield_time,
@@ -271,10 +279,9 @@ class DeadlockWatchdog(LeafSystem):
         return None
 
 
-    def _spots_to_avoid(self, k: int, xy, misses: tuple[BackOff, ...]) -> np.ndarray:
-        """(M, 2) where robot ``k`` at ``xy`` must not be sent: where it stands (that makes
-        no way) and the spots it missed."""
-        return np.array([xy] + [m.point for m in misses if m.robot == self._robots[k]],
+    def _spots_to_avoid(self, k: int, misses: tuple[BackOff, ...]) -> np.ndarray:
+        """(M, 2) the spots robot ``k`` missed, where it must not be sent again."""
+        return np.array([m.point for m in misses if m.robot == self._robots[k]],
                         dtype=float).reshape(-1, 2)
 
     def _back_off_alone(self, k, anchor, states, context, now, misses) -> BackOff | None:
@@ -310,8 +317,8 @@ class DeadlockWatchdog(LeafSystem):
         ways = [(_way_through(people[j], xy[k], p.search_reach), radii[j]) for j in near]
         spot = back_off_spot(k, xy, self._radii, ways, people, radii, self._costmap,
                              p.search_reach, p.spot_clearance, p.wall_clearance,
-                             avoid=self._spots_to_avoid(k, xy[k], misses),
-                             avoid_radius=p.progress_distance)
+                             avoid=self._spots_to_avoid(k, misses),
+                             avoid_radius=p.progress_distance, min_move=p.back_off_distance)
         if spot is None:
             return None
         return BackOff(self._robots[k], spot, now, now + p.yield_time,

@@ -98,7 +98,7 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
                   ways: list[tuple[np.ndarray, float]],
                   people_xy: np.ndarray, people_radii: np.ndarray, costmap: Costmap,
                   reach: float, clearance: float, wall_clearance: float,
-                  avoid=(), avoid_radius: float = 0.0
+                  avoid=(), avoid_radius: float = 0.0, min_move: float = 0.0
                   ) -> tuple[float, float] | None:
     """The nearest spot to which robot ``k`` at ``xy[k]`` can drive out of the others' way,
     or None: searched on a grid of ``SEARCH_STEP`` within ``reach`` of it, moving between
@@ -111,9 +111,9 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
     point at least ``wall_clearance`` from walls (the free points eroded by the grid steps
     beyond the inflation radius), at least ``clearance`` (surface to surface) from every
     other robot and person and from each of ``ways`` ((polyline (P, 2), radius): the way a
-    blocker of that radius will follow, e.g. from where it stands to its target), and
-    farther than ``avoid_radius`` from each of ``avoid`` ((M, 2): spots it was sent to and
-    did not reach).
+    blocker of that radius will follow, e.g. from where it stands to its target), at least
+    ``min_move`` from where it stands, and farther than ``avoid_radius`` from each of
+    ``avoid`` ((M, 2): spots it was sent to and did not reach).
     Nearest: the fewest grid moves, ties in grid order."""
     n_side = int(reach / SEARCH_STEP)
     offsets = np.arange(-n_side, n_side + 1) * SEARCH_STEP
@@ -151,7 +151,7 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
                           - people_radii - radii[k]) < clearance).any(axis=-1)
     steps = math.ceil((wall_clearance - costmap.params.inflation_radius) / SEARCH_STEP - 1e-9)
     spot_ok = (passable & _eroded(free, steps) & (robot_gaps >= clearance).all(axis=-1)
-               & people_clear)
+               & people_clear & (moved >= min_move))
     for way, radius in ways:
         spot_ok &= distance_to_polyline(points, way) >= radii[k] + radius + clearance
     for missed in np.asarray(avoid, dtype=float).reshape(-1, 2):

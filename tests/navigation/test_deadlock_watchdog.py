@@ -65,15 +65,17 @@ def _corridor_with_bay(width=1.6, bay_depth=1.6, t=0.2):
     ))
 
 
-def _run(with_watchdog: bool, duration=75.0, watchdog_sees=None):
+def _run(with_watchdog: bool, duration=75.0, watchdog_sees=None, world=None):
     """Robot states (T, 2, 4) at 10 Hz and the watchdog's orders at the end (None
-    without it); ``watchdog_sees``: disturbances on the watchdog's input only."""
-    obstacles = _corridor_with_bay()
+    without it); ``watchdog_sees``: disturbances on the watchdog's input only; ``world``:
+    (obstacles, bounds, starts, goals), by default the corridor with its bay, ``STARTS``
+    and ``GOALS``."""
+    obstacles, bounds, starts, goals = world or (_corridor_with_bay(), BOUNDS, STARTS, GOALS)
     builder = DiagramBuilder()
-    robots = builder.AddSystem(UnicycleRobots(NAMES, np.array(STARTS), rate_hz=20.0))
+    robots = builder.AddSystem(UnicycleRobots(NAMES, np.array(starts), rate_hz=20.0))
     controller = builder.AddSystem(ClusterCbfController(NAMES, obstacles, rate_hz=20.0))
     planner = builder.AddSystem(PlannerService.from_obstacles(
-        obstacles, BOUNDS, NAMES, replan_rate_hz=2.0, target_check_rate_hz=10.0))
+        obstacles, bounds, NAMES, replan_rate_hz=2.0, target_check_rate_hz=10.0))
     state = robots.GetOutputPort("state")
     builder.Connect(state, controller.GetInputPort("robot_state"))
     builder.Connect(controller.GetOutputPort("commands"), robots.GetInputPort("commands"))
@@ -82,16 +84,16 @@ def _run(with_watchdog: bool, duration=75.0, watchdog_sees=None):
     watchdog = None
     if with_watchdog:
         watchdog = builder.AddSystem(DeadlockWatchdog(
-            NAMES, [RADIUS, RADIUS], Costmap.from_obstacles(obstacles, BOUNDS),
+            NAMES, [RADIUS, RADIUS], Costmap.from_obstacles(obstacles, bounds),
             rate_hz=2.0))
         builder.Connect(state, watchdog.GetInputPort("robot_state"))
         builder.Connect(watchdog.GetOutputPort("back_offs"), planner.GetInputPort("back_offs"))
         if watchdog_sees is not None:
             source = builder.AddSystem(ConstantValueSource(Value[object](watchdog_sees)))
             builder.Connect(source.get_output_port(), watchdog.GetInputPort("disturbances"))
-    for name, goal in zip(NAMES, GOALS, strict=True):
+    for name, goal in zip(NAMES, goals, strict=True):
         target = builder.AddSystem(ConstantValueSource(Value[object](
-            WaypointTarget(name, True, goal, None, True))))
+            WaypointTarget(name, goal is not None, goal, None, True))))
         builder.Connect(target.get_output_port(), planner.GetInputPort(f"target_{name}"))
         if watchdog is not None:
             builder.Connect(target.get_output_port(), watchdog.GetInputPort(f"target_{name}"))
@@ -130,6 +132,36 @@ def test_the_watchdog_backs_one_robot_into_the_bay_and_both_arrive():
     assert BAY[0] < first.point[0] < BAY[1] and first.point[1] > 0.8
     assert first.issued - first.stalled_since == pytest.approx(15.0, abs=0.5)
     assert not orders.active
+
+
+def _room_with_a_door(t=0.15):
+    """A room west of a 1.3 m door (its centre the origin) in a wall along x = 0, the
+    room's south wall 0.93 m south of the door's centre, a corridor east of it: room 5's
+    door of the hospital."""
+    return Obstacles((
+        Box("door_north", (0.0, 3.325), (t, 5.35)),
+        Box("door_south", (0.0, -2.825), (t, 4.35)),
+        Box("room_south", (-3.0, -0.93), (6.0, t)),
+        Box("room_west", (-6.0, 2.5), (t, 7.0)),
+        Box("north", (-0.5, 6.0), (7.0, t)),
+        Box("corridor_east", (3.0, 0.0), (t, 12.0)),
+        Box("corridor_south", (1.5, -5.0), (3.0, t)),
+    ))
+
+
+def test_a_robot_sent_aside_makes_way_at_once():
+    # Issue 15 (soak seed 107): robot1 and robot5, leaving room 5 together, stood at its
+    # door, robot1 (r0) facing it 0.4 m north of its centre line, robot5 (r1) beside it
+    # to the south-west, in the way r0 must swing through to pass the door. r1 was sent to
+    # spots just over 0.5 m off, counted as reached (within 0.5 m) at once, and in the
+    # controller no longer led (within its arrival radius of the path's end): eleven
+    # orders moved it 3.5 cm each, 110 s. Sent 1 m off, it makes way and r0 leaves.
+    world = (_room_with_a_door(), (-6.5, 3.5, -5.5, 6.5),
+             [[-0.595, 0.393, -0.79], [-0.88, -0.15, 0.064]], [(1.5, -3.0), None])
+    states, orders = _run(with_watchdog=True, duration=30.0, world=world)
+    assert np.linalg.norm(states[-1, 0, :2] - (1.5, -3.0)) < 0.5  # r0 is out
+    assert [order.robot for order in orders.history] == ["r1"]
+    assert math.dist(orders.history[0].point, (-0.88, -0.15)) >= 1.0
 
 
 def test_a_broken_down_robot_is_never_asked_to_yield():
@@ -212,7 +244,8 @@ def test_a_robot_pushed_against_a_wall_still_gets_a_spot(gap):
 
 
 @pytest.mark.parametrize("field, value", [("standstill_time", 0.0), ("yield_time", -1.0),
-                                          ("search_reach", 0.0), ("block_gap", -0.1)])
+                                          ("search_reach", 0.0), ("block_gap", -0.1),
+                                          ("back_off_distance", 0.5)])
 def test_params_refuse_bad_values(field, value):
     with pytest.raises(InputError, match=field):
         WatchdogParams(**{field: value})
