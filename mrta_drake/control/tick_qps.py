@@ -188,7 +188,7 @@ def _group_rows(states, hits, humans, human_velocities, mask, members, group_sta
         u = u_nominal[index]
         if corner_steering:
             steer(u, group_states, G_g, b[r0:r1], member[r0:r1], other[r0:r1],
-                  normal[r0:r1], stall_speed, k_theta, lower[index], upper[index])
+                  normal[r0:r1], stall_speed, k_theta)
         _scatter_rows(u_nominal, index, u)
         flat = u.ravel()
         clipped = np.minimum(np.maximum(flat, lower[index].ravel()), upper[index].ravel())
