@@ -19,15 +19,10 @@ SCRIPT = pathlib.Path(__file__).with_name("run_fingerprint.py")
 # the side with room when the right side is nearer a wall than nominal.pass_wall_room;
 # docs/control.md): in hospital_6_robots robot2 passes on its left from 9.1 s on, 4 of 4
 # tasks on time, closest robot-robot 0.207 m (was 0.208).
-# Both changed again on 2026-11-26 (night) with the steering's blocking row judged at the
-# clipped nominal and a blocked robot heading past the blocking point's tangent
-# (docs/control.md, "Steering a blocked robot"): robot2, standing blocked, turns further
-# (from 13.0 s in hospital_6_robots, 6.5 s in hospital_disturbances); 5 of 5 tasks on time,
-# closest robot-robot 0.171 m (was 0.163), robot-wall and robot-person as before.
 FINGERPRINTS = {
-    "hospital_6_robots.yaml": "ffcdea1330b2ee43d1f252cd104bb96b438276b39e755f96ce36ac9fc671bd9f",
+    "hospital_6_robots.yaml": "387364020cbe306925677d3d9a8af5a1c650bf69e4b75b2999c1de74f91c81d7",
     "hospital_disturbances.yaml":
-        "058b54698eda408f05c7f02c8989ec6945dc4843436b7913305eefd10f8a0764",
+        "cbbf2ac9ee0d07fd5176e22a63eb29e9f80c880df819dbff3b03a0709efd3912",
 }
 
 
