@@ -45,6 +45,10 @@ is what Drake's simulator and systems framework spend outside the blocks' Python
 
     python benchmarks/realtime.py [--robots 2,4,6] [--backend kinematic,physics]
                                   [--duration 60] [--repeats 1] [--quick] [--no-first-run]
+                                  [--qp-solver active_set]
+
+``--qp-solver`` runs every row with that controller ``qp.solver`` (named in the rows'
+variants) instead of the default.
 
 Prints a table and writes benchmarks/results/realtime.json.
 """
@@ -70,6 +74,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from mrta_drake import load_scenario
+from mrta_drake.control.qp_solver import SOLVERS
 from mrta_drake.stack.diagram import build_diagram
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
@@ -118,8 +123,10 @@ def lane_spots(roadways: dict, locations: list, people: list, count: int,
     return chosen
 
 
-def floor_scenario(robots: int, backend: str, seed: int, duration: float, folder: str):
-    """The scenario of one floor with ``robots`` robots (see the module docstring)."""
+def floor_scenario(robots: int, backend: str, seed: int, duration: float, folder: str,
+                   qp_solver: str | None = None):
+    """The scenario of one floor with ``robots`` robots (see the module docstring);
+    ``qp_solver``: the controller's ``qp.solver`` (None: the default)."""
     base = yaml.safe_load(SCENARIO.read_text())
     navigation = yaml.safe_load(NAVIGATION.read_text())
     fleet = [dict(r) for r in base["robots"][:robots]]
@@ -147,21 +154,26 @@ def floor_scenario(robots: int, backend: str, seed: int, duration: float, folder
                                "batch_size": [2, 3]}},
         "seed": seed, "duration": duration,
     }
+    blocks = raw["blocks"] = {}
     if backend != "kinematic":
-        raw["blocks"] = {"robots": {"kind": backend}}
-    path = os.path.join(folder, f"floor_{robots}_{backend}_{seed}.yaml")
+        blocks["robots"] = {"kind": backend}
+    if qp_solver is not None:
+        blocks["controller"] = {"params": {"qp": {"solver": qp_solver}}}
+    path = os.path.join(folder, f"floor_{robots}_{backend}_{seed}_{qp_solver}.yaml")
     with open(path, "w") as f:
         yaml.safe_dump(raw, f, sort_keys=False)
     return load_scenario(path)
 
 
-def build(robots: int, backend: str, duration: float, seed: int, folder: str):
-    """(simulator, stacks, floors, people) of ``robots`` robots on as many floors as needed."""
+def build(robots: int, backend: str, duration: float, seed: int, folder: str,
+          qp_solver: str | None = None):
+    """(simulator, stacks, floors, people) of ``robots`` robots on as many floors as needed
+    (``qp_solver`` as for ``floor_scenario``)."""
     floors = math.ceil(robots / FLOOR_ROBOTS)
     if robots % floors:
         raise SystemExit(f"{robots} robots do not split evenly over {floors} floors")
-    scenarios = [floor_scenario(robots // floors, backend, seed + k, duration, folder)
-                 for k in range(floors)]
+    scenarios = [floor_scenario(robots // floors, backend, seed + k, duration, folder,
+                                qp_solver) for k in range(floors)]
     stacks = [build_diagram(s) for s in scenarios]
     if floors == 1:
         diagram = stacks[0].diagram
@@ -178,12 +190,13 @@ def build(robots: int, backend: str, duration: float, seed: int, folder: str):
     return simulator, stacks, floors, people, tasks
 
 
-def variant(robots: int, floors: int, backend: str) -> str:
+def variant(robots: int, floors: int, backend: str, qp_solver: str | None = None) -> str:
     """The scenario variant behind a row, in words."""
     per_floor = robots // floors
     fleet = "the scenario's robots" if per_floor <= 6 else "the scenario's 6 + lane spots"
     where = "1 hospital floor" if floors == 1 else f"{floors} copies of the hospital floor"
-    return f"{where}, {fleet}, {backend} robots"
+    solver = "" if qp_solver is None else f", qp.solver {qp_solver}"
+    return f"{where}, {fleet}, {backend} robots{solver}"
 
 
 def quickstart(cache: str) -> dict:
@@ -223,9 +236,10 @@ def first_run() -> dict:
 
 
 def run(robots: int, backend: str, duration: float, seed: int, folder: str,
-        profile_duration: float = 0.0) -> dict:
+        profile_duration: float = 0.0, qp_solver: str | None = None) -> dict:
     cpu, wall = time.process_time(), time.perf_counter()
-    simulator, stacks, floors, people, tasks = build(robots, backend, duration, seed, folder)
+    simulator, stacks, floors, people, tasks = build(robots, backend, duration, seed, folder,
+                                                     qp_solver)
     for thread in threading.enumerate():  # start-up work in the background (the planner's
         if thread is not threading.main_thread():  # landmark searches) counts as start-up
             thread.join(timeout=60.0)
@@ -236,7 +250,7 @@ def run(robots: int, backend: str, duration: float, seed: int, folder: str,
     arrivals = sum(1 for stack in stacks for e in stack.recorder.events
                    if e["type"] == "arrival")
     result = {"robots": robots, "backend": backend, "floors": floors,
-              "variant": variant(robots, floors, backend), "people": people,
+              "variant": variant(robots, floors, backend, qp_solver), "people": people,
               "tasks_released": tasks, "stops_completed": arrivals,
               "startup_cpu_s": startup[0], "startup_wall_s": startup[1],
               "sim_cpu_s": cpu, "sim_wall_s": wall,
@@ -291,12 +305,13 @@ def profile(simulator, until: float) -> dict:
             "top_self": [{"function": k, "share": v / total} for k, v in top]}
 
 
-def warm_up_qp() -> None:
+def warm_up_qp(qp_solver: str | None = None) -> None:
     """One CBF-QP that needs the solver (the short warm-up run may solve none), so that its
-    kernels are loaded before the timed runs (the default ``qp.solver``'s)."""
+    kernels are loaded before the timed runs (``qp_solver``'s; None: the default
+    ``qp.solver``'s)."""
     from mrta_drake.control.qp_solver import CbfQp, QpParams
 
-    solution = CbfQp(QpParams().solver).solve([[1.0, 0.0]], [[-1.0, 0.0]], [0.5],
+    solution = CbfQp(qp_solver or QpParams().solver).solve([[1.0, 0.0]], [[-1.0, 0.0]], [0.5],
                                               [[-1.0, -2.0]], [[1.0, 2.0]])
     assert solution.solved and solution.success
 
@@ -350,6 +365,8 @@ def main():
                         help="2 and 6 robots, kinematic, 20 s, no profile")
     parser.add_argument("--no-first-run", action="store_true",
                         help="skip the quickstart command cold and warm")
+    parser.add_argument("--qp-solver", choices=SOLVERS, default=None,
+                        help="the controller's qp.solver (default: the scenario's)")
     parser.add_argument("--out", type=pathlib.Path, default=RESULTS)
     args = parser.parse_args()
     if args.quick:
@@ -370,16 +387,16 @@ def main():
     first = None if args.no_first_run else first_run()
     with tempfile.TemporaryDirectory() as folder:
         run(2, "kinematic", 1.0, args.seed, folder)  # warm-up: compiled kernels, imports
-        warm_up_qp()
+        warm_up_qp(args.qp_solver)
         for backend in backends:
             for n in counts:
-                runs = [run(n, backend, args.duration, args.seed, folder) for _ in
-                        range(args.repeats)]
+                runs = [run(n, backend, args.duration, args.seed, folder,
+                            qp_solver=args.qp_solver) for _ in range(args.repeats)]
                 best = max(runs, key=lambda r: r["rtf_cpu"])
                 best["rtf_wall"] = max(r["rtf_wall"] for r in runs)
                 if n in profiled:
                     best["profile"] = run(n, backend, args.duration, args.seed, folder,
-                                          args.profile_duration)["profile"]
+                                          args.profile_duration, args.qp_solver)["profile"]
                 best["goal"] = GOALS.get(n)
                 best["paper"] = PAPER.get(n)
                 rows.append(best)
@@ -405,6 +422,7 @@ def main():
 
     args.out.parent.mkdir(parents=True, exist_ok=True)
     report = {"duration": args.duration, "repeats": args.repeats, "seed": args.seed,
+              "qp_solver": args.qp_solver,
               "floor_robots": FLOOR_ROBOTS, "machine": machine(),
               "calibration_ms": {"before": calibration_before, "after": calibration_after},
               "first_run": first, "results": rows}
