@@ -154,11 +154,13 @@ def floor_scenario(robots: int, backend: str, seed: int, duration: float, folder
                                "batch_size": [2, 3]}},
         "seed": seed, "duration": duration,
     }
-    blocks = raw["blocks"] = {}
+    blocks = {}
     if backend != "kinematic":
         blocks["robots"] = {"kind": backend}
     if qp_solver is not None:
         blocks["controller"] = {"params": {"qp": {"solver": qp_solver}}}
+    if blocks:
+        raw["blocks"] = blocks
     path = os.path.join(folder, f"floor_{robots}_{backend}_{seed}_{qp_solver}.yaml")
     with open(path, "w") as f:
         yaml.safe_dump(raw, f, sort_keys=False)
