@@ -161,7 +161,8 @@ def floor_scenario(robots: int, backend: str, seed: int, duration: float, folder
         blocks["controller"] = {"params": {"qp": {"solver": qp_solver}}}
     if blocks:
         raw["blocks"] = blocks
-    path = os.path.join(folder, f"floor_{robots}_{backend}_{seed}_{qp_solver}.yaml")
+    solver = "" if qp_solver is None else f"_{qp_solver}"
+    path = os.path.join(folder, f"floor_{robots}_{backend}_{seed}{solver}.yaml")
     with open(path, "w") as f:
         yaml.safe_dump(raw, f, sort_keys=False)
     return load_scenario(path)
