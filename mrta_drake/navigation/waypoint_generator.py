@@ -294,9 +294,14 @@ class WaypointPolicy:
       and no others, standing still until it holds those at its slot or point; but not
       while it waits at a point for a room another robot holds (that robot must come in).
     - enter: once holding the room, drive through the remaining slots and the entry path;
-      but while another robot moves within ``door_clearance`` of the entry path or the point
-      (e.g. one that had parked in the room, leaving), wait at the slot: two robots in a
-      doorway cannot pass (unless ``door_wait`` is off). The mirror: a robot about to leave
+      but while the doorway is taken, wait at the slot (until past the first slot, so also
+      a robot granted the room on its way there: at the slot ahead of it), as two robots in
+      a doorway cannot pass: while another robot moves within ``door_clearance`` of the
+      entry path or the point (e.g. one that had parked in the room, leaving), or stands
+      within ``door_clearance`` of the doorway, from the first slot along the entry path to
+      the point, unless it waits for the holder or stands there for good
+      (``_doorway_taken``). After ``door_patience`` s of one such wait the holder drives in
+      all the same; with ``door_wait`` off, at once. The mirror: a robot about to leave
       the room it stands in (on its point or a parking spot) while another robot holds the
       room and moves there waits, target inactive, until it stops moving.
     - serve: within ``reach_tolerance`` of the point and holding the room, stand for
