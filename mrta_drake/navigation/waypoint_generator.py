@@ -8,6 +8,7 @@ import numpy as np
 from pydrake.common.value import Value
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
+from mrta_drake.errors import require_positive
 from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.single_file import (
     NOTHING,
@@ -16,6 +17,7 @@ from mrta_drake.navigation.single_file import (
     need,
     standing,
 )
+from mrta_drake.navigation.standstills import distance_to_polyline
 from mrta_drake.payloads import (
     NO_DISTURBANCES,
     ROBOT_STATE_SIZE,
@@ -50,14 +52,20 @@ class WaypointParams:
     release_distance: float = 5.0  # give a room back this far from its point
     parking_clearance: float = 0.8  # a parking spot is taken with another robot this close
     door_clearance: float = 1.0  # a holder waits at its slot while another robot moves this
-    # close to the room's entry path or point
+    # close to the room's entry path or point, or stands this close to its doorway
     door_wait: bool = True  # that wait at all (off: the holder enters at once, as in the paper)
+    door_patience: float = 30.0  # but for the doorway no longer than this at a time (s): then
+    # it enters as without the wait
     parking: bool = True  # a robot with nothing to do parks off the point: on a parking spot
     # of the location, or where it has none, back on its start spot (off: it stays there)
     lift_request_distance: float = 4.0  # ask for a lift this close to its cabin's point
     lift_wait_distance: float = 3.0  # wait for it this far back along the route from the
     # cabin's point, one more metre per robot ahead in its queue
     single_file: SingleFileParams = SingleFileParams()  # holding single-file segments
+
+    def __post_init__(self):
+        require_positive(self, "door_clearance", unit=" m")
+        require_positive(self, "door_patience", unit=" s")
 
 
 @dataclass(frozen=True)
@@ -70,7 +78,9 @@ class _Drive:
     standing still rather than driving onto the holder; ``began`` when the robot set off
     for its stop (s). ``lift_slot``: waiting for a lift, the robot's place in its queue; -1
     once it rides, standing at ``berth`` in the cabin (world frame, m). ``lanes``: the
-    single-file segments it needs now, and whether it stands until it holds them."""
+    single-file segments it needs now, and whether it stands until it holds them.
+    ``door_since``: holding the room and not yet through its door, since when the doorway
+    has been taken (``WaypointPolicy._door_busy``; s), else None."""
 
     phase: RobotMode = RobotMode.IDLE
     stop: Stop | None = None
@@ -87,6 +97,7 @@ class _Drive:
     lift_slot: int = -1
     berth: tuple[float, float] | None = None
     lanes: Need = NOTHING
+    door_since: float | None = None
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the state can share it
@@ -170,7 +181,8 @@ def _declare_inputs(system: LeafSystem, robots: int) -> _InputPorts:
 
 class _Robots:
     """The fleet's ``states`` (from ``WaypointInputs``) and ``xy``, robot ``index``'s
-    position (world frame, m), read when first needed."""
+    position (world frame, m), read when first needed; ``broken``: the indices of the
+    robots broken down now."""
 
     def __init__(self, inputs: WaypointInputs, index: int):
         self._inputs, self._index = inputs, index
@@ -185,6 +197,10 @@ class _Robots:
         if self._xy is None:
             self._xy = _point(self._inputs.states[self._index])
         return self._xy
+
+    @property
+    def broken(self) -> tuple[int, ...]:
+        return self._inputs.disturbances.broken
 
 
 def _changed(s: _Drive, **changes) -> _Drive:
@@ -219,6 +235,12 @@ def _points_or_none(array) -> tuple[tuple[float, float], ...] | None:
 
 def _distance(a, b) -> float:
     return math.hypot(a[0] - b[0], a[1] - b[1])
+
+
+def _nearest(points: np.ndarray, spots) -> np.ndarray:
+    """(N,) distance (m) from each of ``points`` (N, 2) to the nearest of ``spots``."""
+    spots = np.asarray(spots, dtype=float).reshape(-1, 2)
+    return np.linalg.norm(points[:, None, :] - spots[None, :, :], axis=-1).min(axis=1)
 
 
 def _back_along(points, distance: float) -> tuple[float, float]:
@@ -272,9 +294,14 @@ class WaypointPolicy:
       and no others, standing still until it holds those at its slot or point; but not
       while it waits at a point for a room another robot holds (that robot must come in).
     - enter: once holding the room, drive through the remaining slots and the entry path;
-      but while another robot moves within ``door_clearance`` of the entry path or the point
-      (e.g. one that had parked in the room, leaving), wait at the slot: two robots in a
-      doorway cannot pass (unless ``door_wait`` is off). The mirror: a robot about to leave
+      but while the doorway is taken, wait at the slot (until past the first slot, so also
+      a robot granted the room on its way there: at the slot ahead of it), as two robots in
+      a doorway cannot pass: while another robot moves within ``door_clearance`` of the
+      entry path or the point (e.g. one that had parked in the room, leaving), or stands
+      within ``door_clearance`` of the doorway, from the first slot along the entry path to
+      the point, unless it waits for the holder or stands there for good
+      (``_doorway_taken``). After ``door_patience`` s of one such wait the holder drives in
+      all the same; with ``door_wait`` off, at once. The mirror: a robot about to leave
       the room it stands in (on its point or a parking spot) while another robot holds the
       room and moves there waits, target inactive, until it stops moving.
     - serve: within ``reach_tolerance`` of the point and holding the room, stand for
@@ -333,6 +360,7 @@ class WaypointPolicy:
         spots: Sequence[tuple[float, float]] = (),
     ):
         self._robot = robot_names[index]
+        self._names = tuple(robot_names)
         self._home = home
         self._spots = tuple(spot for spot in spots if spot != home)
         starts = (*self._spots, *([] if home is None else [home]))
@@ -417,7 +445,8 @@ class WaypointPolicy:
             s = self._reroute(s, robots.xy, lanes, closed, t)
         if disturbances.breakdowns and any(b.robot == self._index
                                            for b in disturbances.breakdowns):
-            s = _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0, since=None)
+            s = _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0, since=None,
+                         door_since=None)
         else:
             stops = self._stops(inputs.plan)
             s = self._follow_plan(s, _first_to_do(stops, s.visits), robots, lanes, t)
@@ -632,10 +661,16 @@ class WaypointPolicy:
                 and _distance(xy, s.route[-1]) <= params.request_distance
             ):
                 s = replace(s, phase=RobotMode.QUEUE, route=(), index=len(place.queue) - 1)
+        # Entering while another robot comes out of the room, or stands in its doorway, would
+        # stand both in the doorway: the holder waits at the slot ahead of it.
+        slot = self._slot_ahead(s, place) if holding else None
+        s = _changed(s, door_since=None if slot is None
+                     else self._door_since(s, place, robots, queues, t))
+        waits = s.door_since is not None and t - s.door_since < params.door_patience
+        if s.phase == RobotMode.ENTER and waits:
+            s = replace(s, phase=RobotMode.QUEUE, route=(), index=slot)
         if s.phase == RobotMode.QUEUE:
-            # Entering while another robot comes out would stand both in the doorway.
-            if holding and not (self._params.door_wait
-                                and self._door_busy(place, robots.states)):
+            if holding and not waits:
                 route = _points(place.queue[s.index::-1]) + _points(place.entry)
                 s = replace(s, phase=RobotMode.ENTER, route=route + (_point(place.point),),
                             index=0)
@@ -736,6 +771,59 @@ class WaypointPolicy:
                 self._params.reach_tolerance:
             return False
         return self._door_busy(place, robots.states)
+
+    def _slot_ahead(self, s: _Drive, place) -> int | None:
+        """The queue slot of ``place`` the robot waits at or drives to next, as long as it
+        has not passed the first one on the way in (the route made at the queue: the slots
+        back to the first, the entry path, the point); None otherwise."""
+        if s.phase == RobotMode.QUEUE:
+            return s.index
+        first = len(s.route) - len(place.entry) - 2  # the first slot's index in the route
+        if s.phase == RobotMode.ENTER and s.index <= first:
+            return first - s.index
+        return None
+
+    def _door_since(self, s: _Drive, place, robots: _Robots, queues: QueueState,
+                    t: float) -> float | None:
+        """Since when ``place``'s doorway has been taken for the holder before its door
+        (``s.door_since``, or now, ``t``), or None while it is free (or without
+        ``door_wait``): another robot moves near the door (``_door_busy``) or stands in
+        the doorway (``_doorway_taken``)."""
+        if not self._params.door_wait or not (
+                self._door_busy(place, robots.states)
+                or self._doorway_taken(place, robots, queues)):
+            return None
+        return t if s.door_since is None else s.door_since
+
+    def _doorway_taken(self, place, robots: _Robots, queues: QueueState) -> bool:
+        """Whether another robot stands (no faster than ``ROBOT_STOPPED_SPEED``) within
+        ``door_clearance`` of ``place``'s doorway, the polyline from its first queue slot
+        through the entry path to the point: one cannot pass it there (soak seed 115: robot2,
+        the holder, drove past robot6 standing in the door on its way out, 2.4 cm from the
+        jamb). Left out are the robots that stand there for good or wait for the holder,
+        since waiting for them would deadlock: within ``reach_tolerance`` of the point or
+        a parking spot (waiting to serve, parked, or held to leave: ``_held_at_door``),
+        within ``parking_clearance`` of a start spot (at home), in the room's queue, waiting
+        for single-file segments, and broken down."""
+        states = robots.states
+        near = np.abs(states[:, 3]) <= ROBOT_STOPPED_SPEED
+        near[self._index] = False
+        if not near.any():
+            return False
+        params, xy = self._params, states[:, :2]
+        doorway = np.array([*place.queue[:1], *place.entry, place.point], dtype=float)
+        near &= distance_to_polyline(xy, doorway) <= params.door_clearance
+        if not near.any():
+            return False
+        near &= _nearest(xy, [place.point, *place.parking]) > params.reach_tolerance
+        homes = [*self._spots, *([] if self._home is None else [self._home])]
+        if homes:
+            near &= _nearest(xy, homes) > params.parking_clearance
+        queue = queues.room(place.id)
+        waiting = {*queues.segment_waiting, *(() if queue is None else queue.waiting)}
+        broken = robots.broken
+        return any(self._names[k] not in waiting and k not in broken
+                   for k in np.flatnonzero(near))
 
     def _door_busy(self, place, states: np.ndarray) -> bool:
         """Whether another robot is moving (faster than ``ROBOT_STOPPED_SPEED``) within

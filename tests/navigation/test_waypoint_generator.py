@@ -3,15 +3,19 @@
 import math
 
 import numpy as np
+import pytest
 from pydrake.common.value import Value
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from mrta_drake.allocation.fixed_sequence_allocator import FixedSequenceAllocator
+from mrta_drake.errors import InputError
 from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.room_queues import RoomQueues
 from mrta_drake.navigation.waypoint_generator import WaypointGenerator, WaypointParams, _Drive
 from mrta_drake.payloads import (
+    Breakdown,
+    Disturbances,
     FleetPlan,
     QueueState,
     RobotMode,
@@ -407,18 +411,41 @@ def test_a_robot_parked_in_a_room_waits_for_the_holder_before_serving_there():
     assert [v.key for v in world.progress(0).visits] == ["a", "d"]
 
 
-def queueing_at_b(queue: RoomQueue, slot: int, params: WaypointParams | None = None):
-    """Robot r0 alone (of two), in the queue phase for its stop at B at ``slot``, with B's
-    ``queue``: (generator, context, B's place)."""
+def at_b(queue: RoomQueue | QueueState, drive: _Drive, params: WaypointParams | None = None,
+         spots=()):
+    """Robot r0 alone (of two) in state ``drive`` (its stop at B), with B's ``queue`` (or
+    the whole ``QueueState``) and the start ``spots``: (generator, context, B's place)."""
     roadways = loop_world(parking=True)
     generator = WaypointGenerator(["r0", "r1"], 0, roadways, A, params or WaypointParams(),
-                                  rate_hz=10.0)
+                                  None, spots, rate_hz=10.0)
     context = generator.CreateDefaultContext()
     generator.GetInputPort("plan").FixValue(context, plan(("a", B)))
-    generator.GetInputPort("queue_state").FixValue(context, QueueState((queue,)))
-    context.SetAbstractState(0, _Drive(phase=RobotMode.QUEUE, stop=Stop("a", B), index=slot,
-                                       last_location=A))
+    generator.GetInputPort("queue_state").FixValue(
+        context, queue if isinstance(queue, QueueState) else QueueState((queue,)))
+    context.SetAbstractState(0, drive)
     return generator, context, roadways.place(B)
+
+
+def queueing_at_b(queue: RoomQueue | QueueState, slot: int,
+                  params: WaypointParams | None = None, spots=()):
+    """Robot r0 alone (of two), in the queue phase for its stop at B at ``slot``, with B's
+    ``queue``: (generator, context, B's place)."""
+    return at_b(queue, _Drive(phase=RobotMode.QUEUE, stop=Stop("a", B), index=slot,
+                              last_location=A), params, spots)
+
+
+def stepper(generator, context, r0_xy):
+    """``step(r1_xy, r1_speed)``: r0 standing at ``r0_xy`` and r1 there, one update; r0's
+    target after it."""
+    simulator = Simulator(generator, context)
+
+    def step(r1_xy, r1_speed):
+        generator.GetInputPort("robot_state").FixValue(
+            context, [*r0_xy, 0.0, 0.0, *r1_xy, -1.57, r1_speed])
+        simulator.AdvanceTo(context.get_time() + 0.1)
+        return generator.GetOutputPort("target").Eval(context)
+
+    return step
 
 
 def test_a_holder_waits_at_its_slot_while_another_robot_moves_in_the_doorway():
@@ -426,20 +453,84 @@ def test_a_holder_waits_at_its_slot_while_another_robot_moves_in_the_doorway():
     # just as r0 is granted B. Entering then would stand both in the doorway.
     generator, context, place = queueing_at_b(RoomQueue(B, holder="r0"), slot=0)
     slot = place.queue[0]
-    simulator = Simulator(generator, context)
-
-    def step(r1_xy, r1_speed):
-        generator.GetInputPort("robot_state").FixValue(
-            context, [*slot, 0.0, 0.0, *r1_xy, -1.57, r1_speed])
-        simulator.AdvanceTo(context.get_time() + 0.1)
-        return generator.GetOutputPort("target").Eval(context).current
-
+    step = stepper(generator, context, slot)
     entry = place.entry[0]
     # r1 moving 0.6 m from the entry: r0 keeps to its slot, tick after tick.
-    assert step((entry[0], entry[1] + 0.6), 0.5) == tuple(slot)
-    assert step((entry[0] - 0.6, entry[1] - 0.2), 0.5) == tuple(slot)
-    # r1 standing there is no reason to wait (the planner routes around a standing robot).
-    assert step((entry[0] - 0.6, entry[1] - 0.2), 0.0) == tuple(entry)
+    assert step((entry[0], entry[1] + 0.6), 0.5).current == tuple(slot)
+    assert step((entry[0] - 0.6, entry[1] - 0.2), 0.5).current == tuple(slot)
+    # r1 stopping there, in the doorway, holds it too: the two could not pass.
+    assert step((entry[0] - 0.6, entry[1] - 0.2), 0.0).current == tuple(slot)
+    # r1 out of the way: r0 goes in.
+    assert step((entry[0] - 5.0, entry[1] - 1.0), 0.5).current == tuple(entry)
+
+
+def test_a_holder_driving_in_stops_at_a_slot_while_another_robot_stands_in_the_doorway():
+    # Soak seed 115 (issue 15): robot2, granted room_1 on its way there, drove through the
+    # queue slots into the door while robot6, on its way out, stood in it, and squeezed past
+    # it 2.4 cm from the jamb. r0 here holds B and drives in from slot 1; r1 stands
+    # between B's door and point.
+    roadways = loop_world(parking=True)
+    place = roadways.place(B)
+    route = tuple(tuple(map(float, xy)) for xy in [*place.queue[1::-1], *place.entry,
+                                                    place.point])
+    generator, context, place = at_b(RoomQueue(B, holder="r0"), _Drive(
+        phase=RobotMode.ENTER, stop=Stop("a", B), route=route, last_location=A))
+    step = stepper(generator, context, (place.queue[1][0] + 0.6, place.queue[1][1]))
+    in_door = (place.entry[0][0], place.entry[0][1] + 1.2)
+    # r0 stops at slot 1, the slot ahead of it, rather than drive on into the door ...
+    stop = WaypointTarget("r0", True, tuple(place.queue[1]), None, True)
+    assert step(in_door, 0.0) == stop
+    # ... and waits there while r1 stands and then drives out through the door ...
+    assert step(in_door, 0.0) == stop
+    assert step(tuple(place.entry[0]), 0.5) == stop
+    # ... then drives in (slot 1 reached: on to slot 0).
+    assert step((10.0, 1.5), 0.5).current == tuple(place.queue[0])
+
+
+def test_a_holder_does_not_wait_for_the_robots_that_wait_for_it_or_stand_for_good():
+    # Each of these stands in B's doorway yet is no reason to wait (it would deadlock): on
+    # the point to serve there after r0, in B's queue, waiting for single-file segments,
+    # broken down, or at its start spot.
+    door = (15.5, 2.0)  # between B's first slot and its entry point
+    cases = [
+        (RoomQueue(B, holder="r0"), (15.0, 4.3), Disturbances(), ()),
+        (RoomQueue(B, holder="r0", waiting=("r1",)), door, Disturbances(), ()),
+        (QueueState((RoomQueue(B, holder="r0"),), segment_waiting=("r1",)), door,
+         Disturbances(), ()),
+        (RoomQueue(B, holder="r0"), door, Disturbances(breakdowns=(Breakdown(1, 0.0),)), ()),
+        (RoomQueue(B, holder="r0"), door, Disturbances(), (door,)),
+    ]
+    for queue, r1_xy, disturbances, spots in cases:
+        generator, context, place = queueing_at_b(queue, slot=0, spots=spots)
+        generator.GetInputPort("disturbances").FixValue(context, disturbances)
+        step = stepper(generator, context, place.queue[0])
+        assert step(r1_xy, 0.0).current == tuple(place.entry[0])
+    # The same spot without any of these: r0 waits.
+    generator, context, place = queueing_at_b(RoomQueue(B, holder="r0"), slot=0)
+    assert stepper(generator, context, place.queue[0])(door, 0.0).current == \
+        tuple(place.queue[0])
+
+
+def test_a_holder_enters_after_door_patience_and_keeps_going():
+    # r1 stands in the doorway for good (e.g. stuck): r0 waits door_patience, then drives in
+    # as without the wait, and does not stop again before the door.
+    params = WaypointParams(door_patience=2.0)
+    generator, context, place = queueing_at_b(RoomQueue(B, holder="r0"), slot=1,
+                                              params=params)
+    step = stepper(generator, context, (place.queue[1][0] + 1.2, place.queue[1][1]))
+    door = (15.5, 2.0)
+    targets = [step(door, 0.0) for _ in range(40)]  # 4 s
+    wait = WaypointTarget("r0", True, tuple(place.queue[1]), None, True)
+    go = WaypointTarget("r0", True, tuple(place.queue[1]), tuple(place.queue[0]), False)
+    waited = targets.index(go)
+    assert 1.9 <= waited * 0.1 <= 2.2
+    assert targets[:waited] == [wait] * waited
+    assert targets[waited:] == [go] * (len(targets) - waited)
+
+
+def test_door_patience_must_be_positive():
+    with pytest.raises(InputError, match="door_patience"):
+        WaypointParams(door_patience=0.0)
 
 
 def test_without_door_wait_the_holder_enters_while_another_robot_moves_in_the_doorway():
