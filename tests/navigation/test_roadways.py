@@ -78,6 +78,14 @@ def test_route_from_a_point_joins_the_nearest_node():
     np.testing.assert_array_equal(route[-1], [8, 1.5])
 
 
+def test_route_to_a_spot_follows_the_lanes_from_the_nearest_node():
+    roadways = Roadways(*loop_world())
+    # From beside S20, east and round (one-way lanes) to S0, the node nearest the spot.
+    np.testing.assert_array_equal(
+        roadways.route_to_spot([19.0, -0.5], (4.0, -1.0)),
+        [[20, 0], [30, 0], [30, 1.5], [20, 1.5], [10, 1.5], [0, 1.5], [0, 0], [4, -1]])
+
+
 def _error(config, locations) -> str:
     with pytest.raises(InputError) as error:
         Roadways(config, locations, file="nav.yaml")
