@@ -97,6 +97,19 @@ def _without_repeats(points: list[np.ndarray]) -> np.ndarray:
     return frozen_array(kept, shape=(len(kept), 2))
 
 
+def _out_of(place: Place, route: list) -> np.ndarray:
+    """The polyline (k, 2) out of ``place`` and on along ``route`` (points, m, from its exit
+    node): where the exit node stands on the point (an imported building's), ``route``
+    itself, which leads out along the lanes; else the point, the entry backwards, then
+    ``route``. Along the entry first, a leg out of a room whose entry runs along the lanes
+    (behind a single-file door, a spur) went out, back in to the point and out again (the
+    two-floor clinic: every leg, 5-17 m longer), and one from a point on a passage drove
+    out to its head slot and back (the office's patrol_C)."""
+    if len(route) and np.array_equal(route[0], place.point):
+        return _without_repeats(route)
+    return _without_repeats([place.point, *place.entry[::-1], *route])
+
+
 class Roadways:
     """The directed lane graph of a building and its locations' queues and entries.
 
@@ -304,8 +317,7 @@ class Roadways:
                 raise ValueError(f"a leg joins two different locations, got {from_location} twice")
             start = self.place(from_location)
             route = self.route_from_node(start.exit_node, to_location, self._past_queue(start))
-            self._legs[key] = None if route is None else _without_repeats(
-                [start.point, *start.entry[::-1], *route])
+            self._legs[key] = None if route is None else _out_of(start, list(route))
         return self._legs[key]
 
     def leg_length(self, from_location: int, to_location: int) -> float:
@@ -349,8 +361,7 @@ class Roadways:
         start = self.place(from_location)
         reached = self._without_lifts(start.exit_node)
         nearest = self._nearest(reached, xy)
-        return _without_repeats([start.point, *start.entry[::-1],
-                                 *(self.node_position(n) for n in reached[nearest]), xy])
+        return _out_of(start, [*(self.node_position(n) for n in reached[nearest]), xy])
 
     def route_to_spot(self, xy, spot) -> np.ndarray | None:
         """The polyline (k, 2) from the roadway node nearest ``xy`` (m) that leads along the
