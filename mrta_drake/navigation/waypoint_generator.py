@@ -563,7 +563,9 @@ class WaypointPolicy:
         another robot that chose it too (within ``parking_clearance``) and goes first
         (``WaitingSpot``: by rank, then robot order; both chose it at one update, or the
         other robot comes home to it): it drives along the lanes (``route_to_spot``) to the
-        spot it would choose now (``_home_spot``), else stands (idle)."""
+        spot it would choose now (``_home_spot``). Where there is none it keeps the spot:
+        standing instead where it gave it up (in a lane, on the office's single-file
+        corridors) boxed the others in (office, seed 0: 7 of 35 tasks against 26)."""
         spot = s.route[-1]
         if spot == self._home:
             return s
@@ -577,7 +579,7 @@ class WaypointPolicy:
                                self._occupied(robots))
         route = None if spot is None else lanes.route_to_spot(robots.xy, spot)
         if route is None:
-            return replace(s, phase=RobotMode.IDLE, route=(), index=0)
+            return s
         return replace(s, route=_points(route), index=0)
 
     def _occupied(self, robots: _Robots) -> np.ndarray:
