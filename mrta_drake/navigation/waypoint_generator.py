@@ -334,8 +334,9 @@ class WaypointPolicy:
     ``parking_clearance`` of it and none chose it (``inputs.waiting_spots``, as of the
     last update). Two robots that chose one spot at the same update (or one waiting on
     another's start spot when that one comes home): the one whose ``WaitingSpot`` goes
-    first keeps it, the other chooses again from where it is (``_keep_spot``), so no two
-    robots drive to one spot and circle round it.
+    first keeps it, the other chooses again from where it is (``_keep_spot``; it keeps
+    the spot only where no other is free), so no two robots drive to one spot and circle
+    round it while another spot is free.
     A parked robot given a stop starts it as if standing on the location's point.
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
