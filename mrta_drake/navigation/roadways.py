@@ -164,6 +164,7 @@ class Roadways:
         self.location_ids: tuple[int, ...] = tuple(sorted(self._places))
         self._check_reachable(locations)
         self._legs: dict[tuple[int, int], np.ndarray | None] = {}
+        self._ground_paths: dict[str, dict] = {}  # _without_lifts, by node
         self.closures: tuple[tuple[float, float, float, float], ...] = ()
         self._closed_views: dict[tuple, Roadways] = {}
 
@@ -261,6 +262,7 @@ class Roadways:
                 and any(segment_crosses_box(self.node_position(a), self.node_position(b), box)
                        for box in key)])
             view.closures, view._legs, view._closed_views = key, {}, {}
+            view._ground_paths = {}
             self._closed_views[key] = view
         return view
 
@@ -391,8 +393,13 @@ class Roadways:
 
     def _without_lifts(self, node: str) -> dict:
         """The shortest paths (node lists) from ``node`` to every node it reaches along the
-        lanes without lift rides, by node."""
-        return nx.single_source_dijkstra_path(self._ground(), node, weight="length")
+        lanes without lift rides, by node (cached: an idle robot's waiting spot is chosen
+        again at every update while another robot that goes first chose it too)."""
+        paths = self._ground_paths.get(node)
+        if paths is None:
+            paths = self._ground_paths[node] = nx.single_source_dijkstra_path(
+                self._ground(), node, weight="length")
+        return paths
 
     def _ground(self):
         """The roadway graph without its lift rides (a view)."""
