@@ -330,7 +330,9 @@ class WaypointPolicy:
     level, else the nearest free one of ``spots`` (the other robots' start spots) there
     (``_home_spot``); with no such spot, the target is inactive and it stands still (a
     robot without a home at a location whose spots are all taken parks on the last one,
-    waiting beside it). A spot is free when no other robot stands within
+    waiting beside it; so too where no robot has a start spot off the locations, as in
+    the hospital, whose parking spots lie in rooms entered only through their queues).
+    A spot is free when no other robot stands within
     ``parking_clearance`` of it and none chose it (``inputs.waiting_spots``, as of the
     last update). Two robots that chose one spot at the same update (or one waiting on
     another's start spot when that one comes home): the one whose ``WaitingSpot`` goes
@@ -498,7 +500,8 @@ class WaypointPolicy:
                                 since=None)
             others = self._occupied(robots)
             spot = self._free_parking(place, others)
-            if spot is None:
+            if spot is None and (self._home is not None or self._spots
+                                 or not len(place.parking)):
                 waiting = self._go_home(s, place, lanes, others)
                 if (waiting.phase == RobotMode.HOME or self._home is not None
                         or not len(place.parking)):

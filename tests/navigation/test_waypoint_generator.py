@@ -390,13 +390,13 @@ def test_two_robots_without_a_home_never_drive_to_one_waiting_spot():
 
 
 def test_a_robot_without_a_home_leaves_a_location_whose_parking_spots_are_taken():
-    # r1 and r2 stand on B's two parking spots; r0 serves B and has no home: it drives
-    # along the lanes to the nearest free parking spot, A's first, instead of parking
-    # beside B's last spot, on r2 (airport_terminal, seed 3: robot3 circled robot5 there
-    # to the end of the run).
+    # r1 and r2 stand on B's two parking spots; r0 serves B and has no home (other robots
+    # have start spots, (10, 0), as in an imported building): it drives along the lanes
+    # to the nearest free parking spot, A's first, instead of parking beside B's last
+    # spot, on r2 (airport_terminal, seed 3: robot3 circled robot5 there to the end).
     roadways = loop_world(parking=True)
     taken = roadways.place(B).parking
-    world = World([A, None, None], fixed([B], [], []), parking=True,
+    world = World([A, None, None], fixed([B], [], []), parking=True, spots=[(10.0, 0.0)],
                   at=[roadways.place(A).point, taken[0], taken[1]])
     world.run(until=90.0)
     assert [v.location for v in world.progress(0).visits] == [B]
