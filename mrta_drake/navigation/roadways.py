@@ -97,6 +97,19 @@ def _without_repeats(points: list[np.ndarray]) -> np.ndarray:
     return frozen_array(kept, shape=(len(kept), 2))
 
 
+def _out_of(place: Place, route: list) -> np.ndarray:
+    """The polyline (k, 2) out of ``place`` and on along ``route`` (points, m, from its exit
+    node): where the exit node stands on the point (an imported building's), ``route``
+    itself, which leads out along the lanes; else the point, the entry backwards, then
+    ``route``. Along the entry first, a leg out of a room whose entry runs along the lanes
+    (behind a single-file door, a spur) went out, back in to the point and out again (the
+    two-floor clinic: every leg, 5-17 m longer), and one from a point on a passage drove
+    out to its head slot and back (the office's patrol_C)."""
+    if len(route) and np.array_equal(route[0], place.point):
+        return _without_repeats(route)
+    return _without_repeats([place.point, *place.entry[::-1], *route])
+
+
 class Roadways:
     """The directed lane graph of a building and its locations' queues and entries.
 
@@ -151,6 +164,7 @@ class Roadways:
         self.location_ids: tuple[int, ...] = tuple(sorted(self._places))
         self._check_reachable(locations)
         self._legs: dict[tuple[int, int], np.ndarray | None] = {}
+        self._ground_paths: dict[str, dict] = {}  # _without_lifts, by node
         self.closures: tuple[tuple[float, float, float, float], ...] = ()
         self._closed_views: dict[tuple, Roadways] = {}
 
@@ -248,6 +262,7 @@ class Roadways:
                 and any(segment_crosses_box(self.node_position(a), self.node_position(b), box)
                        for box in key)])
             view.closures, view._legs, view._closed_views = key, {}, {}
+            view._ground_paths = {}
             self._closed_views[key] = view
         return view
 
@@ -304,8 +319,7 @@ class Roadways:
                 raise ValueError(f"a leg joins two different locations, got {from_location} twice")
             start = self.place(from_location)
             route = self.route_from_node(start.exit_node, to_location, self._past_queue(start))
-            self._legs[key] = None if route is None else _without_repeats(
-                [start.point, *start.entry[::-1], *route])
+            self._legs[key] = None if route is None else _out_of(start, list(route))
         return self._legs[key]
 
     def leg_length(self, from_location: int, to_location: int) -> float:
@@ -349,8 +363,25 @@ class Roadways:
         start = self.place(from_location)
         reached = self._without_lifts(start.exit_node)
         nearest = self._nearest(reached, xy)
-        return _without_repeats([start.point, *start.entry[::-1],
-                                 *(self.node_position(n) for n in reached[nearest]), xy])
+        return _out_of(start, [*(self.node_position(n) for n in reached[nearest]), xy])
+
+    def route_to_spot(self, xy, spot) -> np.ndarray | None:
+        """The polyline (k, 2) from the roadway node nearest ``xy`` (m) that leads along the
+        lanes, without lift rides, to the node nearest ``spot`` (m), to that node, then
+        ``spot``; None if none does (for a robot on its way to wait at a spot that has to
+        choose another). Only nodes joined to the one nearest ``xy`` by lanes (either way,
+        no lift rides: its level) are tried."""
+        graph, ground = self.graph, self._ground()
+        goal = self._nearest(graph.nodes, spot)
+        xy = np.asarray(xy, dtype=float)
+        level = nx.node_connected_component(ground.to_undirected(as_view=True),
+                                            self._nearest(graph.nodes, xy))
+        for node in sorted(level, key=lambda n: (
+                float(np.linalg.norm(self.node_position(n) - xy)), str(n))):
+            path = _shortest(ground, node, goal)
+            if path is not None:
+                return _without_repeats([*(self.node_position(n) for n in path), spot])
+        return None
 
     def spots_reached(self, from_location: int, spots) -> list:
         """Of ``spots`` ((x, y) m each), in their order, those whose nearest roadway node is
@@ -362,11 +393,19 @@ class Roadways:
 
     def _without_lifts(self, node: str) -> dict:
         """The shortest paths (node lists) from ``node`` to every node it reaches along the
-        lanes without lift rides, by node."""
+        lanes without lift rides, by node (cached: an idle robot's waiting spot is chosen
+        again at every update while another robot that goes first chose it too)."""
+        paths = self._ground_paths.get(node)
+        if paths is None:
+            paths = self._ground_paths[node] = nx.single_source_dijkstra_path(
+                self._ground(), node, weight="length")
+        return paths
+
+    def _ground(self):
+        """The roadway graph without its lift rides (a view)."""
         graph = self.graph
-        ground = nx.subgraph_view(graph, filter_edge=lambda a, b: not graph.edges[a, b].get(
+        return nx.subgraph_view(graph, filter_edge=lambda a, b: not graph.edges[a, b].get(
             "lift", False))
-        return nx.single_source_dijkstra_path(ground, node, weight="length")
 
     def _nearest(self, nodes, xy) -> str:
         """Of ``nodes``, the one nearest ``xy`` (m; ties by name)."""
