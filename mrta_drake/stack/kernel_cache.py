@@ -35,11 +35,11 @@ QUICKSTART = ("scenarios/hospital_6_robots.yaml", "--duration", "60")
 # CPU s the second process spends besides compiling its kernels (starting Python, importing
 # numba and the kernels' modules, compiling numba's own helpers again): its CPU time less its
 # kernels' in the quickstart, on the benchmark host (docs/benchmarks.md, "The first run").
-CHILD_START_S = 1.7
+CHILD_START_S = 1.6
 # CPU s this process spends, once the second has started, on work other than compiling before
 # the run (loading the scenario, building the diagram): its CPU time from starting the second
 # process to the end of ``Compilation.finish`` less its kernels', measured alike.
-PARENT_AHEAD_S = 2.2
+PARENT_AHEAD_S = 1.6
 
 
 @dataclasses.dataclass(frozen=True)

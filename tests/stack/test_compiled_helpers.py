@@ -5,6 +5,10 @@ Python file of the package, the tests and the benchmarks and fails on any other 
 import ast
 import pathlib
 
+import numba
+
+from mrta_drake.stack.compiled_helper import HELPER_OPTIONS
+
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 FOLDERS = ("mrta_drake", "tests", "benchmarks")
 
@@ -55,3 +59,17 @@ def test_only_compiled_code_refers_to_a_compiled_helper():
     found = [f"{path.relative_to(ROOT)}:{line} {name}" for path, tree in trees.items()
              for name, line in python_references(tree, names)]
     assert found == []
+
+
+
+def test_a_helper_runs_inside_its_caller_and_its_library_is_only_linked():
+    twice = numba.njit(**HELPER_OPTIONS)(lambda x: 2.0 * x)  # not cached: compiled here
+
+    @numba.njit
+    def twice_plus_one(x):
+        return twice(x) + 1.0
+
+    assert twice_plus_one(1.5) == 4.0
+    (helper,) = [result.library for result in twice.overloads.values()]
+    assert helper.serialize_using_object_code()[1] == "bitcode"  # no machine code of its own
+    assert not any(helper.get_pointer_to_function(f.name) for f in helper.get_defined_functions())
