@@ -152,6 +152,7 @@ def _run_scenario(args, compiling) -> int:
                              overrides=None if args.seed is None else {"seed": args.seed})
     _check_writable("--out", args.out, folder=True)
     _check_writable("--record", args.record)
+    _announce(compiling)
     meshcat = None
     realtime = args.realtime or 0.0
     if args.meshcat:
@@ -175,15 +176,18 @@ def _run_scenario(args, compiling) -> int:
 
 def _start_compiling():
     """When numba's cache lacks the stack's entry kernels (the first run after installing),
-    says so once on stderr, with the estimated time, and starts compiling them
-    (``kernel_cache.Compilation``); warm, nothing is said or started."""
+    starts compiling them (``kernel_cache.Compilation``); warm, nothing is started."""
     from mrta_drake.stack import kernel_cache
 
-    compilation = kernel_cache.Compilation(kernel_cache.missing_kernels())
+    return kernel_cache.Compilation(kernel_cache.missing_kernels())
+
+
+def _announce(compilation) -> None:
+    """Says once on stderr that kernels are compiling, with the estimated time; only once
+    the scenario and the outputs are found good, so that bad input stays a one-line error."""
     if compilation.seconds > 0:
         print(f"compiling kernels, once, ~{compilation.seconds:.0f} s", file=sys.stderr,
               flush=True)
-    return compilation
 
 
 def _validate(args) -> int:

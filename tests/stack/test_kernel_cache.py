@@ -79,13 +79,17 @@ def test_kernels_sharing_a_helper_stay_together():
 def test_the_cli_announces_a_cold_cache_and_compiles_in_two_processes(fresh_kernels, capsys):
     first, second = fresh_kernels
     compilation = cli._start_compiling()
+    assert capsys.readouterr().err == ""  # said only once the input is found good
+    cli._announce(compilation)
     seconds = round(_two_processes(5.0, 4.0)) if kernel_cache.processes() == 2 else 9
     assert capsys.readouterr().err == f"compiling kernels, once, ~{seconds} s\n"
     compilation.finish()
     assert kernel_cache.is_cached(first.twice) and kernel_cache.is_cached(second.twice)
     if kernel_cache.processes() == 2:  # the child compiled it: not compiled in this process
         assert second.twice.signatures == []
-    cli._start_compiling().finish()
+    warm = cli._start_compiling()
+    cli._announce(warm)
+    warm.finish()
     assert capsys.readouterr().err == ""
 
 
