@@ -421,15 +421,15 @@ def _as_dict(event) -> dict:
 
 def _waits(queues: QueueState, requests: tuple[QueueRequest, ...]) -> dict[str, set[str]]:
     """Who each robot waiting for a room or single-file segments waits for: the room's
-    holder; the robots holding segments it asks for and does not hold, or, with none, the
-    robots before it waiting for one of those segments (first come, first served)."""
+    holder; the other robots holding segments it asks for (also those it holds with them:
+    where robots stop, a segment is one robot's at a time), or, with none, the robots
+    before it waiting for one of those segments (first come, first served)."""
     waits = {robot: {queue.holder} - {None} for queue in queues.rooms
              for robot in queue.waiting}
     wanted = {request.robot: [k for k, _ in request.segments] for request in requests}
     for i, robot in enumerate(queues.segment_waiting):
-        asked = [k for k in wanted.get(robot, ())
-                 if robot not in queues.segments[k].holders]
-        held = {other for k in asked for other in queues.segments[k].holders}
+        asked = wanted.get(robot, ())
+        held = {other for k in asked for other in queues.segments[k].holders} - {robot}
         if not held:
             held = {other for other in queues.segment_waiting[:i]
                     if not set(wanted.get(other, ())).isdisjoint(asked)}

@@ -315,6 +315,12 @@ def test_a_robot_waiting_for_segments_queues_only_while_what_it_waits_for_moves(
                                           (0.0, 0.0, 0.5)])  # b stands, c drives elsewhere
     queue, drive = RobotMode.QUEUE, RobotMode.DRIVE
     assert [row[0] for row in modes] == [queue, drive]  # a gridlock: a should move
+    # a holds segment 0 with b (a segment where robots stop: one robot's at a time) and
+    # waits: it waits for b all the same.
+    shared = QueueState((), segments=(SegmentHold(("a", "b")), SegmentHold(("c",))),
+                        segment_waiting=("a",))
+    recorder, context = _waiting_recorder(shared, requests, stops)
+    assert [row[0] for row in _modes_at(recorder, context, [(0.0, 0.0, 0.5)])] == [drive]
 
 
 def test_robots_waiting_for_each_others_rooms_are_in_a_gridlock_not_queueing():
