@@ -263,8 +263,7 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
         queue, entry, approach, zone = _queue(graph, node, holding, single, floor_plan,
                                               _Aside(segments, taken), params)
         if len(entry) and not zone and _off_lanes(np.array(queue[:1]), segments)[0] \
-                >= params.slot_lane_gap - 0.01 and _in_sight(queue[0], point, floor_plan,
-                                                             params):
+                >= params.slot_lane_gap - 0.01:
             entry = []  # from a head slot beside the lanes straight to the point
         parking = [] if zone else _parking(point, segments, floor_plan, params)
         taken += queue + parking
@@ -363,10 +362,6 @@ def _queue(graph: nx.DiGraph, node: str, holding: set[str], single: set[tuple[st
     approach = path[min(beyond, len(path) - 1)]
     entry = [_listed(positions[k]) for k in range(1, len(path))
              if along[k] < distances[0]][::-1]
-    if not _in_sight(slots[0], entry[0] if entry else positions[0], floor_plan, params):
-        # the head slot beside its lane, behind a wall's end from the way on: in by the
-        # lane (its foot there, in the slot's sight)
-        entry = [_listed(_at(positions, along, distances[0])), *entry]
     return [_listed(s) for s in slots], entry, approach, zone
 
 
@@ -457,16 +452,6 @@ def _slot_at(path, positions, along, distance: float, single: set[tuple[str, str
         if sd(line).min() >= params.slot_clearance - 0.2:
             return spot
     return None
-
-
-def _in_sight(a, b, floor_plan: FloorPlan, params: BuildingNavigationParams) -> bool:
-    """Whether a robot drives straight from ``a`` to ``b`` (m): the line between them keeps
-    ``slot_clearance`` less 0.2 m from walls (sampled every 0.1 m or finer)."""
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    steps = max(12, int(math.ceil(np.linalg.norm(b - a) / 0.1)) + 1)
-    line = a + np.linspace(0.0, 1.0, steps)[:, None] * (b - a)
-    return bool(floor_plan.obstacles.signed_distance(line).min()
-                >= params.slot_clearance - 0.2)
 
 
 def _door_path(graph: nx.DiGraph, node: str, single: set[tuple[str, str]],
