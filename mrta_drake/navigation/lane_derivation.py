@@ -9,8 +9,9 @@ distance from world points to the nearest obstacle, m). Output: ``Lanes``, the
   travel direction, when both keep ``robot_radius + margin`` from obstacles all along.
 - Single file: otherwise (or when the edge is marked ``single_file``) it stays one segment on
   its centre line, driven both ways by one robot at a time. ``Lanes.single_file`` lists the
-  maximal chains of such edges (joined at vertices with no other edge) with their roadway
-  nodes, for whoever queues robots for them.
+  maximal chains of such edges (joined at vertices with no other edge, but for the
+  ``stops`` given: vertices where robots stop, such as task locations on a passage) with
+  their roadway nodes, for whoever queues robots for them.
 - A one-way edge is one lane on its centre line.
 - Corners: at a vertex, the lane arriving on one edge and the lane leaving on the next edge
   counterclockwise meet where their lines cross (a right turn); where the lines do not cross
@@ -142,12 +143,15 @@ class Lanes:
 
 
 def derive_lanes(graph: CentrelineGraph, clearance: Clearance,
-                 params: LaneParams = LaneParams()) -> Lanes:
+                 params: LaneParams = LaneParams(), stops: frozenset[str] = frozenset()
+                 ) -> Lanes:
     """One-way lanes along ``graph`` (see the module docstring); ``clearance`` maps world
-    points (k, 2) to their distance from obstacles (k,), m."""
+    points (k, 2) to their distance from obstacles (k,), m. Single-file chains end at the
+    vertices ``stops`` (where robots stop): a robot waiting on one side of such a vertex
+    leaves the other side free for a robot leaving it that way."""
     single = {k for k, edge in enumerate(graph.edges) if edge.single_file and not edge.one_way}
     while True:
-        layout = _Layout(graph, single, params)
+        layout = _Layout(graph, single, params, stops)
         more = layout.edges_to_narrow(clearance) - single
         if not more:
             return layout.lanes(clearance)
@@ -157,8 +161,9 @@ def derive_lanes(graph: CentrelineGraph, clearance: Clearance,
 class _Layout:
     """Corners and links of every vertex for one choice of single-file edges."""
 
-    def __init__(self, graph: CentrelineGraph, single: set[int], params: LaneParams):
-        self.graph, self.single, self.params = graph, single, params
+    def __init__(self, graph: CentrelineGraph, single: set[int], params: LaneParams,
+                 stops: frozenset[str] = frozenset()):
+        self.graph, self.single, self.params, self.stops = graph, single, params, stops
         self.position = {v: np.asarray(xy, dtype=float) for v, xy in graph.nodes.items()}
         self.neighbours: dict[str, list[tuple[str, int]]] = {v: [] for v in graph.nodes}
         for k, edge in enumerate(graph.edges):
@@ -267,7 +272,8 @@ class _Layout:
                      for v in self.graph.nodes}
 
         def inner(v):  # a vertex a chain runs through
-            return len(self.neighbours[v]) == 2 and len(single_at[v]) == 2
+            return (len(self.neighbours[v]) == 2 and len(single_at[v]) == 2
+                    and v not in self.stops)
 
         done, segments = set(), []
         starts = [v for v in self.graph.nodes if single_at[v] and not inner(v)]

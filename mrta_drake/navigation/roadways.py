@@ -1,7 +1,8 @@
 """The building's lanes: a directed graph of roadway nodes, and the legs robots drive on it.
 
 A leg from location ``a`` to location ``b`` is the polyline a robot drives after serving ``a``
-until it joins ``b``'s queue: ``a``'s point, ``a``'s entry path reversed (out of the room),
+until it joins ``b``'s queue: ``a``'s point, ``a``'s entry path reversed (out of the room;
+not where the exit node is on the point itself, whose lanes then lead out: ``way_out``),
 ``a``'s exit node, the shortest path along one-way lanes to ``b``'s approach node, and the
 tail slot of ``b``'s queue. Legs are always computed from the graph, never written by hand.
 
@@ -95,19 +96,6 @@ def _without_repeats(points: list[np.ndarray]) -> np.ndarray:
         if not np.array_equal(point, kept[-1]):
             kept.append(point)
     return frozen_array(kept, shape=(len(kept), 2))
-
-
-def _out_of(place: Place, route: list) -> np.ndarray:
-    """The polyline (k, 2) out of ``place`` and on along ``route`` (points, m, from its exit
-    node): where the exit node stands on the point (an imported building's), ``route``
-    itself, which leads out along the lanes; else the point, the entry backwards, then
-    ``route``. Along the entry first, a leg out of a room whose entry runs along the lanes
-    (behind a single-file door, a spur) went out, back in to the point and out again (the
-    two-floor clinic: every leg, 5-17 m longer), and one from a point on a passage drove
-    out to its head slot and back (the office's patrol_C)."""
-    if len(route) and np.array_equal(route[0], place.point):
-        return _without_repeats(route)
-    return _without_repeats([place.point, *place.entry[::-1], *route])
 
 
 class Roadways:
@@ -319,7 +307,8 @@ class Roadways:
                 raise ValueError(f"a leg joins two different locations, got {from_location} twice")
             start = self.place(from_location)
             route = self.route_from_node(start.exit_node, to_location, self._past_queue(start))
-            self._legs[key] = None if route is None else _out_of(start, list(route))
+            self._legs[key] = None if route is None else _without_repeats(
+                [*self.way_out(start), *route])
         return self._legs[key]
 
     def leg_length(self, from_location: int, to_location: int) -> float:
@@ -343,6 +332,16 @@ class Roadways:
             return None
         return _without_repeats([self.node_position(n) for n in names] + [target.tail])
 
+    def way_out(self, place: Place) -> list[np.ndarray]:
+        """The points (m) a robot leaving ``place`` drives before its exit node: the point,
+        then the entry path backwards (out of a room whose exit node is outside it); only
+        the point where the exit node is on it (its lanes lead out whichever way the robot
+        goes on: driving the entry out first would drive it twice, out and back, for a
+        room at the end of its entry, or away and back, for a point on a passage)."""
+        if np.array_equal(self.node_position(place.exit_node), place.point):
+            return [place.point]
+        return [place.point, *place.entry[::-1]]
+
     def _past_queue(self, place: Place) -> tuple[str, str] | None:
         """The single-file lane from ``place``'s point (its exit node) on which its own
         queue waits, which a robot leaving it could not pass: legs leave the other way where
@@ -357,13 +356,14 @@ class Roadways:
         return None
 
     def leg_to_spot(self, from_location: int, xy) -> np.ndarray:
-        """The polyline (k, 2) out of ``from_location`` (its point, its entry backwards, its
-        exit node) along the lanes, without lift rides, to the roadway node nearest ``xy``
-        it leads to, then ``xy`` (a robot's start spot, m)."""
+        """The polyline (k, 2) out of ``from_location`` (``way_out``, its exit node) along
+        the lanes, without lift rides, to the roadway node nearest ``xy`` it leads to, then
+        ``xy`` (a robot's start spot, m)."""
         start = self.place(from_location)
         reached = self._without_lifts(start.exit_node)
         nearest = self._nearest(reached, xy)
-        return _out_of(start, [*(self.node_position(n) for n in reached[nearest]), xy])
+        return _without_repeats([*self.way_out(start),
+                                 *(self.node_position(n) for n in reached[nearest]), xy])
 
     def route_to_spot(self, xy, spot) -> np.ndarray | None:
         """The polyline (k, 2) from the roadway node nearest ``xy`` (m) that leads along the

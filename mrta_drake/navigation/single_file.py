@@ -4,7 +4,8 @@ A single-file segment (``Roadways.segment_of``) is one lane driven both ways: tw
 meeting head-on in it could not pass. So a robot holds every segment of a *run* before it
 enters the run and until it is out of it: a run is the route's edges in single-file
 segments, with the stretches between them shorter than ``SingleFileParams.chain_gap``
-(too short to wait on) counted in. The room queues grant a run's segments all at once
+(too short to wait on) counted in, and the segments where the route ends, in which the
+robot will stand. The room queues grant a run's segments all at once
 (``RoomQueues``), so a robot never holds part of a run while waiting for the rest. A hop
 that leaves the lanes (from a queue slot or parking spot beside them) onto a segment's lane
 enters that segment like a lane of it.
@@ -98,8 +99,11 @@ def _to_lane(xy, a, b) -> float:
 
 @functools.lru_cache(maxsize=512)
 def route_runs(roadways: Roadways, route: tuple[tuple[float, float], ...],
-               chain_gap: float) -> tuple[Run, ...]:
-    """The runs of ``route`` in order (see the module docstring)."""
+               chain_gap: float, stand_distance: float = 0.0) -> tuple[Run, ...]:
+    """The runs of ``route`` in order (see the module docstring). The segments within
+    ``stand_distance`` of the route's end, where the robot will stand (a point where two
+    segments meet, a slot by a lane), belong to the run that ends there (else to a run of
+    the last edge): it asks for them before it drives in, not once it stands in the way."""
     runs: list[Run] = []
     gap = math.inf
     for j in range(len(route) - 1):
@@ -116,6 +120,16 @@ def route_runs(roadways: Roadways, route: tuple[tuple[float, float], ...],
         else:
             runs.append(Run(j, j, (segment,)))
         gap = 0.0
+    last = len(route) - 2
+    if stand_distance > 0.0 and last >= 0:
+        ending = runs[-1] if runs and runs[-1].last == last else Run(last, last, ())
+        driven = {k for k, _ in ending.segments}
+        extra = tuple((k, True) for k in _near(roadways, route[-1], stand_distance)
+                      if k not in driven)
+        if extra:
+            if runs and runs[-1] is ending:
+                runs.pop()
+            runs.append(Run(ending.first, last, ending.segments + extra))
     return tuple(runs)
 
 
@@ -140,7 +154,7 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
         return NOTHING
     wanted: dict[int, bool] = {}
     hold = False
-    for run in route_runs(roadways, route, params.chain_gap):
+    for run in route_runs(roadways, route, params.chain_gap, params.stand_distance):
         if index <= run.first:  # ahead: how far along the route to its entry?
             ahead = math.dist(xy, route[index]) + sum(
                 math.dist(route[j], route[j + 1]) for j in range(index, run.first))

@@ -791,14 +791,21 @@ class WaypointPolicy:
     def _lanes(self, s: _Drive, robots: _Robots, queues: QueueState) -> Need:
         """The single-file segments the robot needs on its route (while driving it,
         entering a room or driving home), holding back until the room queues grant them
-        all; queueing or serving, those it stands in (``single_file.standing``)."""
+        all; queueing or serving, or back home (within ``single_file.stand_distance`` of
+        the home route's end), those it stands in (``single_file.standing``): a robot home
+        keeps no segment of the way it came by from the robots that need it."""
         if not self._roadways.segment_count:
             return NOTHING
         if s.phase == RobotMode.SERVE and s.waiting:
             return NOTHING  # on the point without its room: the holder comes (docstring)
+        spot = None
         if s.phase in (RobotMode.QUEUE, RobotMode.SERVE):
             place = self._roadways.place(s.stop.location)
             spot = place.queue[s.index] if s.phase == RobotMode.QUEUE else place.point
+        elif s.phase == RobotMode.HOME and s.route and _distance(
+                robots.xy, s.route[-1]) <= self._params.single_file.stand_distance:
+            spot = s.route[-1]
+        if spot is not None:
             held = {k: hold.forward for k, hold in enumerate(queues.segments)
                     if self._robot in hold.holders}
             return standing(self._roadways, robots.xy, spot, held, self._params.single_file)

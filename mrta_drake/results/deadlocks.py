@@ -6,9 +6,16 @@ mode). It is *stuck* once it has stayed within ``progress_distance`` of where it
 start of a stretch of should-move samples for ``stuck_time``. The deadlock lasts until it
 gets farther than that from that place or stops needing to move.
 
+Waiting for a room or a single-file segment is queueing, not being stuck, only while the
+wait leads somewhere: ``stalled_waits`` finds the robots whose waits (for the robots
+holding what they wait for, and so on) reach no robot that moves or serves. Robots standing
+in each other's rooms or segments, each waiting for the other, are a gridlock: the recorder
+counts them as ``DRIVE``, so one lasting ``stuck_time`` is a deadlock.
+
 Units: metres, seconds; world frame.
 """
 
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,6 +77,24 @@ def find_deadlocks(times, robot_xy, should_move, robot_names, human_xy=None, hum
             found.append(_deadlock(name, k, t, xy, humans, robot_names, human_names,
                                    anchor, open_at, None, neighbour_range))
     return sorted(found, key=lambda d: (d.start, robot_names.index(d.robot)))
+
+
+def stalled_waits(waits_on: Mapping[str, Collection[str]],
+                  live: Collection[str]) -> frozenset[str]:
+    """The waiting robots (keys of ``waits_on``: robot -> the robots it waits for) whose
+    waits lead to no robot of ``live`` (moving or serving). A robot's wait leads somewhere
+    when it waits for nobody (what it waits for is free: it gets it at the next grant), or
+    for a live robot, or for a robot whose own wait leads somewhere."""
+    flowing = set(live)
+    flowing.update(robot for robot, others in waits_on.items() if not others)
+    grew = True
+    while grew:
+        grew = False
+        for robot, others in waits_on.items():
+            if robot not in flowing and not flowing.isdisjoint(others):
+                flowing.add(robot)
+                grew = True
+    return frozenset(waits_on).difference(flowing)
 
 
 def _deadlock(name, k, t, xy, humans, robot_names, human_names, anchor, noticed, end,

@@ -168,6 +168,7 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
     builder.Connect(allocator.GetOutputPort("plan"), recorder.GetInputPort("plan"))
     per_robot("progress", recorder, "progress", "progress")
     per_robot("target", recorder, "target", "targets")
+    per_robot("queue_request", recorder, "queue_request", "queue_requests")
     if allocator.HasOutputPort("events"):
         builder.Connect(allocator.GetOutputPort("events"),
                         recorder.GetInputPort("allocator_events"))

@@ -13,6 +13,7 @@ from pydrake.systems.framework import LeafSystem
 from mrta_drake.payloads import (
     PATH_FAILED,
     ROBOT_STATE_SIZE,
+    ROBOT_STOPPED_SPEED,
     BackOffOrders,
     ControllerTelemetry,
     Disturbances,
@@ -21,11 +22,13 @@ from mrta_drake.payloads import (
     HumanStates,
     LiftState,
     NetworkViews,
+    QueueRequest,
     QueueState,
     RobotMode,
     RobotProgress,
     WaypointTarget,
 )
+from mrta_drake.results.deadlocks import stalled_waits
 from mrta_drake.stack.fleet_inputs import PerRobotInputs
 from mrta_drake.stack.sample_log import RowLog, TelemetryLog
 
@@ -90,13 +93,19 @@ class RunRecorder(LeafSystem):
     ``events.jsonl`` as they happen, flushed, so a crash loses nothing.
 
     A robot's mode: ``IDLE`` without a current stop or an active target; ``QUEUE`` while it
-    waits in some room's queue, or for a lift or inside one (per ``lift_state``); ``SERVE``
-    while it holds its stop's room, drives to no waypoint after the current one and is
-    within ``serve_radius`` m of it; ``DRIVE`` otherwise.
+    waits in some room's queue or for single-file segments and the wait leads somewhere, or
+    for a lift or inside one (per ``lift_state``); ``SERVE`` while it holds its stop's room,
+    drives to no waypoint after the current one and is within ``serve_radius`` m of it;
+    ``DRIVE`` otherwise. A wait leads somewhere (``results.deadlocks.stalled_waits``) while
+    the robots it waits for (the room's holder; the holders of the segments it asks for, or
+    else the robots before it asking for one of them), or the robots they wait for, and so
+    on, include one moving (faster than ``ROBOT_STOPPED_SPEED``), serving or at a lift;
+    robots waiting for each other with none of them moving are in a gridlock, ``DRIVE``.
 
     Inputs: ``robot_state`` (4N), ``telemetry``, ``paths``, ``queue_state``, ``plan``,
-    ``progress_<robot>`` and ``target_<robot>`` per robot (or instead ``fleet_progress`` and
-    ``fleet_targets``, their tuples in robot order: ``stack.fleet_inputs``); optional (may
+    ``progress_<robot>``, ``target_<robot>`` and ``queue_request_<robot>`` per robot (or
+    instead ``fleet_progress``, ``fleet_targets`` and ``fleet_queue_requests``, their
+    tuples in robot order: ``stack.fleet_inputs``); optional (may
     stay unconnected): ``human_states``, ``human_active`` (M, 1 = present),
     ``allocator_events`` (a sequence of event objects; new ones are noted),
     ``disturbances``, ``lift_state`` (``LiftState``) and ``lift_events`` (a growing tuple
@@ -120,6 +129,8 @@ class RunRecorder(LeafSystem):
                                         RobotProgress)
         self._targets = PerRobotInputs(self, "target", "targets", self.robot_names,
                                        WaypointTarget)
+        self._requests = PerRobotInputs(self, "queue_request", "queue_requests",
+                                        self.robot_names, QueueRequest)
         self.DeclareAbstractInputPort("human_states", _value(HumanStates()))
         self.DeclareVectorInputPort("human_active", len(self.human_names))
         self.DeclareAbstractInputPort("allocator_events", _value(()))
@@ -222,11 +233,13 @@ class RunRecorder(LeafSystem):
     def _modes(self, context, states: np.ndarray, queues: QueueState,
                progress: tuple[RobotProgress, ...]) -> np.ndarray:
         waiting = {robot for queue in queues.rooms for robot in queue.waiting}
+        at_lifts = set()
         if self._ports["lift_state"].HasValue(context):
             for lift in self._ports["lift_state"].Eval(context).lifts:
-                waiting.update(lift.waiting)
+                at_lifts.update(lift.waiting)
                 if lift.phase != "out":
-                    waiting.update(lift.riders)
+                    at_lifts.update(lift.riders)
+        waiting |= at_lifts
         holders = {queue.room: queue.holder for queue in queues.rooms}
         modes = np.full(self._n, RobotMode.IDLE, dtype=np.int8)
         targets = self._targets.values(context)
@@ -248,6 +261,13 @@ class RunRecorder(LeafSystem):
                 modes[k] = RobotMode.SERVE
             else:
                 modes[k] = RobotMode.DRIVE
+        live = at_lifts.union(
+            name for k, name in enumerate(self.robot_names)
+            if abs(states[k, 3]) > ROBOT_STOPPED_SPEED or modes[k] == RobotMode.SERVE)
+        stalled = stalled_waits(_waits(queues, self._requests.values(context)), live)
+        for k, name in enumerate(self.robot_names):
+            if modes[k] == RobotMode.QUEUE and name in stalled:
+                modes[k] = RobotMode.DRIVE  # a gridlock, not a queue
         return modes
 
     def _note_plan(self, context, t: float) -> None:
@@ -397,6 +417,24 @@ def _as_dict(event) -> dict:
     if isinstance(event, dict):
         return dict(event)
     return {"kind": type(event).__name__, "value": str(event)}
+
+
+def _waits(queues: QueueState, requests: tuple[QueueRequest, ...]) -> dict[str, set[str]]:
+    """Who each robot waiting for a room or single-file segments waits for: the room's
+    holder; the other robots holding segments it asks for (also those it holds with them:
+    where robots stop, a segment is one robot's at a time), or, with none, the robots
+    before it waiting for one of those segments (first come, first served)."""
+    waits = {robot: {queue.holder} - {None} for queue in queues.rooms
+             for robot in queue.waiting}
+    wanted = {request.robot: [k for k, _ in request.segments] for request in requests}
+    for i, robot in enumerate(queues.segment_waiting):
+        asked = wanted.get(robot, ())
+        held = {other for k in asked for other in queues.segments[k].holders} - {robot}
+        if not held:
+            held = {other for other in queues.segment_waiting[:i]
+                    if not set(wanted.get(other, ())).isdisjoint(asked)}
+        waits.setdefault(robot, set()).update(held)
+    return waits
 
 
 def _jsonable(value):

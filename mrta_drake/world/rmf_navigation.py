@@ -195,13 +195,15 @@ def one_way_lanes(lines: CentreLines, floor_plan: FloorPlan, shared: set[str]) -
     """The lane step (``navigation.lane_derivation``): right-hand one-way lanes along the
     centre lines where the free width of ``floor_plan`` allows, else single-file segments;
     the edges at the vertices ``shared`` (task locations that are not dead ends) stay single
-    file, so that their lanes meet on the vertex itself."""
+    file, so that their lanes meet on the vertex itself, and single-file segments end there
+    (a robot queueing on one side leaves the other side to the robot leaving)."""
     graph = CentrelineGraph(
         nodes=lines.nodes,
         edges=tuple(CentrelineEdge(a, b, one_way=not two_way,
                                    single_file=a in shared or b in shared)
                     for a, b, two_way in lines.edges))
-    return derive_lanes(graph, floor_plan.obstacles.signed_distance, LaneParams())
+    return derive_lanes(graph, floor_plan.obstacles.signed_distance, LaneParams(),
+                        frozenset(shared))
 
 
 def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,

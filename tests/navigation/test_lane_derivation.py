@@ -129,6 +129,20 @@ def test_too_narrow_a_corridor_is_one_single_file_segment():
     assert nx.is_strongly_connected(graph)
 
 
+def test_a_single_file_chain_ends_at_a_stop_vertex():
+    # The narrow part b - m - c is one chain; with m a stop (a task location on the
+    # passage), two: a robot waiting in b - m leaves m - c free for the one leaving m.
+    nodes = {"a": (-6.0, 0.0), "b": (-2.5, 0.0), "m": (0.0, 0.0), "c": (2.5, 0.0),
+             "d": (6.0, 0.0)}
+    graph = CentrelineGraph(nodes=nodes, edges=tuple(
+        CentrelineEdge(*pair) for pair in [("a", "b"), ("b", "m"), ("m", "c"), ("c", "d")]))
+    field = ClearanceField.from_grid(carved(NARROWED))
+    split = derive_lanes(graph, field, PARAMS, frozenset({"m"}))
+    assert sorted(sorted(segment.vertices) for segment in split.single_file) == [
+        ["b", "m"], ["c", "m"]]
+    assert split.roadways == derive_lanes(graph, field, PARAMS).roadways  # the same lanes
+
+
 def test_single_file_and_one_way_marks():
     nodes = {"c": (0.0, 0.0), "n": (0.0, 6.0), "s": (0.0, -6.0), "e": (6.0, 0.0),
              "w": (-6.0, 0.0)}

@@ -114,3 +114,16 @@ def test_params_check_themselves():
         SingleFileParams(hold_distance=0.0)
     with pytest.raises(InputError, match="request_distance"):
         SingleFileParams(request_distance=1.0, hold_distance=2.0)
+
+
+def test_a_route_ending_where_segments_meet_asks_for_them_all_before_it_drives_in():
+    # From A40 west along segment 1 to A20, where segment 0 meets it: a robot standing on
+    # A20 stands in both, so it asks for both before it enters segment 1 (else it would
+    # hold segment 1 and stand there in the way of a robot in segment 0 waiting for it:
+    # the office's presupplies, between its corridor and supplies' room).
+    route = ((40.0, 0.0), (30.0, 0.0), (20.0, 0.0))
+    runs = route_runs(corridor(), route, PARAMS.chain_gap, PARAMS.stand_distance)
+    assert [(r.first, r.last, r.segments) for r in runs] == [(1, 1, ((1, True), (0, True)))]
+    assert need(corridor(), route, 1, (31.0, 0.0), PARAMS) == Need(((0, True), (1, True)), True)
+    # Without the stand distance, only the segment driven.
+    assert route_runs(corridor(), route, PARAMS.chain_gap)[0].segments == ((1, True),)

@@ -12,15 +12,24 @@ from mrta_drake.allocation.fixed_sequence_allocator import FixedSequenceAllocato
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.room_queues import RoomQueues
-from mrta_drake.navigation.waypoint_generator import WaypointGenerator, WaypointParams, _Drive
+from mrta_drake.navigation.single_file import Need
+from mrta_drake.navigation.waypoint_generator import (
+    WaypointGenerator,
+    WaypointParams,
+    WaypointPolicy,
+    _Drive,
+)
 from mrta_drake.payloads import (
+    NO_DISTURBANCES,
     Breakdown,
     Disturbances,
     FleetPlan,
+    LiftState,
     QueueState,
     RobotMode,
     RobotPlan,
     RoomQueue,
+    SegmentHold,
     SpotRank,
     Stop,
     WaypointTarget,
@@ -597,3 +606,40 @@ def test_queued_robots_move_up_without_entering_while_another_holds_the_room():
         context, [*place.queue[2], 0.0, 0.0, *place.point, 0.0, 0.5])
     Simulator(generator, context).AdvanceTo(0.05)
     assert generator.GetOutputPort("target").Eval(context).current == tuple(place.queue[0])
+
+
+class _Inputs:
+    """What ``WaypointPolicy.update`` reads, fixed: time ``t`` (s), an empty plan,
+    ``queues``, no disturbances, ``states`` (N, 4) and no lifts."""
+
+    def __init__(self, t, queues, states):
+        self.t, self.queues, self.states = t, queues, np.asarray(states, dtype=float)
+        self.plan, self.disturbances, self.lifts = FleetPlan(()), NO_DISTURBANCES, LiftState()
+
+
+def spur_world() -> Roadways:
+    """A corridor W (0, 0) - J (10, 0) - E (20, 0) with a spur J - S (10, 5), every lane
+    single file (segments W-J 0, J-E 1, J-S 2); location A beside the corridor."""
+    nodes = {"W": [0.0, 0.0], "J": [10.0, 0.0], "E": [20.0, 0.0], "S": [10.0, 5.0]}
+    pairs = [("W", "J"), ("J", "E"), ("J", "S")]
+    edges = [[a, b] for a, b in pairs] + [[b, a] for a, b in pairs]
+    locations = [LocationConfig(id=0, name="A", point=[14.0, 1.5], queue=[[12.6, 1.5]],
+                                exit_node="J", approach_node="J")]
+    return Roadways(RoadwaysConfig(nodes=nodes, edges=edges,
+                                   single_file=[["W", "J"], ["J", "E"], ["J", "S"]]),
+                    locations)
+
+
+def test_a_robot_back_home_holds_only_the_segment_it_stands_in():
+    # Driving home from W to the spur's end S it holds the run W-J-S; once home, only the
+    # spur it stands in (before, it kept the corridor W-J to the end: on the office, seed 4,
+    # a robot home beside patrol_A2 held four segments of its way back, and three robots
+    # waited for one of them from 31 to 83 s).
+    policy = WaypointPolicy(["r0"], 0, spur_world(), None, WaypointParams(), home=(10.0, 5.0))
+    route = ((0.0, 0.0), (10.0, 0.0), (10.0, 5.0))
+    held = QueueState(segments=(SegmentHold(("r0",), True),) * 3)
+    s = _Drive(phase=RobotMode.HOME, route=route, index=2)
+    driving = policy.update(s, _Inputs(10.0, held, [[10.0, 3.0, 0.0, 0.5]]))
+    assert [k for k, _ in driving.lanes.segments] == [0, 2]
+    home = policy.update(s, _Inputs(10.0, held, [[10.0, 4.9, 0.0, 0.0]]))
+    assert home.lanes == Need(((2, True),))

@@ -20,17 +20,19 @@ from mrta_drake.payloads import (
     ControllerTelemetry,
     FleetPaths,
     FleetPlan,
+    QueueRequest,
     QueueState,
     RobotMode,
     RobotPlan,
     RobotProgress,
     RoomQueue,
+    SegmentHold,
     Stop,
     Visit,
     WaypointTarget,
 )
 from mrta_drake.results import summary
-from mrta_drake.results.deadlocks import find_deadlocks
+from mrta_drake.results.deadlocks import find_deadlocks, stalled_waits
 from mrta_drake.results.timing import leg_rows, task_rows, task_totals
 from mrta_drake.scenario.schema import HumanConfig, HumansConfig, TaskBatch, TaskConfig
 from mrta_drake.stack.diagram import add_stack
@@ -233,6 +235,7 @@ def test_recorder_notes_modes_plans_starts_arrivals_and_allocator_events(tmp_pat
         "progress_d": RobotProgress("d"),
         "target_d": WaypointTarget("d"),
         "allocator_events": ("assigned 0",),
+        **{f"queue_request_{r}": QueueRequest(r) for r in "abcd"},
     }
     for name, value in fixed.items():
         recorder.GetInputPort(name).FixValue(context, value)
@@ -260,6 +263,78 @@ def test_recorder_notes_modes_plans_starts_arrivals_and_allocator_events(tmp_pat
 
 
 
+def test_a_wait_is_stalled_when_it_leads_to_no_moving_or_serving_robot():
+    waits = {"a": {"b"}, "b": {"a"},  # each waits for the other: a gridlock
+             "c": {"d"}, "d": {"e"},  # c waits for d, which waits for e, which drives
+             "f": set(),  # what it waits for is free: it gets it next
+             "g": {"a", "e"}}  # one of those it waits for drives
+    assert stalled_waits(waits, {"e"}) == {"a", "b"}
+    assert stalled_waits(waits, {"b"}) == {"c", "d"}  # e stands, waiting for nothing
+    assert stalled_waits(waits, set()) == {"a", "b", "c", "d", "g"}
+
+
+def _waiting_recorder(queue_state, requests, plan_stops):
+    """A recorder for robots a, b, c, fixed inputs: ``queue_state``, ``requests`` (robot ->
+    QueueRequest), ``plan_stops`` (robot -> its current stop); no target is active."""
+    recorder = RunRecorder(["a", "b", "c"], rate_hz=10.0)
+    context = recorder.CreateDefaultContext()
+    fixed = {"telemetry": ControllerTelemetry(), "paths": FleetPaths(()),
+             "plan": FleetPlan(tuple(RobotPlan(r, (stop,)) for r, stop in plan_stops.items())),
+             "queue_state": queue_state}
+    for r in "abc":
+        fixed[f"progress_{r}"] = RobotProgress(r, current_stop=plan_stops.get(r))
+        fixed[f"target_{r}"] = WaypointTarget(r, True, (0.0, 0.0), None, False)
+        fixed[f"queue_request_{r}"] = requests.get(r, QueueRequest(r))
+    for name, value in fixed.items():
+        recorder.GetInputPort(name).FixValue(context, value)
+    return recorder, context
+
+
+def _modes_at(recorder, context, speeds) -> list[list[int]]:
+    """The recorder's modes after one sample per entry of ``speeds`` (a, b, c in m/s;
+    the robots stand 10 m apart, 20 m from the targets)."""
+    for i, (va, vb, vc) in enumerate(speeds):
+        state = np.array([20.0, 0.0, 0.0, va, 30.0, 0.0, 0.0, vb, 40.0, 0.0, 0.0, vc])
+        recorder.get_input_port(0).FixValue(context, state)
+        context.SetTime(0.1 * i)
+        recorder.ForcedPublish(context)
+    recorder.close()
+    return recorder.mode_array().tolist()
+
+
+def test_a_robot_waiting_for_segments_queues_only_while_what_it_waits_for_moves():
+    # a waits for single-file segment 0, held by b; c holds segment 1, elsewhere.
+    queues = QueueState((), segments=(SegmentHold(("b",)), SegmentHold(("c",))),
+                        segment_waiting=("a",))
+    requests = {"a": QueueRequest("a", segments=((0, True),)),
+                "b": QueueRequest("b", segments=((0, True),)),
+                "c": QueueRequest("c", segments=((1, True),))}
+    stops = {r: Stop(f"t{i}/pickup", i, PICKUP, i) for i, r in enumerate("abc")}
+    recorder, context = _waiting_recorder(queues, requests, stops)
+    modes = _modes_at(recorder, context, [(0.0, 0.5, 0.0),  # b drives through: a queues
+                                          (0.0, 0.0, 0.5)])  # b stands, c drives elsewhere
+    queue, drive = RobotMode.QUEUE, RobotMode.DRIVE
+    assert [row[0] for row in modes] == [queue, drive]  # a gridlock: a should move
+    # a holds segment 0 with b (a segment where robots stop: one robot's at a time) and
+    # waits: it waits for b all the same.
+    shared = QueueState((), segments=(SegmentHold(("a", "b")), SegmentHold(("c",))),
+                        segment_waiting=("a",))
+    recorder, context = _waiting_recorder(shared, requests, stops)
+    assert [row[0] for row in _modes_at(recorder, context, [(0.0, 0.0, 0.5)])] == [drive]
+
+
+def test_robots_waiting_for_each_others_rooms_are_in_a_gridlock_not_queueing():
+    # a holds room 0 and waits for room 1; b holds room 1 and waits for room 0; c waits
+    # for room 1 too. None moves: all three should move. Once b drives, all queue.
+    queues = QueueState((RoomQueue(0, "a", ("b",)), RoomQueue(1, "b", ("a", "c"))))
+    stops = {"a": Stop("t0/pickup", 0, PICKUP, 1), "b": Stop("t1/pickup", 1, PICKUP, 0),
+             "c": Stop("t2/pickup", 2, PICKUP, 1)}
+    recorder, context = _waiting_recorder(queues, {}, stops)
+    modes = _modes_at(recorder, context, [(0.0, 0.0, 0.0), (0.0, 0.4, 0.0)])
+    queue, drive = RobotMode.QUEUE, RobotMode.DRIVE
+    assert modes == [[drive, drive, drive], [queue, queue, queue]]
+
+
 def test_recorder_notes_each_new_back_off_and_the_summary_counts_them_per_robot():
     recorder = RunRecorder(["a", "b"], rate_hz=10.0)
     context = recorder.CreateDefaultContext()
@@ -268,6 +343,7 @@ def test_recorder_notes_each_new_back_off_and_the_summary_counts_them_per_robot(
              "plan": FleetPlan(()), "queue_state": QueueState(),
              "progress_a": RobotProgress("a"), "target_a": WaypointTarget("a"),
              "progress_b": RobotProgress("b"), "target_b": WaypointTarget("b"),
+             "queue_request_a": QueueRequest("a"), "queue_request_b": QueueRequest("b"),
              "allocator_events": ()}
     for name, value in fixed.items():
         recorder.GetInputPort(name).FixValue(context, value)

@@ -53,6 +53,20 @@ def test_every_location_reaches_every_other_along_one_way_lanes(name, level):
 
 
 @pytest.mark.parametrize("name, level", LEVELS)
+def test_no_leg_drives_the_same_point_twice(name, level):
+    # Out of a location whose exit node is its point by that node's lanes: never out along
+    # the entry first and back to the point (a room at the end of its entry, driven twice;
+    # a point on a passage, left away from where the leg goes and back).
+    _, _, navigation = derived(name, level)
+    roadways = Roadways(navigation.roadways, navigation.locations, name)
+    for a in roadways.location_ids:
+        for b in roadways.location_ids:
+            if a != b:
+                points = [tuple(p) for p in roadways.leg(a, b)]
+                assert len(set(points)) == len(points), (a, b)
+
+
+@pytest.mark.parametrize("name, level", LEVELS)
 def test_queue_slots_and_parking_spots_are_clear_of_walls(name, level):
     _, floor_plan, navigation = derived(name, level)
     obstacles = floor_plan.obstacles
