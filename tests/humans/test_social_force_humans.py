@@ -202,7 +202,7 @@ def test_person_walking_at_a_standing_robot_slows_as_the_robot_s_person_row_assu
     # The robot's CBF row for the person (constant-velocity prediction, default safety
     # distance and rates) must hold with the robot not moving: a standing robot can hardly
     # back away, so a person closing faster than the row allows costs the controller slack.
-    # Yielding by the gap less the robot's approach alone broke the row for 1.7 s.
+    # Yielding by the gap less the robot's approach alone broke it (by 2.7 m^2/s^2).
     narrow = Obstacles(boxes=(Box("north", (0.0, 0.7), (20.0, 0.2)),
                               Box("south", (0.0, -0.7), (20.0, 0.2))))
     people = [Person("p", (-6.0, 0.0), ((6.0, 0.0),), 1.0)]
