@@ -52,9 +52,10 @@ class SocialForceHumans(LeafSystem):
        waypoint of its loop (wrapping around).
     2. Acceleration, m/s^2: relaxation to the desired velocity with ``relaxation_time``:
        ``desired_speed`` toward the target, or, with a robot in the way, slower and aside
-       (yielding, ``SocialForceParams``: urgency from the robot's gap and the closing speed; aside to
-       the right, or to the left when only the left has room to pass beside the robot, by a
-       ray cast from the robot's centre; a stand when neither has); repulsion from other
+       (yielding, ``SocialForceParams``: urgency from the robot's gap and the closing
+       speed; aside to the right, or to the left when only the left has room to pass beside
+       the robot, by a ray cast from the robot's centre; a stand when neither has);
+       repulsion from other
        people and from robots (robots count as pedestrians, moving with ``v (cos theta,
        sin theta)``, with ``V0`` times ``robot_repulsion_gain``) with the elliptical
        potential ``V0 exp(-b'/sigma)``, ``V0 = repulsion_strength``, ``sigma =
