@@ -25,7 +25,7 @@ class SocialForceParams:
     from 0 at surface gap ``yield_distance`` to 1 at ``waiting_gap``, the gap counted less
     the closing speed (the person's and the robot's velocities towards each other) times
     ``yield_time``, so that yielding starts by time to contact (a person walking at a
-    standing robot slows from 2.5 m, at 1 m/s); the person slows in proportion and
+    standing robot at 1 m/s slows from a 2.5 m gap); the person slows in proportion and
     walks aside (at ``sidestep_ratio`` of its speed at full urgency) to its right, or to its
     left when only that side has room to pass, or stands when neither has.
     """
