@@ -52,9 +52,10 @@ class SocialForceHumans(LeafSystem):
        waypoint of its loop (wrapping around).
     2. Acceleration, m/s^2: relaxation to the desired velocity with ``relaxation_time``:
        ``desired_speed`` toward the target, or, with a robot in the way, slower and aside
-       (yielding, ``SocialForceParams``: urgency from the robot's gap and approach; aside to
-       the right, or to the left when only the left has room to pass beside the robot, by a
-       ray cast from the robot's centre; a stand when neither has); repulsion from other
+       (yielding, ``SocialForceParams``: urgency from the robot's gap and the closing
+       speed; aside to the right, or to the left when only the left has room to pass beside
+       the robot, by a ray cast from the robot's centre; a stand when neither has);
+       repulsion from other
        people and from robots (robots count as pedestrians, moving with ``v (cos theta,
        sin theta)``, with ``V0`` times ``robot_repulsion_gain``) with the elliptical
        potential ``V0 exp(-b'/sigma)``, ``V0 = repulsion_strength``, ``sigma =
@@ -324,8 +325,8 @@ def _step_people(state, robots, cos, sin, robot_r, radii_all, speeds_all, counts
         distance = math.sqrt(tx * tx + ty * ty)
         if distance > 1e-9 and not (counts[i] == 1 and distance < tolerance):
             direction[j, 0], direction[j, 1] = tx / distance, ty / distance
-    desired = _yielding_velocities(pa, direction, speeds, radii, robot_p, robot_v, robot_r,
-                                   obstacles, constants)
+    desired = _yielding_velocities(pa, va, direction, speeds, radii, robot_p, robot_v,
+                                   robot_r, obstacles, constants)
     for j in range(k):
         for c in range(2):
             accel[j, c] = (desired[j, c] - va[j, c]) / constants[_RELAXATION]
@@ -384,11 +385,13 @@ def _add_into(target, values):
 
 
 @compiled_helper
-def _yielding_velocities(p, direction, speeds, radii, robot_p, robot_v, robot_r, obstacles,
-                         constants) -> np.ndarray:
-    """Desired velocities (a, 2), m/s, of people at ``p`` (a, 2) walking in unit
-    ``direction`` (a, 2) at ``speeds`` (a,), yielding to the robot in their way with the
-    highest urgency (``SocialForceParams``): ``speed ((1 - u) e + u r s n)``, ``e`` the
+def _yielding_velocities(p, velocities, direction, speeds, radii, robot_p, robot_v, robot_r,
+                         obstacles, constants) -> np.ndarray:
+    """Desired velocities (a, 2), m/s, of people at ``p`` (a, 2) moving at ``velocities``
+    (a, 2), walking in unit ``direction`` (a, 2) at ``speeds`` (a,), yielding to the robot
+    in their way with the highest urgency (``SocialForceParams``; the gap counted less the
+    closing speed, person's and robot's, times ``yield_time``):
+    ``speed ((1 - u) e + u r s n)``, ``e`` the
     walking direction, ``n`` its right normal, ``u`` the urgency, ``r`` the sidestep ratio,
     ``s`` = +1 (right) when the robot has room to pass on the person's right, else -1 when
     on its left, else 0 (the person slows to a stand). People who do not yield
@@ -409,9 +412,9 @@ def _yielding_velocities(p, direction, speeds, radii, robot_p, robot_v, robot_r,
             if not (rx * ex + ry * ey > 0.0 and abs(rx * nx + ry * ny) < band):
                 continue
             distance = math.sqrt(rx * rx + ry * ry)
-            approach = max(-(robot_v[j, 0] * rx + robot_v[j, 1] * ry) / max(distance, 1e-9),
-                           0.0)
-            gap = distance - radii[i] - robot_r[j] - approach * constants[_YIELD_TIME]
+            closing = max(((velocities[i, 0] - robot_v[j, 0]) * rx
+                           + (velocities[i, 1] - robot_v[j, 1]) * ry) / max(distance, 1e-9), 0.0)
+            gap = distance - radii[i] - robot_r[j] - closing * constants[_YIELD_TIME]
             u = min(max((reach - gap) / (reach - wait), 0.0), 1.0)
             if u > urgency:
                 urgency, robot = u, j

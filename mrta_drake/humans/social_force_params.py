@@ -23,7 +23,9 @@ class SocialForceParams:
     A person yields to a robot *in its way*: ahead (in front of the person's walking
     direction) and nearer sideways than both radii plus ``passing_gap``. Its urgency grows
     from 0 at surface gap ``yield_distance`` to 1 at ``waiting_gap``, the gap counted less
-    the robot's approach speed times ``yield_time``; the person slows in proportion and
+    the closing speed (the person's and the robot's velocities towards each other) times
+    ``yield_time``, so that yielding starts by time to contact (a person walking at a
+    standing robot at 1 m/s slows from a 2.5 m gap); the person slows in proportion and
     walks aside (at ``sidestep_ratio`` of its speed at full urgency) to its right, or to its
     left when only that side has room to pass, or stands when neither has.
     """
@@ -40,7 +42,7 @@ class SocialForceParams:
     waypoint_tolerance: float = 0.3  # m, a waypoint is reached this close
     yield_distance: float = 1.5  # m, surface gap to a robot in the way where yielding begins
     waiting_gap: float = 0.3  # m, surface gap where a person with no room to pass stands
-    yield_time: float = 1.0  # s, of a robot's approach counted off its gap
+    yield_time: float = 1.0  # s, of the closing speed counted off the gap
     passing_gap: float = 0.3  # m, surface gap kept sideways from a robot passed
     sidestep_ratio: float = 0.5  # sideways speed at full urgency, per unit of desired speed
     yield_to_robots: bool = True  # off: people walk on into a robot's way (the original)

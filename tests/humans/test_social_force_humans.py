@@ -8,6 +8,7 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
+from mrta_drake.control.barriers import BarrierRates, SafetyDistances, cbf_rhs, point_barrier
 from mrta_drake.humans.people import Person, generate_people
 from mrta_drake.humans.social_force_humans import ROBOT_STANDOFF, SocialForceHumans
 from mrta_drake.humans.social_force_params import SocialForceParams
@@ -194,6 +195,25 @@ def test_person_waits_for_a_robot_blocking_the_way_then_goes_on():
     assert gap[walk.times < 6.0].min() >= DEFAULTS.waiting_gap
     assert np.abs(walk.xy[:, 0, 1]).max() < 0.05  # no room to step aside: it did not try
     assert walk.xy[-1, 0, 0] > 3.0, "it went on once the robot had gone"
+
+
+def test_person_walking_at_a_standing_robot_slows_as_the_robot_s_person_row_assumes():
+    # A 1.2 m corridor with no room to pass: the person walks at a robot standing in it.
+    # The robot's CBF row for the person (constant-velocity prediction, default safety
+    # distance and rates) must hold with the robot not moving: a standing robot can hardly
+    # back away, so a person closing faster than the row allows costs the controller slack.
+    # Yielding by the gap less the robot's approach alone broke it (by 2.7 m^2/s^2).
+    narrow = Obstacles(boxes=(Box("north", (0.0, 0.7), (20.0, 0.2)),
+                              Box("south", (0.0, -0.7), (20.0, 0.2))))
+    people = [Person("p", (-6.0, 0.0), ((6.0, 0.0),), 1.0)]
+    walk = _run(people, 12.0, narrow, robots=[[0.0, 0.0, np.pi, 0.0]])
+    velocity = np.diff(walk.xy[:, 0], axis=0) / PERIOD  # the state's velocity at each sample
+    rates = BarrierRates()
+    terms = point_barrier(walk.robots[1:, 0, :2], np.pi, 0.0, walk.xy[1:, 0], velocity,
+                          SafetyDistances().human)
+    assert cbf_rhs(terms, rates.alpha1_human, rates.alpha2_human).max() <= 0.0
+    assert velocity[:, 0].max() > 0.95  # it walked at its speed while far
+    assert walk.gaps()[:, 0].min() >= DEFAULTS.waiting_gap
 
 
 def test_people_pinned_in_a_dead_end_never_step_into_the_robot_driving_in():
