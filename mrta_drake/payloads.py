@@ -155,28 +155,6 @@ class WaypointTarget:
     stop_at_current: bool = True
 
 
-# --- Waiting spots: waypoint generators -> waypoint generators -----------------------------
-
-
-class SpotRank(IntEnum):
-    """Which of two robots that chose the same waiting spot keeps it: the lower rank, then
-    the one earlier in robot order."""
-
-    PARKED = 0  # on a parking spot of the location it served
-    OWN_HOME = 1  # on its own start spot
-    AWAY = 2  # on any other: a free parking or start spot on its level, home out of reach
-
-
-@dataclass(frozen=True)
-class WaitingSpot:
-    """Where one robot with nothing to do waits, or drives to wait: ``spot`` (world frame,
-    m) with its ``rank``, or None when it has no such spot (it has a stop, or stands)."""
-
-    robot: str
-    spot: tuple[float, float] | None = None
-    rank: SpotRank = SpotRank.AWAY
-
-
 # --- Rooms: waypoint generators <-> room queues ---------------------------------------------
 
 

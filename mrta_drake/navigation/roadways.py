@@ -152,7 +152,6 @@ class Roadways:
         self.location_ids: tuple[int, ...] = tuple(sorted(self._places))
         self._check_reachable(locations)
         self._legs: dict[tuple[int, int], np.ndarray | None] = {}
-        self._ground_paths: dict[str, dict] = {}  # _without_lifts, by node
         self.closures: tuple[tuple[float, float, float, float], ...] = ()
         self._closed_views: dict[tuple, Roadways] = {}
 
@@ -250,7 +249,6 @@ class Roadways:
                 and any(segment_crosses_box(self.node_position(a), self.node_position(b), box)
                        for box in key)])
             view.closures, view._legs, view._closed_views = key, {}, {}
-            view._ground_paths = {}
             self._closed_views[key] = view
         return view
 
@@ -365,23 +363,6 @@ class Roadways:
         return _without_repeats([*self.way_out(start),
                                  *(self.node_position(n) for n in reached[nearest]), xy])
 
-    def route_to_spot(self, xy, spot) -> np.ndarray | None:
-        """The polyline (k, 2) from the roadway node nearest ``xy`` (m) that leads along the
-        lanes, without lift rides, to the node nearest ``spot`` (m), to that node, then
-        ``spot``; None if none does (for a robot on its way to wait at a spot that has to
-        choose another). Only nodes joined to the one nearest ``xy`` by lanes (either way,
-        no lift rides: its level) are tried."""
-        graph, ground = self.graph, self._ground()
-        goal = self._nearest(graph.nodes, spot)
-        xy = np.asarray(xy, dtype=float)
-        level = nx.node_connected_component(ground.to_undirected(as_view=True),
-                                            self._nearest(graph.nodes, xy))
-        for node in sorted(level, key=lambda n: (
-                float(np.linalg.norm(self.node_position(n) - xy)), str(n))):
-            path = _shortest(ground, node, goal)
-            if path is not None:
-                return _without_repeats([*(self.node_position(n) for n in path), spot])
-        return None
 
     def spots_reached(self, from_location: int, spots) -> list:
         """Of ``spots`` ((x, y) m each), in their order, those whose nearest roadway node is
@@ -393,19 +374,11 @@ class Roadways:
 
     def _without_lifts(self, node: str) -> dict:
         """The shortest paths (node lists) from ``node`` to every node it reaches along the
-        lanes without lift rides, by node (cached: an idle robot's waiting spot is chosen
-        again at every update while another robot that goes first chose it too)."""
-        paths = self._ground_paths.get(node)
-        if paths is None:
-            paths = self._ground_paths[node] = nx.single_source_dijkstra_path(
-                self._ground(), node, weight="length")
-        return paths
-
-    def _ground(self):
-        """The roadway graph without its lift rides (a view)."""
+        lanes without lift rides, by node."""
         graph = self.graph
-        return nx.subgraph_view(graph, filter_edge=lambda a, b: not graph.edges[a, b].get(
+        ground = nx.subgraph_view(graph, filter_edge=lambda a, b: not graph.edges[a, b].get(
             "lift", False))
+        return nx.single_source_dijkstra_path(ground, node, weight="length")
 
     def _nearest(self, nodes, xy) -> str:
         """Of ``nodes``, the one nearest ``xy`` (m; ties by name)."""

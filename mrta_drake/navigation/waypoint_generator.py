@@ -31,10 +31,8 @@ from mrta_drake.payloads import (
     QueueState,
     RobotMode,
     RobotProgress,
-    SpotRank,
     Stop,
     Visit,
-    WaitingSpot,
     WaypointTarget,
 )
 
@@ -124,7 +122,6 @@ class _Outputs:
     queue_request: QueueRequest
     progress: RobotProgress
     lift_request: LiftRequest
-    waiting_spot: WaitingSpot
 
 
 class WaypointInputs:
@@ -132,14 +129,10 @@ class WaypointInputs:
     ``t`` (s), ``plan`` (``FleetPlan``), ``queues`` (``QueueState``), ``disturbances``
     (``Disturbances``), and, read from their ports only when first needed (a parked or idle
     robot's update mostly needs neither), ``states``: (N, 4) ``[x, y, theta, v]`` per robot
-    in ``robot_names`` order (world frame, m, rad, m/s), ``lifts`` (``LiftState``) and
-    ``waiting_spots``: every robot's ``WaitingSpot`` in robot order, as of the last update,
-    from ``waiting_spots()`` if given (the fleet block reads its own state), else from the
-    inputs ``waiting_spot_<robot>`` (a robot whose input is not connected has none)."""
+    in ``robot_names`` order (world frame, m, rad, m/s), and ``lifts`` (``LiftState``)."""
 
-    def __init__(self, ports: "_InputPorts", context, waiting_spots=None):
+    def __init__(self, ports: "_InputPorts", context):
         self._ports, self._context = ports, context
-        self._waiting_spots_of = waiting_spots
         self.t = context.get_time()
         self.plan = ports.plan.Eval(context)
         self.queues = ports.queue_state.Eval(context)
@@ -147,7 +140,6 @@ class WaypointInputs:
                              if ports.disturbances.HasValue(context) else NO_DISTURBANCES)
         self._states: np.ndarray | None = None
         self._lifts: LiftState | None = None
-        self._waiting_spots: tuple[WaitingSpot, ...] | None = None
 
     @property
     def states(self) -> np.ndarray:
@@ -164,18 +156,6 @@ class WaypointInputs:
                 else LiftState()
         return self._lifts
 
-    @property
-    def waiting_spots(self) -> tuple[WaitingSpot, ...]:
-        if self._waiting_spots is None:
-            if self._waiting_spots_of is not None:
-                self._waiting_spots = self._waiting_spots_of()
-            else:
-                context = self._context
-                self._waiting_spots = tuple(
-                    port.Eval(context) if port.HasValue(context) else WaitingSpot("")
-                    for port in self._ports.waiting_spots)
-        return self._waiting_spots
-
 
 @dataclass(frozen=True)
 class _InputPorts:
@@ -186,30 +166,23 @@ class _InputPorts:
     queue_state: object
     lift_state: object
     disturbances: object
-    waiting_spots: tuple
 
 
-def _declare_inputs(system: LeafSystem, robot_names: Sequence[str],
-                    waiting_spots: bool) -> _InputPorts:
-    """Declares the waypoints inputs ``plan``, ``robot_state`` (4 per robot of
-    ``robot_names``), ``queue_state``, ``lift_state`` and ``disturbances`` on ``system``,
-    and with ``waiting_spots`` one ``waiting_spot_<robot>`` per robot."""
+def _declare_inputs(system: LeafSystem, robots: int) -> _InputPorts:
+    """Declares the waypoints inputs ``plan``, ``robot_state`` (4 x ``robots``),
+    ``queue_state``, ``lift_state`` and ``disturbances`` on ``system``."""
     return _InputPorts(
         system.DeclareAbstractInputPort("plan", Value[object](FleetPlan(()))),
-        system.DeclareVectorInputPort("robot_state",
-                                      BasicVector(ROBOT_STATE_SIZE * len(robot_names))),
+        system.DeclareVectorInputPort("robot_state", BasicVector(ROBOT_STATE_SIZE * robots)),
         system.DeclareAbstractInputPort("queue_state", Value[object](QueueState())),
         system.DeclareAbstractInputPort("lift_state", Value[object](LiftState())),
-        system.DeclareAbstractInputPort("disturbances", Value[object](Disturbances())),
-        tuple(system.DeclareAbstractInputPort(f"waiting_spot_{robot}",
-                                              Value[object](WaitingSpot(robot)))
-              for robot in robot_names) if waiting_spots else ())
+        system.DeclareAbstractInputPort("disturbances", Value[object](Disturbances())))
 
 
 class _Robots:
-    """The fleet's ``states`` and ``waiting_spots`` (from ``WaypointInputs``) and ``xy``,
-    robot ``index``'s position (world frame, m), read when first needed; ``broken``: the
-    indices of the robots broken down now."""
+    """The fleet's ``states`` (from ``WaypointInputs``) and ``xy``, robot ``index``'s
+    position (world frame, m), read when first needed; ``broken``: the indices of the
+    robots broken down now."""
 
     def __init__(self, inputs: WaypointInputs, index: int):
         self._inputs, self._index = inputs, index
@@ -218,10 +191,6 @@ class _Robots:
     @property
     def states(self) -> np.ndarray:
         return self._inputs.states
-
-    @property
-    def waiting_spots(self) -> tuple[WaitingSpot, ...]:
-        return self._inputs.waiting_spots
 
     @property
     def xy(self) -> tuple[float, float]:
@@ -296,8 +265,7 @@ class WaypointPolicy:
     (``WaypointInputs``; the same object when nothing changes) and ``outputs(state)`` the
     payloads made from a state (``target``: ``WaypointTarget``, world frame, m;
     ``queue_request``: ``QueueRequest``; ``progress``: ``RobotProgress``, visit times are
-    simulation times, s; ``lift_request``: ``LiftRequest``; ``waiting_spot``:
-    ``WaitingSpot``, the spot it parks on or drives home to).
+    simulation times, s; ``lift_request``: ``LiftRequest``).
 
     This robot's ``RobotPlan`` is the one of the fleet plan named after it.
 
@@ -350,22 +318,12 @@ class WaypointPolicy:
     with parking spots it drives to the first one no other robot is within
     ``parking_clearance`` of (park), off the point; at a location without any (a dead end
     of an imported building, where an idle robot would box in the next one), or where
-    every one is taken (idle robots would pile up round the point), it drives back along
-    the lanes to ``home``, its start spot (world frame, m; home: asking for single-file
-    segments on the way as when driving), and waits there; where that is on another level
-    or there is none (it started on a location), to the nearest free parking spot on its
-    level, else the nearest free one of ``spots`` (the other robots' start spots) there
-    (``_home_spot``); with no such spot, the target is inactive and it stands still (a
-    robot without a home at a location whose spots are all taken parks on the last one,
-    waiting beside it; so too where no robot has a start spot off the locations, as in
-    the hospital, whose parking spots lie in rooms entered only through their queues).
-    A spot is free when no other robot stands within
-    ``parking_clearance`` of it and none chose it (``inputs.waiting_spots``, as of the
-    last update). Two robots that chose one spot at the same update (or one waiting on
-    another's start spot when that one comes home): the one whose ``WaitingSpot`` goes
-    first keeps it, the other chooses again from where it is (``_keep_spot``; it keeps
-    the spot only where no other is free), so no two robots drive to one spot and circle
-    round it while another spot is free.
+    every one is taken and it has a home (idle robots would pile up round the point), it
+    drives back along the lanes to ``home``, its start spot (world frame, m; home: asking for
+    single-file segments on the way as when driving), and waits there; where that is on
+    another level, to the nearest free parking spot on its level, else the nearest free one
+    of ``spots`` (the other robots' start spots) there (``_home_spot``); elsewhere, or with
+    no such spot (it started on a location), the target is inactive and it stands still.
     A parked robot given a stop starts it as if standing on the location's point.
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
@@ -433,18 +391,8 @@ class WaypointPolicy:
                 QueueRequest(self._robot, s.stop.location if s.phase in _ASKING_PHASES
                              else None, s.release, s.lanes.segments),
                 RobotProgress(self._robot, s.visits, s.last_location, s.stop, s.detours),
-                self._lift_request(s), self._waiting_spot(s))
+                self._lift_request(s))
         return outputs
-
-    def _waiting_spot(self, s: _Drive) -> WaitingSpot:
-        if s.phase == RobotMode.PARK:
-            return WaitingSpot(self._robot, _point(
-                self._roadways.place(s.last_location).parking[s.index]), SpotRank.PARKED)
-        if s.phase == RobotMode.HOME:
-            spot = s.route[-1]
-            return WaitingSpot(self._robot, spot, SpotRank.OWN_HOME if spot == self._home
-                               else SpotRank.AWAY)
-        return WaitingSpot(self._robot)
 
     def _lift_request(self, s: _Drive) -> LiftRequest:
         if s.phase != RobotMode.LIFT:
@@ -518,23 +466,17 @@ class WaypointPolicy:
     def _follow_plan(self, s: _Drive, stop: Stop | None, robots: _Robots, lanes: Roadways,
                      t: float) -> _Drive:
         if stop is None:
-            if s.phase == RobotMode.PARK:
+            if s.phase in (RobotMode.PARK, RobotMode.HOME):
                 return s
-            if s.phase == RobotMode.HOME:
-                return self._keep_spot(s, robots, lanes)
             place = None if s.last_location is None else self._roadways.place(s.last_location)
             if (not self._params.parking or place is None
                     or _distance(robots.xy, place.point) > self._params.reach_tolerance):
                 return _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0,
                                 since=None)
-            others = self._occupied(robots)
+            others = np.delete(robots.states[:, :2], self._index, axis=0)
             spot = self._free_parking(place, others)
-            if spot is None and (self._home is not None or self._spots
-                                 or not len(place.parking)):
-                waiting = self._go_home(s, place, lanes, others)
-                if (waiting.phase == RobotMode.HOME or self._home is not None
-                        or not len(place.parking)):
-                    return waiting
+            if spot is None and (self._home is not None or not len(place.parking)):
+                return self._go_home(s, place, lanes, others)
             return replace(s, phase=RobotMode.PARK, stop=None, route=(), since=None,
                            index=len(place.parking) - 1 if spot is None else spot)
         xy = robots.xy
@@ -561,8 +503,8 @@ class WaypointPolicy:
         return self._drive_to(s, stop, route, lanes, t)
 
     def _go_home(self, s: _Drive, place, lanes: Roadways, others: np.ndarray) -> _Drive:
-        """With nothing to do at ``place`` and no parking spot free there: along the lanes
-        to the spot where it waits (``_home_spot``), unless there is none or it is by the
+        """With nothing to do at ``place`` and no parking spot free there: back along the
+        lanes to the start spot (``_home_spot``), unless there is none or it is by the
         point; else stand (idle)."""
         home = self._home_spot(place, lanes, others)
         if home is None or _distance(home, place.point) <= self._params.reach_tolerance:
@@ -576,12 +518,12 @@ class WaypointPolicy:
         where the lanes lead there without a lift ride (taken or not: a robot waiting on
         another's start spot would box in its owner coming home, as on the one-level
         office); else the nearest of the locations' parking spots the lanes lead to
-        without a lift ride and no point of ``others`` ((M, 2): where the other robots
-        stand and the spots they chose, ``_occupied``) is within ``parking_clearance`` of;
-        else the nearest such of the other robots' start spots (``spots``); else None. A
-        robot that rode a lift away from home (a building's levels) would otherwise drive
-        for a home on another level and stand at the lift (the two-floor clinic, 10
-        robots, seed 0: robot7 from 200 s to the end, in robot2's way)."""
+        without a lift ride and no other robot (``others``, (N - 1, 2)) stands within
+        ``parking_clearance`` of; else the nearest such of the other robots' start spots
+        (``spots``); else None. A robot that rode a lift away from home (a building's
+        levels) would otherwise drive for a home on another level and stand at the lift
+        (the two-floor clinic, 10 robots, seed 0: robot7 from 200 s to the end, in
+        robot2's way)."""
         if self._home is not None and lanes.spots_reached(place.id, [self._home]):
             return self._home
 
@@ -590,38 +532,6 @@ class WaypointPolicy:
 
         here = lanes.spots_reached(place.id, nearest(self._parking) + nearest(self._spots))
         return next((spot for spot in here if self._free(spot, others)), None)
-
-    def _keep_spot(self, s: _Drive, robots: _Robots, lanes: Roadways) -> _Drive:
-        """Driving to (or waiting at) a spot other than its home, the robot gives it up to
-        another robot that chose it too (within ``parking_clearance``) and goes first
-        (``WaitingSpot``: by rank, then robot order; both chose it at one update, or the
-        other robot comes home to it): it drives along the lanes (``route_to_spot``) to the
-        spot it would choose now (``_home_spot``). Where there is none it keeps the spot:
-        standing instead where it gave it up (in a lane, on the office's single-file
-        corridors) boxed the others in (office, seed 0: 7 of 35 tasks against 26)."""
-        spot = s.route[-1]
-        if spot == self._home:
-            return s
-        mine = (SpotRank.AWAY, self._index)
-        clearance = self._params.parking_clearance
-        if not any(k != self._index and w.spot is not None and (w.rank, k) < mine
-                   and _distance(w.spot, spot) <= clearance
-                   for k, w in enumerate(robots.waiting_spots)):
-            return s
-        spot = self._home_spot(self._roadways.place(s.last_location), lanes,
-                               self._occupied(robots))
-        route = None if spot is None else lanes.route_to_spot(robots.xy, spot)
-        if route is None:
-            return s
-        return replace(s, route=_points(route), index=0)
-
-    def _occupied(self, robots: _Robots) -> np.ndarray:
-        """Where the other robots stand and the waiting spots they chose (``WaitingSpot``),
-        (M, 2), world frame, m."""
-        chosen = [w.spot for k, w in enumerate(robots.waiting_spots)
-                  if k != self._index and w.spot is not None]
-        standing = np.delete(robots.states[:, :2], self._index, axis=0)
-        return np.vstack([standing, np.asarray(chosen, dtype=float).reshape(-1, 2)])
 
     def _drive_to(self, s: _Drive, stop: Stop, route, lanes: Roadways, t: float) -> _Drive:
         """Drive to ``stop`` along ``route(lanes)`` (a function of the roadways: waypoints,
@@ -656,14 +566,14 @@ class WaypointPolicy:
                        detours=s.detours + (Detour(t, changed, route is not None),))
 
     def _free_parking(self, place, others: np.ndarray) -> int | None:
-        """Index of the first of ``place``'s parking spots with no point of ``others``
-        (``_occupied``) near it (None if all are taken, or it has none)."""
+        """Index of the first of ``place``'s parking spots with no other robot near it
+        (None if all are taken, or it has none)."""
         return next((k for k, spot in enumerate(place.parking) if self._free(spot, others)),
                     None)
 
     def _free(self, spot, others: np.ndarray) -> bool:
-        """Whether no point of ``others`` ((M, 2), m) is within ``parking_clearance`` of
-        ``spot`` (m)."""
+        """Whether no other robot (``others``, (N - 1, 2), m) stands within
+        ``parking_clearance`` of ``spot`` (m)."""
         return not len(others) or float(np.min(np.linalg.norm(
             others - np.asarray(spot, dtype=float), axis=1))) > self._params.parking_clearance
 
@@ -969,8 +879,7 @@ class WaypointPolicy:
             self._params.waypoint_tolerance
 
 
-_OUTPUTS = ("target", "queue_request", "progress", "lift_request", "waiting_spot")  # _Outputs'
-# payloads
+_OUTPUTS = ("target", "queue_request", "progress", "lift_request")  # _Outputs' payloads
 
 
 def _model(payload):
@@ -993,17 +902,14 @@ class WaypointGenerator(LeafSystem):
         - queue_state
         - lift_state (optional)
         - disturbances (optional)
-        - waiting_spot_<robot> (optional)
         output_ports:
         - target
         - queue_request
         - progress
         - lift_request
-        - waiting_spot
 
     Inputs: see ``WaypointInputs`` (``robot_state``: vector 4N, ``[x, y, theta, v]`` per
-    robot in ``robot_names`` order, world frame, m, rad, m/s; ``waiting_spot_<robot>``:
-    each robot's ``waiting_spot`` output, its own included; the others abstract).
+    robot in ``robot_names`` order, world frame, m, rad, m/s; the others abstract).
     Outputs (from the state; no direct feedthrough): the policy's ``outputs``.
     The arguments but ``rate_hz`` are the ``WaypointPolicy``'s.
     """
@@ -1014,7 +920,7 @@ class WaypointGenerator(LeafSystem):
         self._policy = WaypointPolicy(robot_names, *policy_args, **policy_kwargs)
         self._state_index = self.DeclareAbstractState(
             Value[object](self._policy.initial_state()))
-        self._inputs = _declare_inputs(self, robot_names, waiting_spots=True)
+        self._inputs = _declare_inputs(self, len(robot_names))
         state_ticket = {self.abstract_state_ticket(self._state_index)}
         initial = self._policy.outputs(self._policy.initial_state())
         for name in _OUTPUTS:
@@ -1061,14 +967,12 @@ class FleetWaypoints(LeafSystem):
         - queue_request_<robot>
         - progress_<robot>
         - lift_request_<robot>
-        - waiting_spot_<robot>
         - fleet_targets
         - fleet_queue_requests
         - fleet_progress
 
     Inputs: see ``WaypointInputs`` (``robot_state``: vector 4N, ``[x, y, theta, v]`` per
-    robot, world frame, m, rad, m/s; the others abstract; the robots' ``WaitingSpot``s
-    come from this block's own state). Outputs (from the robots' states;
+    robot, world frame, m, rad, m/s; the others abstract). Outputs (from the robots' states;
     no direct feedthrough): per robot, its policy's ``outputs``; and the ``fleet_`` outputs,
     each one tuple of every robot's ``target``, ``queue_request`` or ``progress`` in robot
     order, for the blocks that read all robots' (``stack.fleet_inputs``: one port evaluation
@@ -1080,8 +984,7 @@ class FleetWaypoints(LeafSystem):
         self._policies = tuple(policies)
         self._state_index = self.DeclareAbstractState(Value[object](_FleetState(tuple(
             policy.initial_state() for policy in self._policies))))
-        self._inputs = _declare_inputs(self, [policy.robot for policy in self._policies],
-                                       waiting_spots=False)
+        self._inputs = _declare_inputs(self, len(self._policies))
         tickets = {self.abstract_state_ticket(self._state_index)}
         for k, policy in enumerate(self._policies):
             initial = policy.outputs(policy.initial_state())
@@ -1112,10 +1015,8 @@ class FleetWaypoints(LeafSystem):
                      for policy, s in zip(self._policies, self._robots(context), strict=True))
 
     def _update(self, context, state) -> EventStatus:
+        inputs = WaypointInputs(self._inputs, context)
         old = self._robots(context)
-        inputs = WaypointInputs(self._inputs, context, lambda: tuple(
-            policy.outputs(s).waiting_spot
-            for policy, s in zip(self._policies, old, strict=True)))
         new = tuple(policy.update(s, inputs)
                     for policy, s in zip(self._policies, old, strict=True))
         if all(a is b for a, b in zip(new, old, strict=True)):

@@ -58,7 +58,7 @@ class Stack:
 
     def waypoint_output(self, index: int, port: str) -> OutputPort:
         """Robot ``index``'s waypoints output ``port`` (``target``, ``queue_request``,
-        ``progress``, ``lift_request`` or ``waiting_spot``)."""
+        ``progress`` or ``lift_request``)."""
         return _waypoint_output(self.waypoints, self.scenario.robots[index].name, index, port)
 
 
@@ -138,9 +138,6 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
         builder.Connect(state, generator.GetInputPort("robot_state"))
         builder.Connect(queues.GetOutputPort("queue_state"),
                         generator.GetInputPort("queue_state"))
-        for name, output in zip(names, waypoints("waiting_spot"), strict=True):
-            if generator.HasInputPort(f"waiting_spot_{name}"):  # one system per robot
-                builder.Connect(output, generator.GetInputPort(f"waiting_spot_{name}"))
     per_robot("target", planner, "target", "targets")
     per_robot("queue_request", queues, "request", "queue_requests")
     per_robot("progress", allocator, "progress", "progress")

@@ -173,10 +173,3 @@ def test_a_robot_idle_on_another_level_than_its_home_prefers_a_parking_spot_ther
     assert [v.location for v in world.progress(1).visits] == [0]
     _, _, positions, _ = world.log[-1]
     np.testing.assert_allclose(positions, [(17.0 + SHIFT, 5.0), (17.0, 5.0)], atol=0.05)
-
-
-def test_a_route_to_a_spot_takes_no_lift():
-    roadways = two_level_world()
-    route = roadways.route_to_spot([9.0, 0.5], (21.0, -1.0))  # on L1, along its lanes
-    np.testing.assert_array_equal(route[[0, -1]], [[10, 0], [21, -1]])
-    assert roadways.route_to_spot([9.0, 0.5], (21.0 + SHIFT, -1.0)) is None  # on L2

@@ -78,31 +78,6 @@ def test_route_from_a_point_joins_the_nearest_node():
     np.testing.assert_array_equal(route[-1], [8, 1.5])
 
 
-def test_a_leg_out_of_a_room_whose_entry_runs_along_the_lanes_leaves_once():
-    # Room D (an imported building's: exit node on its point) behind a door node at
-    # (5, 2.5), joined both ways to the westbound lane at (5, 1.5); its entry runs along
-    # those lanes. The leg leaves along them once: before, it drove the entry out, came
-    # back in to the point (the exit node) and left again (the two-floor clinic's rooms).
-    config, locations = loop_world()
-    nodes = config.nodes | {"M5": [5.0, 1.5], "DD": [5.0, 2.5], "RD": [5.0, 5.0]}
-    edges = [e for e in config.edges if e != ["N10", "N0"]] + [
-        ["N10", "M5"], ["M5", "N0"], ["M5", "DD"], ["DD", "M5"], ["DD", "RD"], ["RD", "DD"]]
-    room = LocationConfig(id=3, name="D", point=[5.0, 5.0], queue=[[6.0, 1.5], [7.0, 1.5]],
-                          entry=[[5.0, 1.5], [5.0, 2.5]], exit_node="RD",
-                          approach_node="N10")
-    roadways = Roadways(replace(config, nodes=nodes, edges=edges), [*locations[1:], room])
-    np.testing.assert_array_equal(roadways.leg(3, 1)[:5],
-                                  [[5, 5], [5, 2.5], [5, 1.5], [0, 1.5], [0, 0]])
-
-
-def test_route_to_a_spot_follows_the_lanes_from_the_nearest_node():
-    roadways = Roadways(*loop_world())
-    # From beside S20, east and round (one-way lanes) to S0, the node nearest the spot.
-    np.testing.assert_array_equal(
-        roadways.route_to_spot([19.0, -0.5], (4.0, -1.0)),
-        [[20, 0], [30, 0], [30, 1.5], [20, 1.5], [10, 1.5], [0, 1.5], [0, 0], [4, -1]])
-
-
 def _error(config, locations) -> str:
     with pytest.raises(InputError) as error:
         Roadways(config, locations, file="nav.yaml")

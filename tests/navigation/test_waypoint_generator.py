@@ -30,7 +30,6 @@ from mrta_drake.payloads import (
     RobotPlan,
     RoomQueue,
     SegmentHold,
-    SpotRank,
     Stop,
     WaypointTarget,
 )
@@ -111,11 +110,10 @@ class World:
     """Robots ``r0, r1, ...`` starting on the points of ``starts`` (location ids)."""
 
     def __init__(self, starts, plan_source, start_known=True, params=None, parking=False,
-                 homes=None, at=None, spots=()):
+                 homes=None, at=None):
         """``homes``: start spots (x, y) off the locations instead, one per robot (each
         robot's home; all of them its spots); ``at``: where the robots stand at first (x, y)
-        if not there; ``spots``: other robots' start spots to wait at, for robots without
-        a home."""
+        if not there."""
         self.roadways = roadways = loop_world(parking)
         self.robots = [f"r{i}" for i in range(len(starts))]
         builder = DiagramBuilder()
@@ -127,8 +125,7 @@ class World:
         for i, (robot, start) in enumerate(zip(self.robots, starts, strict=True)):
             generator = builder.AddSystem(WaypointGenerator(
                 self.robots, i, roadways, start if start_known else None,
-                params or WaypointParams(), None if homes is None else homes[i],
-                homes or spots,
+                params or WaypointParams(), None if homes is None else homes[i], homes or (),
                 rate_hz=10.0,
             ))
             builder.Connect(plan.GetOutputPort("plan"), generator.GetInputPort("plan"))
@@ -145,10 +142,6 @@ class World:
                     generator.GetOutputPort("progress"), plan.GetInputPort(f"progress_{robot}")
                 )
             self.generators.append(generator)
-        for generator in self.generators:
-            for robot, source in zip(self.robots, self.generators, strict=True):
-                builder.Connect(source.GetOutputPort("waiting_spot"),
-                                generator.GetInputPort(f"waiting_spot_{robot}"))
         self.queues, self.fake = queues, fake
         self.diagram = builder.Build()
         self.simulator = Simulator(self.diagram)
@@ -168,9 +161,6 @@ class World:
 
     def progress(self, i):
         return self._eval(self.generators[i], "progress")
-
-    def waiting_spot(self, i):
-        return self._eval(self.generators[i], "waiting_spot")
 
     def distance(self, positions, i, location):
         return float(np.linalg.norm(positions[i] - self.roadways.place(location).point))
@@ -381,42 +371,6 @@ def test_a_robot_done_at_a_room_drives_home_on_its_level_though_another_robot_st
     _, _, positions, targets = world.log[-1]
     assert targets[0].active and targets[0].current == homes[0]
     np.testing.assert_allclose(positions, [homes[0], (10.3, 0.0)], atol=0.35)
-
-
-def test_two_robots_without_a_home_never_drive_to_one_waiting_spot():
-    # r0 and r1 stand on the points of A and C, which have no parking spot, with nothing
-    # to do and no home: at the first update both choose the nearest free start spot of
-    # another robot, P (11.2 m from either point); r1 (later in robot order) gives it up
-    # at the next and drives to Q. Before, a spot was free when no robot stood on it: both
-    # drove to P and circled each other round it (airport_terminal, seed 3: robot3 and
-    # robot5 from 219 s to the end).
-    p, q = (15.0, 0.0), (15.0, -8.0)
-    world = World([A, C], fixed([], []), spots=[p, q])
-    chosen = []
-    for k in range(1, 121):
-        world.run(until=0.5 * k)
-        chosen.append([world.waiting_spot(i) for i in range(2)])
-    assert all(a.spot != b.spot for a, b in chosen)
-    assert [(w.spot, w.rank) for w in chosen[-1]] == [(p, SpotRank.AWAY), (q, SpotRank.AWAY)]
-    _, _, positions, _ = world.log[-1]
-    np.testing.assert_allclose(positions, [p, q], atol=0.05)
-
-
-def test_a_robot_without_a_home_leaves_a_location_whose_parking_spots_are_taken():
-    # r1 and r2 stand on B's two parking spots; r0 serves B and has no home (other robots
-    # have start spots, (10, 0), as in an imported building): it drives along the lanes
-    # to the nearest free parking spot, A's first, instead of parking beside B's last
-    # spot, on r2 (airport_terminal, seed 3: robot3 circled robot5 there to the end).
-    roadways = loop_world(parking=True)
-    taken = roadways.place(B).parking
-    world = World([A, None, None], fixed([B], [], []), parking=True, spots=[(10.0, 0.0)],
-                  at=[roadways.place(A).point, taken[0], taken[1]])
-    world.run(until=90.0)
-    assert [v.location for v in world.progress(0).visits] == [B]
-    _, final, positions, _ = world.log[-1]
-    np.testing.assert_allclose(positions[0], roadways.place(A).parking[0], atol=0.05)
-    assert world.waiting_spot(0).spot == tuple(roadways.place(A).parking[0])
-    assert final.room(B).holder is None
 
 
 def test_a_robot_waiting_at_its_next_stops_queue_releases_the_room_it_left():
