@@ -667,8 +667,6 @@ class WaypointPolicy:
         s = _changed(s, door_since=None if slot is None
                      else self._door_since(s, place, robots, queues, t))
         waits = s.door_since is not None and t - s.door_since < params.door_patience
-        if s.phase == RobotMode.ENTER and waits:
-            s = replace(s, phase=RobotMode.QUEUE, route=(), index=slot)
         if s.phase == RobotMode.QUEUE:
             if holding and not waits:
                 route = _points(place.queue[s.index::-1]) + _points(place.entry)
@@ -680,7 +678,10 @@ class WaypointPolicy:
             s = _changed(s, index=self._reached(s, xy))
             if s.index == len(s.route) - 1:
                 s = replace(s, phase=RobotMode.SERVE, route=(), index=0)
+        # Driving in, it stands where it is (keeping the single-file segments of its way in:
+        # back in the queue phase it would give them up to the robots behind it).
         s = _changed(s, waiting=(s.phase == RobotMode.SERVE and not holding)
+                     or (s.phase == RobotMode.ENTER and waits)
                      or self._held_at_door(s, robots, queues))
         if (s.phase == RobotMode.SERVE and holding
                 and _distance(xy, place.point) <= params.reach_tolerance):
