@@ -295,8 +295,8 @@ class WaypointPolicy:
       while it waits at a point for a room another robot holds (that robot must come in).
     - enter: once holding the room, drive through the remaining slots and the entry path;
       but while the doorway is taken, wait at the slot (until past the first slot, so also
-      a robot granted the room on its way there: at the slot ahead of it), as two robots in
-      a doorway cannot pass: while another robot moves within ``door_clearance`` of the
+      a robot granted the room on its way there, standing where it is, its way in's
+      single-file segments kept), as two robots in a doorway cannot pass: while another robot moves within ``door_clearance`` of the
       entry path or the point (e.g. one that had parked in the room, leaving), or stands
       within ``door_clearance`` of the doorway, from the first slot along the entry path to
       the point, unless it waits for the holder or stands there for good
@@ -662,7 +662,7 @@ class WaypointPolicy:
             ):
                 s = replace(s, phase=RobotMode.QUEUE, route=(), index=len(place.queue) - 1)
         # Entering while another robot comes out of the room, or stands in its doorway, would
-        # stand both in the doorway: the holder waits at the slot ahead of it.
+        # stand both in the doorway: the holder waits at its slot, or where it stands.
         slot = self._slot_ahead(s, place) if holding else None
         s = _changed(s, door_since=None if slot is None
                      else self._door_since(s, place, robots, queues, t))
