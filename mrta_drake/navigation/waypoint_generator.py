@@ -295,11 +295,12 @@ class WaypointPolicy:
       while it waits at a point for a room another robot holds (that robot must come in).
     - enter: once holding the room, drive through the remaining slots and the entry path;
       but while the doorway is taken, wait at the slot (until past the first slot, so also
-      a robot granted the room on its way there, standing where it is, its way in's
-      single-file segments kept), as two robots in a doorway cannot pass: while another robot moves within ``door_clearance`` of the
-      entry path or the point (e.g. one that had parked in the room, leaving), or stands
-      within ``door_clearance`` of the doorway, from the first slot along the entry path to
-      the point, unless it waits for the holder or stands there for good
+      a robot granted the room on its way there: at the slot ahead of it, or where it
+      stands while it holds single-file segments of its way in, so as to keep them), as
+      two robots in a doorway cannot pass: while another robot moves within
+      ``door_clearance`` of the entry path or the point (e.g. one that had parked in the
+      room, leaving), or stands within ``door_clearance`` of the doorway, from the first
+      slot along the entry path to the point, unless it waits for the holder or stands there for good
       (``_doorway_taken``). After ``door_patience`` s of one such wait the holder drives in
       all the same; with ``door_wait`` off, at once. The mirror: a robot about to leave
       the room it stands in (on its point or a parking spot) while another robot holds the
@@ -667,6 +668,8 @@ class WaypointPolicy:
         s = _changed(s, door_since=None if slot is None
                      else self._door_since(s, place, robots, queues, t))
         waits = s.door_since is not None and t - s.door_since < params.door_patience
+        if s.phase == RobotMode.ENTER and waits and not s.lanes.segments:
+            s = replace(s, phase=RobotMode.QUEUE, route=(), index=slot)
         if s.phase == RobotMode.QUEUE:
             if holding and not waits:
                 route = _points(place.queue[s.index::-1]) + _points(place.entry)
@@ -678,8 +681,9 @@ class WaypointPolicy:
             s = _changed(s, index=self._reached(s, xy))
             if s.index == len(s.route) - 1:
                 s = replace(s, phase=RobotMode.SERVE, route=(), index=0)
-        # Driving in, it stands where it is (keeping the single-file segments of its way in:
-        # back in the queue phase it would give them up to the robots behind it).
+        # Driving in on single-file segments, it stands where it is, keeping them (back in
+        # the queue phase it would give them up to the robots behind it); elsewhere it waits
+        # at the slot ahead (above), out of the corridor's way.
         s = _changed(s, waiting=(s.phase == RobotMode.SERVE and not holding)
                      or (s.phase == RobotMode.ENTER and waits)
                      or self._held_at_door(s, robots, queues))

@@ -473,7 +473,7 @@ def test_a_holder_waits_at_its_slot_while_another_robot_moves_in_the_doorway():
     assert step((entry[0] - 5.0, entry[1] - 1.0), 0.5).current == tuple(entry)
 
 
-def test_a_holder_driving_in_stands_while_another_robot_stands_in_the_doorway():
+def test_a_holder_driving_in_stops_at_a_slot_while_another_robot_stands_in_the_doorway():
     # Soak seed 115 (issue 15): robot2, granted room_1 on its way there, drove through the
     # queue slots into the door while robot6, on its way out, stood in it, and squeezed past
     # it 2.4 cm from the jamb. r0 here holds B and drives in from slot 1; r1 stands
@@ -486,16 +486,30 @@ def test_a_holder_driving_in_stands_while_another_robot_stands_in_the_doorway():
         phase=RobotMode.ENTER, stop=Stop("a", B), route=route, last_location=A))
     step = stepper(generator, context, (place.queue[1][0] + 0.6, place.queue[1][1]))
     in_door = (place.entry[0][0], place.entry[0][1] + 1.2)
-    # r0 stands where it is (no target) rather than drive on into the door, still driving
-    # in (back in the queue phase it would give up the single-file segments of its way in:
-    # the office demo, seed 0, gridlocked so) ...
-    assert not step(in_door, 0.0).active
-    # ... while r1 stands and then drives out through the door ...
-    assert not step(in_door, 0.0).active
-    assert not step(tuple(place.entry[0]), 0.5).active
-    # ... then drives on into the room, through the slots ahead of it.
-    target = step((10.0, 1.5), 0.5)
-    assert target.active and target.current in {tuple(map(float, xy)) for xy in place.queue}
+    # r0 stops at slot 1, the slot ahead of it, rather than drive on into the door ...
+    stop = WaypointTarget("r0", True, tuple(place.queue[1]), None, True)
+    assert step(in_door, 0.0) == stop
+    # ... and waits there while r1 stands and then drives out through the door ...
+    assert step(in_door, 0.0) == stop
+    assert step(tuple(place.entry[0]), 0.5) == stop
+    # ... then drives in (slot 1 reached: on to slot 0).
+    assert step((10.0, 1.5), 0.5).current == tuple(place.queue[0])
+
+
+def test_a_holder_driving_in_on_single_file_segments_stands_where_it_is():
+    # The office demo, seed 0: a holder stopped by the doorway went back to the queue phase,
+    # gave up the single-file segments of its way in, and the robots behind it took them
+    # (a gridlock). Holding segments of its way in, it stands where it is instead.
+    roadways = loop_world(parking=True)
+    place = roadways.place(B)
+    route = tuple(tuple(map(float, xy)) for xy in [*place.queue[1::-1], *place.entry,
+                                                    place.point])
+    generator, context, place = at_b(RoomQueue(B, holder="r0"), _Drive(
+        phase=RobotMode.ENTER, stop=Stop("a", B), route=route, last_location=A,
+        lanes=Need(((0, True),))))
+    step = stepper(generator, context, (place.queue[1][0] + 0.6, place.queue[1][1]))
+    in_door = (place.entry[0][0], place.entry[0][1] + 1.2)
+    assert not step(in_door, 0.0).active  # standing, not back to slot 1
 
 
 def test_a_holder_does_not_wait_for_the_robots_that_wait_for_it_or_stand_for_good():

@@ -23,10 +23,8 @@ SCRIPT = pathlib.Path(__file__).with_name("run_fingerprint.py")
 # docs/humans.md: the yielding gap counts the person's own closing speed), together with the
 # holder's door wait for a robot standing in the doorway (branch door5): soak seeds 101-108
 # and 115, 0 episodes, 0 contacts, slack 0.15-0.85 % (docs/benchmarks.md "Soak").
-# hospital_6_robots again the same day: a holder stopped by the doorway while driving in
-# stands where it is instead of going back to the queue phase (the office demo's gridlock).
 FINGERPRINTS = {
-    "hospital_6_robots.yaml": "85488871a7463dfa580eb9bf3f8ffa8f6d094e35c14c076d3fcc39cf195692ba",
+    "hospital_6_robots.yaml": "9b5c9708b53cfcf9f58e1b8535a3619d1d4121d6444cad522f9996941185d944",
     "hospital_disturbances.yaml":
         "0ac55b869ddff5da1d071f45b3e4a416caf77922a6f65e1d40c10dd87e0e03ae",
 }
