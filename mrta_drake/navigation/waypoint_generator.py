@@ -300,11 +300,11 @@ class WaypointPolicy:
       two robots in a doorway cannot pass: while another robot moves within
       ``door_clearance`` of the entry path or the point (e.g. one that had parked in the
       room, leaving), or stands within ``door_clearance`` of the doorway, from the first
-      slot along the entry path to the point, unless it waits for the holder or stands there for good
-      (``_doorway_taken``). After ``door_patience`` s of one such wait the holder drives in
-      all the same; with ``door_wait`` off, at once. The mirror: a robot about to leave
-      the room it stands in (on its point or a parking spot) while another robot holds the
-      room and moves there waits, target inactive, until it stops moving.
+      slot along the entry path to the point, unless it waits for the holder or stands
+      there for good (``_doorway_taken``). After ``door_patience`` s of one such wait the
+      holder drives in all the same; with ``door_wait`` off, at once. The mirror: a robot
+      about to leave the room it stands in (on its point or a parking spot) while another
+      robot holds the room and moves there waits, target inactive, until it stops moving.
     - serve: within ``reach_tolerance`` of the point and holding the room, stand for
       ``service_time``; the stop is then done (a ``Visit`` at that time) and the next begins.
       A stop at the location the robot is already at starts here (requesting the room);
