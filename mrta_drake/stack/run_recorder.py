@@ -47,8 +47,10 @@ class RunRecorder(LeafSystem):
         - plan
         - progress_<robot>
         - target_<robot>
+        - queue_request_<robot>
         - fleet_progress (optional)
         - fleet_targets (optional)
+        - fleet_queue_requests (optional)
         - human_states (optional)
         - human_active (optional)
         - allocator_events (optional)
