@@ -12,7 +12,7 @@ from mrta_drake.allocation.fixed_sequence_allocator import FixedSequenceAllocato
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.room_queues import RoomQueues
-from mrta_drake.navigation.single_file import Need
+from mrta_drake.navigation.single_file import NOTHING, Need
 from mrta_drake.navigation.waypoint_generator import (
     WaypointGenerator,
     WaypointParams,
@@ -473,19 +473,25 @@ def test_a_holder_waits_at_its_slot_while_another_robot_moves_in_the_doorway():
     assert step((entry[0] - 5.0, entry[1] - 1.0), 0.5).current == tuple(entry)
 
 
+def driving_into_b(lanes: Need = NOTHING):
+    """r0, holding B, driving in past slot 1 (holding single-file ``lanes``): its stepper,
+    B's place, and a point in B's doorway between its door and point."""
+    place = loop_world(parking=True).place(B)
+    route = tuple(tuple(map(float, xy)) for xy in [*place.queue[1::-1], *place.entry,
+                                                    place.point])
+    generator, context, place = at_b(RoomQueue(B, holder="r0"), _Drive(
+        phase=RobotMode.ENTER, stop=Stop("a", B), route=route, last_location=A,
+        lanes=lanes))
+    step = stepper(generator, context, (place.queue[1][0] + 0.6, place.queue[1][1]))
+    return step, place, (place.entry[0][0], place.entry[0][1] + 1.2)
+
+
 def test_a_holder_driving_in_stops_at_a_slot_while_another_robot_stands_in_the_doorway():
     # Soak seed 115 (issue 15): robot2, granted room_1 on its way there, drove through the
     # queue slots into the door while robot6, on its way out, stood in it, and squeezed past
     # it 2.4 cm from the jamb. r0 here holds B and drives in from slot 1; r1 stands
     # between B's door and point.
-    roadways = loop_world(parking=True)
-    place = roadways.place(B)
-    route = tuple(tuple(map(float, xy)) for xy in [*place.queue[1::-1], *place.entry,
-                                                    place.point])
-    generator, context, place = at_b(RoomQueue(B, holder="r0"), _Drive(
-        phase=RobotMode.ENTER, stop=Stop("a", B), route=route, last_location=A))
-    step = stepper(generator, context, (place.queue[1][0] + 0.6, place.queue[1][1]))
-    in_door = (place.entry[0][0], place.entry[0][1] + 1.2)
+    step, place, in_door = driving_into_b()
     # r0 stops at slot 1, the slot ahead of it, rather than drive on into the door ...
     stop = WaypointTarget("r0", True, tuple(place.queue[1]), None, True)
     assert step(in_door, 0.0) == stop
@@ -500,15 +506,7 @@ def test_a_holder_driving_in_on_single_file_segments_stands_where_it_is():
     # The office demo, seed 0: a holder stopped by the doorway went back to the queue phase,
     # gave up the single-file segments of its way in, and the robots behind it took them
     # (a gridlock). Holding segments of its way in, it stands where it is instead.
-    roadways = loop_world(parking=True)
-    place = roadways.place(B)
-    route = tuple(tuple(map(float, xy)) for xy in [*place.queue[1::-1], *place.entry,
-                                                    place.point])
-    generator, context, place = at_b(RoomQueue(B, holder="r0"), _Drive(
-        phase=RobotMode.ENTER, stop=Stop("a", B), route=route, last_location=A,
-        lanes=Need(((0, True),))))
-    step = stepper(generator, context, (place.queue[1][0] + 0.6, place.queue[1][1]))
-    in_door = (place.entry[0][0], place.entry[0][1] + 1.2)
+    step, _, in_door = driving_into_b(Need(((0, True),)))
     assert not step(in_door, 0.0).active  # standing, not back to slot 1
 
 
