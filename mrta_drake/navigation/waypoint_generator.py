@@ -364,10 +364,10 @@ class WaypointPolicy:
         self._names = tuple(robot_names)
         self._home = home
         self._spots = tuple(spot for spot in spots if spot != home)
-        starts = (*self._spots, *([] if home is None else [home]))
+        self._starts = (*self._spots, *([] if home is None else [home]))  # every robot's
         self._parking = tuple(  # the locations' parking spots that are no robot's start
             _point(spot) for i in roadways.location_ids for spot in roadways.place(i).parking
-            if all(_distance(spot, start) > params.parking_clearance for start in starts))
+            if all(_distance(spot, start) > params.parking_clearance for start in self._starts))
         self._index = index
         self._roadways = roadways
         self._params = params
@@ -828,9 +828,8 @@ class WaypointPolicy:
         if not near.any():
             return False
         near &= _nearest(xy, [place.point, *place.parking]) > params.reach_tolerance
-        homes = [*self._spots, *([] if self._home is None else [self._home])]
-        if homes:
-            near &= _nearest(xy, homes) > params.parking_clearance
+        if self._starts:
+            near &= _nearest(xy, self._starts) > params.parking_clearance
         queue = queues.room(place.id)
         waiting = {*queues.segment_waiting, *(() if queue is None else queue.waiting)}
         broken = robots.broken
@@ -844,9 +843,8 @@ class WaypointPolicy:
         moving = others[np.abs(others[:, 3]) > ROBOT_STOPPED_SPEED, :2]
         if not len(moving):
             return False
-        door = np.array([*place.entry, place.point], dtype=float).reshape(-1, 2)
-        gaps = np.linalg.norm(moving[:, None, :] - door[None, :, :], axis=-1)
-        return bool((gaps <= self._params.door_clearance).any())
+        return bool((_nearest(moving, [*place.entry, place.point])
+                     <= self._params.door_clearance).any())
 
     def _reached(self, s: _Drive, xy) -> int:
         """The first route index not yet reached, at most the last."""
