@@ -7,6 +7,7 @@ import numba
 import numpy as np
 
 from mrta_drake.control.barriers import SafetyDistances
+from mrta_drake.stack.compiled_helper import compiled_helper
 
 
 def barrier_minima(states, hits, hit_mask, human_positions,
@@ -15,7 +16,7 @@ def barrier_minima(states, hits, hit_mask, human_positions,
     (N, 4) and their wall ``hits`` (N, R, 2) where ``hit_mask``, over all robot-human pairs
     and over all robot pairs (d: the safety ``distances``)."""
     p = np.ascontiguousarray(np.asarray(states, dtype=float).reshape(-1, 4)[:, :2])
-    wall, human, robot = min_squared_distances(
+    wall, human, robot = _min_squared_distances_entry(
         p, np.ascontiguousarray(hits, dtype=float).reshape(len(p), -1, 2),
         np.ascontiguousarray(hit_mask, dtype=bool).reshape(len(p), -1),
         np.ascontiguousarray(human_positions, dtype=float).reshape(-1, 2))
@@ -23,6 +24,12 @@ def barrier_minima(states, hits, hit_mask, human_positions,
 
 
 @numba.njit(cache=True)
+def _min_squared_distances_entry(p, hits, mask, humans):
+    """``min_squared_distances`` for Python, which cannot call a ``compiled_helper``."""
+    return min_squared_distances(p, hits, mask, humans)
+
+
+@compiled_helper
 def min_squared_distances(p, hits, mask, humans):
     """Smallest squared distance (m^2; inf when none) from a robot (p (N, 2)) to one of its
     wall ``hits`` (N, R, 2) where ``mask``, to a human (``humans`` (M, 2)), to another

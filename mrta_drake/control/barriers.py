@@ -30,6 +30,7 @@ import numba
 import numpy as np
 
 from mrta_drake.errors import require_non_negative, require_positive
+from mrta_drake.stack.compiled_helper import compiled_helper
 
 
 @dataclass(frozen=True)
@@ -89,7 +90,7 @@ def point_barrier(position, heading, speed, points, point_velocities, safety_dis
             for a in (position, point_velocities))
     heading, v = (np.broadcast_to(np.asarray(a, dtype=float), o.shape[:-1])
                   for a in (heading, speed))
-    h, h_dot, drift, own_a, own_w, rx, ry, distance = point_terms(
+    h, h_dot, drift, own_a, own_w, rx, ry, distance = _point_terms_entry(
         *(np.ascontiguousarray(a) for a in (p[..., 0], p[..., 1], heading, v, o[..., 0],
                                             o[..., 1], w[..., 0], w[..., 1])),
         float(safety_distance))
@@ -100,13 +101,25 @@ def point_barrier(position, heading, speed, points, point_velocities, safety_dis
 
 def cbf_rhs(terms: BarrierTerms, alpha1: float, alpha2: float) -> np.ndarray:
     """``b`` of the unscaled rows ``own.u + other.u_j >= b``."""
-    return rhs(terms.drift, terms.h_dot, terms.h, float(alpha1), float(alpha2))
+    return _rhs_entry(terms.drift, terms.h_dot, terms.h, float(alpha1), float(alpha2))
 
 
 # The formulas above, compiled; each works on scalars (in the row kernel) and on arrays.
 
 
 @numba.njit(cache=True)
+def _point_terms_entry(px, py, heading, v, ox, oy, wx, wy, safety_distance):
+    """``point_terms`` for Python, which cannot call a ``compiled_helper``."""
+    return point_terms(px, py, heading, v, ox, oy, wx, wy, safety_distance)
+
+
+@numba.njit(cache=True)
+def _rhs_entry(drift, h_dot, h, alpha1, alpha2):
+    """``rhs`` for Python, which cannot call a ``compiled_helper``."""
+    return rhs(drift, h_dot, h, alpha1, alpha2)
+
+
+@compiled_helper
 def point_terms(px, py, heading, v, ox, oy, wx, wy, safety_distance):
     """h, h_dot, drift, the coefficients of [a, omega], r = p - o and |r| of a robot at
     (px, py) with ``heading`` and speed ``v`` against a point (ox, oy) moving at (wx, wy)
@@ -120,14 +133,14 @@ def point_terms(px, py, heading, v, ox, oy, wx, wy, safety_distance):
             rx, ry, np.sqrt(r2))
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def pair_other(rx, ry, heading_j, v_j):
     """The coefficients of robot j's [a, omega] in a pair row, r = p_i - p_j."""
     c, s = np.cos(heading_j), np.sin(heading_j)
     return -2.0 * (rx * c + ry * s), -2.0 * v_j * (ry * c - rx * s)
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def rhs(drift, h_dot, h, alpha1, alpha2):
     """``b`` of the CBF condition with rates ``alpha1``, ``alpha2`` (1/s)."""
     return -(drift + (alpha1 + alpha2) * h_dot + alpha1 * alpha2 * h)

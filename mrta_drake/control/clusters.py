@@ -52,7 +52,7 @@ def register_leader_rule(name: str, rule: LeaderRule) -> None:
     LEADER_RULES[name] = rule
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def cluster_labels(p, radius2, reachable):
     """The cluster number of each robot (positions p (N, 2), m): robots at most
     sqrt(``radius2``) apart, transitively, share one; robots not ``reachable`` (N bools;
@@ -92,16 +92,16 @@ def form_clusters(positions, radius: float, priorities, distances_to_goal, activ
     keys = np.ascontiguousarray(rule(priorities, np.asarray(distances_to_goal, dtype=float)),
                                 dtype=float)
     p = np.ascontiguousarray(positions, dtype=float).reshape(-1, 2)
-    labels = cluster_labels(p, float(radius) ** 2, np.ones(n, dtype=bool) if reachable is None
-                            else np.ascontiguousarray(reachable, dtype=bool))
-    order = cluster_order(labels, np.ascontiguousarray(active, dtype=bool),
-                          np.zeros(n, dtype=bool) if stalled is None
-                          else np.ascontiguousarray(stalled, dtype=bool), keys, priorities)
+    labels, order = _clusters_entry(
+        p, float(radius) ** 2, np.ones(n, dtype=bool) if reachable is None
+        else np.ascontiguousarray(reachable, dtype=bool), np.ascontiguousarray(active, dtype=bool),
+        np.zeros(n, dtype=bool) if stalled is None
+        else np.ascontiguousarray(stalled, dtype=bool), keys, priorities)
     return clusters_of(order, labels)
 
 
 def clusters_of(order, labels) -> tuple[tuple[int, ...], ...]:
-    """The clusters of robots ``order`` (N,) (sorted by cluster, as ``cluster_order``
+    """The clusters of robots ``order`` (N,) (sorted by cluster, as ``order_by_cluster``
     sorts them) with cluster ``labels`` (N,) per robot."""
     clusters, members, label = [], order.tolist(), labels[order].tolist()
     first = 0
@@ -113,7 +113,15 @@ def clusters_of(order, labels) -> tuple[tuple[int, ...], ...]:
 
 
 @numba.njit(cache=True)
-def cluster_order(labels, active, stalled, keys, priorities):
+def _clusters_entry(p, radius2, reachable, active, stalled, keys, priorities):
+    """``cluster_labels`` and ``order_by_cluster`` for Python, which cannot call a
+    ``compiled_helper``."""
+    labels = cluster_labels(p, radius2, reachable)
+    return labels, order_by_cluster(labels, active, stalled, keys, priorities)
+
+
+@compiled_helper
+def order_by_cluster(labels, active, stalled, keys, priorities):
     """Robot indices sorted by cluster ``labels``, then leader first: ``active`` before
     inactive, not ``stalled`` before stalled, then by leader rule ``keys``, ``priorities``
     and index (insertion sort: clusters are small)."""

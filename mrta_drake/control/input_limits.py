@@ -5,6 +5,7 @@ import numpy as np
 
 from mrta_drake.control.nominal import NominalParams
 from mrta_drake.payloads import ROBOT_STATE_SIZE
+from mrta_drake.stack.compiled_helper import compiled_helper
 
 
 def input_bounds(states, params: NominalParams, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -13,7 +14,7 @@ def input_bounds(states, params: NominalParams, dt: float) -> tuple[np.ndarray, 
     [min_speed, max_speed] as far as the acceleration limit allows."""
     states = np.ascontiguousarray(states, dtype=float).reshape(-1, ROBOT_STATE_SIZE)
     lower, upper = np.empty((len(states), 2)), np.empty((len(states), 2))
-    fill_input_bounds(states, limits_of(params, dt), lower, upper)
+    _fill_input_bounds_entry(states, limits_of(params, dt), lower, upper)
     return lower, upper
 
 
@@ -25,6 +26,12 @@ def limits_of(params: NominalParams, dt: float) -> np.ndarray:
 
 
 @numba.njit(cache=True)
+def _fill_input_bounds_entry(states, limits, lower, upper):
+    """``fill_input_bounds`` for Python, which cannot call a ``compiled_helper``."""
+    fill_input_bounds(states, limits, lower, upper)
+
+
+@compiled_helper
 def fill_input_bounds(states, limits, lower, upper):
     """``input_bounds`` into ``lower``, ``upper`` (N, 2), compiled (``limits``: as from
     ``limits_of``)."""

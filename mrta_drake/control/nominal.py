@@ -45,7 +45,7 @@ from functools import cached_property
 import numba
 import numpy as np
 
-from mrta_drake.control.paths import has_path, projection
+from mrta_drake.control.paths import has_path, segment_projection
 from mrta_drake.errors import InputError, require_non_negative, require_positive
 from mrta_drake.payloads import ROBOT_STOPPED_SPEED, RobotPath
 from mrta_drake.stack.compiled_helper import compiled_helper
@@ -123,9 +123,10 @@ def nominal_control(state, path: RobotPath | None, params: NominalParams, cluste
         return slow_down(state[3], params)
     bodies = _with_speeds(bodies)
     walls = np.ascontiguousarray(np.asarray(walls, dtype=float).reshape(-1, 2))
-    return np.array(_nominal(float(state[0]), float(state[1]), float(state[2]), float(state[3]),
-                             path.points, path.stop_at_end, clustered, bodies, exclude,
-                             walls, np.ones(len(walls), dtype=np.bool_), params.gains))
+    return np.array(_nominal_entry(float(state[0]), float(state[1]), float(state[2]),
+                                   float(state[3]), path.points, path.stop_at_end, clustered,
+                                   bodies, exclude, walls, np.ones(len(walls), dtype=np.bool_),
+                                   params.gains))
 
 
 def _with_speeds(bodies) -> np.ndarray:
@@ -179,6 +180,14 @@ def _slow_downs(speeds, k_slow, slow_accel, u):
 
 
 @numba.njit(cache=True)
+def _nominal_entry(x, y, theta, v, points, stop_at_end, clustered, bodies, exclude, walls,
+                  wall_mask, gains):
+    """``_nominal`` for Python, which cannot call a ``compiled_helper``."""
+    return _nominal(x, y, theta, v, points, stop_at_end, clustered, bodies, exclude, walls,
+                    wall_mask, gains)
+
+
+@compiled_helper
 def _nominal(x, y, theta, v, points, stop_at_end, clustered, bodies, exclude, walls,
              wall_mask, gains):
     """Nominal (a, omega) along a path of at least one point (see ``nominal_control``;
@@ -206,7 +215,7 @@ def _local_goal(x, y, points, lookahead):
     k = len(points)
     if k == 1:
         return points[0, 0], points[0, 1], True, math.hypot(x - points[0, 0], y - points[0, 1])
-    nearest, t_nearest = projection(x, y, points)
+    nearest, t_nearest = segment_projection(x, y, points)
     remaining = 0.0
     for i in range(nearest, k - 1):
         length = math.sqrt(max((points[i + 1, 0] - points[i, 0]) ** 2

@@ -74,8 +74,8 @@ def _progress(states, points, start, ok, stop_at_end, arrival_radius, distances,
         active[i] = not (stop_at_end[i] and distances[i] <= arrival_radius)
 
 
-@numba.njit(cache=True)
-def projection(x, y, points):
+@compiled_helper
+def segment_projection(x, y, points):
     """The segment of the path ``points`` (k, 2), k >= 2, nearest (x, y) and the fraction
     along it of the nearest point."""
     nearest, best, t_nearest = 0, math.inf, 0.0
@@ -97,7 +97,7 @@ def path_ahead_near(x, y, points, qx, qy, horizon, clearance):
     then drives in (zero if it has no length)."""
     if len(points) == 1:
         return _near_segment(qx, qy, x, y, points[0, 0], points[0, 1], clearance)
-    nearest, t = projection(x, y, points)
+    nearest, t = segment_projection(x, y, points)
     ax = points[nearest, 0] + t * (points[nearest + 1, 0] - points[nearest, 0])
     ay = points[nearest, 1] + t * (points[nearest + 1, 1] - points[nearest, 1])
     near, ux, uy = _near_segment(qx, qy, x, y, ax, ay, clearance)
@@ -123,7 +123,7 @@ def travel_direction(x, y, points):
     point of a one-point path)."""
     if len(points) == 1:
         return _near_segment(x, y, x, y, points[0, 0], points[0, 1], 0.0)[1:]
-    i, _ = projection(x, y, points)
+    i, _ = segment_projection(x, y, points)
     return _near_segment(x, y, points[i, 0], points[i, 1], points[i + 1, 0], points[i + 1, 1],
                          0.0)[1:]
 

@@ -48,15 +48,24 @@ def safety_rows(states, hits, hit_mask, human_positions, human_velocities, mover
     mask = np.ascontiguousarray(hit_mask, dtype=bool).reshape(k, -1)
     humans = np.ascontiguousarray(human_positions, dtype=float).reshape(-1, 2)
     movers = np.ascontiguousarray(movers, dtype=float).reshape(-1, 4)
-    m = count_rows(states, mask, len(humans), movers, params.coordination.cluster_radius**2)
-    rows = empty_rows(m, k)
-    fill_rows(states, hits, mask, humans,
-               np.ascontiguousarray(human_velocities, dtype=float).reshape(-1, 2), movers,
-               params.row_params, *rows)
-    return SafetyRows(*rows)
+    return SafetyRows(*_rows_entry(
+        states, hits, mask, humans,
+        np.ascontiguousarray(human_velocities, dtype=float).reshape(-1, 2), movers,
+        params.row_params, params.coordination.cluster_radius**2))
 
 
 @numba.njit(cache=True)
+def _rows_entry(states, hits, mask, humans, human_velocities, movers, params, radius2):
+    """``safety_rows``' arrays (``count_rows``, ``empty_rows``, ``fill_rows``) for Python,
+    which cannot call a ``compiled_helper``."""
+    rows = empty_rows(count_rows(states, mask, len(humans), movers, radius2), len(states))
+    G, b, kind, h, member, other, normal = rows
+    fill_rows(states, hits, mask, humans, human_velocities, movers, params, G, b, kind, h,
+              member, other, normal)
+    return rows
+
+
+@compiled_helper
 def empty_rows(m, k):
     """Arrays for m rows over k robots: ``SafetyRows``' fields, ``G`` zero, ``other`` -1."""
     other = np.empty(m, np.int64)
@@ -66,7 +75,7 @@ def empty_rows(m, k):
             np.empty(m, np.int64), other, np.empty((m, 2)))
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def count_rows(states, mask, humans, movers, radius2):
     """The number of rows ``safety_rows`` makes (``humans``: how many)."""
     k = len(states)
@@ -75,19 +84,19 @@ def count_rows(states, mask, humans, movers, radius2):
         for ray in range(mask.shape[1]):  # not mask.sum(): numba compiles its generic code
             m += mask[i, ray]
         for q in range(len(movers)):
-            m += near(states[i], movers[q], radius2)
+            m += _within_radius(states[i], movers[q], radius2)
         for j in range(i + 1, k):
-            m += near(states[i], states[j], radius2)
+            m += _within_radius(states[i], states[j], radius2)
     return m
 
 
-@numba.njit(cache=True)
-def near(a, b, radius2):
+@compiled_helper
+def _within_radius(a, b, radius2):
     """Whether robot states ``a`` and ``b`` are at most sqrt(``radius2``) (m) apart."""
     return (a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 <= radius2
 
 
-@numba.njit(cache=True)
+@compiled_helper
 def fill_rows(states, hits, mask, humans, human_velocities, movers, params, G, b, kind, h,
               member, other, normal):
     """Fills ``safety_rows``' arrays (``params``: ``CbfParams.row_params``; ``G`` zero).
@@ -111,7 +120,7 @@ def fill_rows(states, hits, mask, humans, human_velocities, movers, params, G, b
                                         human_velocities[q, 0], human_velocities[q, 1],
                                         params[base])
                 else:
-                    if not near(states[i], movers[q], radius2):
+                    if not _within_radius(states[i], movers[q], radius2):
                         continue
                     speed, heading = movers[q, 3], movers[q, 2]
                     terms = point_terms(x, y, theta, v, movers[q, 0], movers[q, 1],
@@ -122,7 +131,7 @@ def fill_rows(states, hits, mask, humans, human_velocities, movers, params, G, b
                 row += 1
     for i in range(k):
         for j in range(i + 1, k):
-            if not near(states[i], states[j], radius2):
+            if not _within_radius(states[i], states[j], radius2):
                 continue
             speed, heading = states[j, 3], states[j, 2]
             terms = point_terms(states[i, 0], states[i, 1], states[i, 2], states[i, 3],

@@ -10,6 +10,7 @@ import numpy as np
 from mrta_drake.control.cbf_params import CbfParams
 from mrta_drake.control.nominal import wrap_angle
 from mrta_drake.control.safety_rows import SafetyRows
+from mrta_drake.stack.compiled_helper import compiled_helper
 
 
 def steer_blocked(u_nominal, states, rows: SafetyRows, params: CbfParams) -> np.ndarray:
@@ -18,7 +19,7 @@ def steer_blocked(u_nominal, states, rows: SafetyRows, params: CbfParams) -> np.
     forward breaks a safety row: it turns towards the tangent of the most blocking obstacle
     point nearer its goal heading."""
     u = np.array(u_nominal, dtype=float).reshape(-1, 2)
-    steer(u, np.ascontiguousarray(states, dtype=float).reshape(-1, 4),
+    _steer_entry(u, np.ascontiguousarray(states, dtype=float).reshape(-1, 4),
           *(np.ascontiguousarray(a) for a in (rows.G, rows.b, rows.member, rows.other,
                                               rows.normal)),
           params.coordination.stall_speed, params.nominal.k_theta)
@@ -26,6 +27,12 @@ def steer_blocked(u_nominal, states, rows: SafetyRows, params: CbfParams) -> np.
 
 
 @numba.njit(cache=True)
+def _steer_entry(u, states, G, b, member, other, normal, stall_speed, k_theta):
+    """``steer`` for Python, which cannot call a ``compiled_helper``."""
+    steer(u, states, G, b, member, other, normal, stall_speed, k_theta)
+
+
+@compiled_helper
 def steer(u, states, G, b, member, other, normal, stall_speed, k_theta):
     """``steer_blocked`` in place on ``u`` (k, 2), compiled: rows ``G``, ``b``, ``member``,
     ``other``, ``normal`` as in ``SafetyRows``."""

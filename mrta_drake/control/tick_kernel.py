@@ -9,7 +9,7 @@ import numba
 import numpy as np
 
 from mrta_drake.control.barrier_minima import min_squared_distances
-from mrta_drake.control.clusters import cluster_labels, cluster_order
+from mrta_drake.control.clusters import cluster_labels, order_by_cluster
 from mrta_drake.control.followers import FOLLOWERS_IN_THE_WAY, NO_FOLLOWERS, in_the_way
 from mrta_drake.control.input_limits import fill_input_bounds
 from mrta_drake.control.nominal import nominal_inputs, slow_down_input
@@ -75,7 +75,7 @@ class TickArrays(NamedTuple):
 def plan_tick(robots, world, paths, settings, out):
     """Fills ``out`` (a ``TickArrays``) for ``robots`` (a ``TickRobots``) on their ``paths``
     (a ``PathArrays``) in ``world`` (a ``TickWorld``), with ``settings`` (a
-    ``TickSettings``): clusters (``cluster_labels``, ``cluster_order``); the nominal inputs,
+    ``TickSettings``): clusters (``cluster_labels``, ``order_by_cluster``); the nominal inputs,
     with the heading gate of a cluster for clustered robots and passing around the robots as
     the others know them and the humans, then the slow-down for the ``slowed`` robots and
     for the followers of the follower rule; the input bounds; the smallest distances.
@@ -89,7 +89,7 @@ def plan_tick(robots, world, paths, settings, out):
     order, labels, starts, u_nominal, lower, upper, minima = out
     n = len(states)
     _copy_into(labels, cluster_labels(states[:, :2].copy(), radius2, reachable))
-    _copy_into(order, cluster_order(labels, active, stalled, keys, priorities))
+    _copy_into(order, order_by_cluster(labels, active, stalled, keys, priorities))
     size = np.zeros(n, dtype=np.int64)
     for i in range(n):
         size[labels[i]] += 1

@@ -7,6 +7,11 @@ run's compile time of the kernels they serve (docs/benchmarks.md), so ``compiled
 compiles (on first use by a caller, kept in numba's on-disk cache like ``numba.njit(
 cache=True)``) without them. Calling such a helper from Python crashes the interpreter:
 ``tests/stack/test_compiled_helpers.py`` checks that only compiled code refers to one.
+A function that Python calls too is a helper all the same, with a small ``numba.njit(cache=
+True)`` kernel for the Python callers (named after it, ``_<helper>_entry``, e.g.
+``input_limits._fill_input_bounds_entry``; ``safety_rows._rows_entry`` serves three), which
+is compiled only when Python calls it: a run's kernels then compile no entry points and no
+machine code for it (docs/benchmarks.md, "The first run", "Seventh round").
 
 A helper's code is also only ever run as part of its callers: numba links the LLVM code of
 every function a kernel calls into the kernel's own library, optimizes that whole library

@@ -2,6 +2,7 @@
 
 import math
 
+import numba
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -83,6 +84,12 @@ def test_standing_robot_cannot_steer_away_and_cbf_row_is_the_second_order_condit
     assert b[0] == pytest.approx(-12 * 0.64)
 
 
+@numba.njit(cache=True)
+def _pair_other(rx, ry, heading_j, v_j):
+    """``pair_other`` (a ``compiled_helper``: only compiled code calls it) on arrays."""
+    return pair_other(rx, ry, heading_j, v_j)
+
+
 def _pair_barrier(state_i, state_j, safety_distance):
     """Barrier terms of robot pairs; ``state_i``, ``state_j`` (m, 4) ``[x, y, theta, v]``.
     ``own`` are the coefficients of robot i's input, ``other`` those of robot j's (as the
@@ -93,7 +100,7 @@ def _pair_barrier(state_i, state_j, safety_distance):
     terms = point_barrier(si[:, :2], si[:, 2], si[:, 3], sj[:, :2],
                           np.stack([vj * np.cos(sj[:, 2]), vj * np.sin(sj[:, 2])], axis=-1),
                           safety_distance)
-    other = np.stack(pair_other(*(np.ascontiguousarray(a) for a in (
+    other = np.stack(_pair_other(*(np.ascontiguousarray(a) for a in (
         terms.offset[:, 0], terms.offset[:, 1], sj[:, 2], vj))), axis=-1)
     return BarrierTerms(terms.h, terms.h_dot, terms.drift, terms.own, other, terms.offset,
                         terms.distance)

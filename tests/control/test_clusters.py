@@ -11,7 +11,6 @@ from mrta_drake.control.clusters import (
     LEADER_RULES,
     by_distance_to_goal,
     by_largest_priority,
-    cluster_labels,
     form_clusters,
     register_leader_rule,
     stall_times_of,
@@ -39,12 +38,10 @@ def _leader_stall_times(stall_times, speeds, clusters, active):
 def test_transitive_chain_is_one_cluster_and_a_gap_splits_it():
     chain = [[0.0, 0.0], [3.5, 0.0], [7.0, 0.0], [10.5, 0.0], [20.0, 0.0]]
     assert _clusters(chain) == ((0, 1, 2, 3), (4,))
-    labels = cluster_labels(np.array([[0.0, 0.0], [4.0, 0.0], [8.01, 0.0]]), 16.0,
-                            np.ones(3, dtype=bool))
-    assert labels.tolist() == [0, 0, 1]
-    cut_off = cluster_labels(np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]), 16.0,
-                             np.array([True, False, True]))
-    assert cut_off.tolist() == [0, 1, 0]
+    assert _clusters([[0.0, 0.0], [4.0, 0.0], [8.01, 0.0]]) == ((0, 1), (2,))
+    cut_off = form_clusters([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]], 4.0, np.arange(3), np.zeros(3),
+                            [True] * 3, reachable=[True, False, True])
+    assert cut_off == ((0, 2), (1,))
 
 
 def test_clusters_are_ordered_by_lowest_index_and_led_by_priority():
