@@ -115,7 +115,7 @@ class Obstacles:
         if ang.ndim == 1:
             ang = np.broadcast_to(ang, (len(o), len(ang)))
         hit = np.full(ang.shape, float(max_range))
-        cast_rays_into(o, np.cos(ang), np.sin(ang), *self.compiled, hit)
+        _cast_rays_entry(o, np.cos(ang), np.sin(ang), *self.compiled, hit)
         return hit
 
     @cached_property
@@ -258,6 +258,14 @@ def _closest_points(p, centers, half, cos, sin, cyl_centers, cyl_radii, reach, g
 
 
 @numba.njit(cache=True)
+def _cast_rays_entry(o, dx, dy, centers, half, cos, sin, cyl_centers, cyl_radii, reach, grid,
+                     order, bound, hit):
+    """``cast_rays_into`` for Python, which cannot call a ``compiled_helper``."""
+    cast_rays_into(o, dx, dy, centers, half, cos, sin, cyl_centers, cyl_radii, reach, grid,
+                   order, bound, hit)
+
+
+@compiled_helper
 def cast_rays_into(o, dx, dy, centers, half, cos, sin, cyl_centers, cyl_radii, reach, grid,
                    order, bound, hit):
     """``Obstacles.cast_rays`` from origins ``o`` (n, 2) along unit vectors (``dx``, ``dy``)
