@@ -6,7 +6,8 @@ changed) compiles the kernels, which takes tens of seconds once; later runs load
 cache in well under a second. The entry kernels of the quickstart's stack (those Python calls;
 they compile the helpers they call), their argument types, the CPU s each took to compile and
 the compiled functions each calls (directly or not) are listed in ``kernel_signatures.json``,
-in the order the quickstart first calls them,
+in the order the quickstart first calls them, with the CPU s each compiled function took
+itself (``functions``: what compiling it alone, its callees already compiled, costs),
 written by ``python -m mrta_drake.stack.kernel_cache record`` (run it again when a kernel's
 argument types change: ``tests/stack/test_kernel_cache.py`` says when).
 
@@ -23,6 +24,7 @@ call) is the same machine code, so nothing depends on which process compiled wha
 import dataclasses
 import gc
 import importlib
+import itertools
 import json
 import os
 import pathlib
@@ -67,13 +69,14 @@ class EntryKernel:
         return getattr(importlib.import_module(self.module), self.name)
 
 
-def _read_manifest(path: pathlib.Path) -> tuple[EntryKernel, ...]:
-    kernels = json.loads(path.read_text(encoding="utf-8"))["kernels"]
+def _read_manifest(path: pathlib.Path) -> tuple[tuple[EntryKernel, ...], dict[str, float]]:
+    manifest = json.loads(path.read_text(encoding="utf-8"))
     return tuple(EntryKernel(k["module"], k["name"], k["cpu_s"], tuple(k["signatures"]),
-                             tuple(k["helpers"]), k["building"]) for k in kernels)
+                             tuple(k["helpers"]), k["building"])
+                 for k in manifest["kernels"]), manifest["functions"]
 
 
-ENTRY_KERNELS = _read_manifest(MANIFEST)
+ENTRY_KERNELS, FUNCTION_CPU_S = _read_manifest(MANIFEST)
 
 
 def is_cached(dispatcher) -> bool:
@@ -94,40 +97,35 @@ def missing_kernels() -> tuple[EntryKernel, ...]:
     return tuple(k for k in ENTRY_KERNELS if not is_cached(k.dispatcher))
 
 
-def groups(kernels: tuple[EntryKernel, ...]) -> list[list[EntryKernel]]:
-    """``kernels`` in groups that share no compiled function (each process compiles the
-    helpers its kernels call for itself, so kernels sharing one stay together), in the order
-    of each group's first kernel."""
-    found: list[tuple[frozenset[str], list[EntryKernel]]] = []
-    for kernel in kernels:
-        functions, members = kernel.functions, [kernel]
-        for group in [g for g in found if g[0] & functions]:
-            found.remove(group)
-            functions, members = functions | group[0], group[1] + members
-        found.append((functions, members))
-    order = {kernel: i for i, kernel in enumerate(kernels)}
-    return sorted((sorted(g[1], key=order.__getitem__) for g in found),
-                  key=lambda g: order[g[0]])
+def cost(kernels) -> float:
+    """CPU s compiling ``kernels`` in one process takes: every compiled function they call
+    (``EntryKernel.functions``) once, at its ``FUNCTION_CPU_S``."""
+    return sum(FUNCTION_CPU_S.get(f, 0.0) for f in frozenset().union(*(
+        k.functions for k in kernels)))
 
 
 def split(kernels: tuple[EntryKernel, ...]) -> tuple[tuple[EntryKernel, ...],
                                                      tuple[EntryKernel, ...]]:
-    """``kernels`` in two parts that finish about together: the one compiled here and the
-    one for a second process. The groups (``groups``) of the first kernel and of those
-    loading the scenario or building the diagram calls (this process calls them before the
-    second could have compiled them) stay here; the others go, largest first, to the part
-    that would finish first so far, this process starting ``PARENT_AHEAD_S`` behind with its
-    other work, the second ``CHILD_START_S`` behind with its start-up."""
-    found = groups(kernels)
-    pinned = [g for i, g in enumerate(found) if i == 0 or any(k.building for k in g)]
-    halves = ([k for g in pinned for k in g], [])
-    ahead = (PARENT_AHEAD_S, CHILD_START_S)
-    for group in sorted((g for g in found if g not in pinned),
-                        key=lambda g: -sum(k.cpu_s for k in g)):
-        side = min((0, 1), key=lambda h: ahead[h] + sum(k.cpu_s for k in halves[h]))
-        halves[side].extend(group)
+    """``kernels`` in two parts that finish soonest: the one compiled here and the one for a
+    second process. The first kernel and those loading the scenario or building the diagram
+    call stay here (this process calls them before the second could have compiled them);
+    of every way to place the others (the manifest lists a dozen kernels: a few thousand
+    ways at most), the first whose later part finishes soonest, this process starting
+    ``PARENT_AHEAD_S`` behind with its other work, the second ``CHILD_START_S`` behind with
+    its start-up. Each part costs ``cost``: a helper both parts call is compiled in both,
+    which the split weighs against the balance (kernels that share only a cheap helper may
+    go apart; before, any shared helper kept them together)."""
+    pinned = [k for i, k in enumerate(kernels) if i == 0 or k.building]
+    free = [k for k in kernels if k not in pinned]
+    best = None
+    for places in itertools.product((0, 1), repeat=len(free)):
+        there = [k for k, place in zip(free, places, strict=True) if place]
+        here = pinned + [k for k, place in zip(free, places, strict=True) if not place]
+        finish = max(PARENT_AHEAD_S + cost(here), CHILD_START_S + cost(there) if there else 0.0)
+        if best is None or finish < best[0]:
+            best = (finish, here, there)
     order = {kernel: i for i, kernel in enumerate(kernels)}
-    here, there = (tuple(sorted(h, key=order.__getitem__)) for h in halves)
+    here, there = (tuple(sorted(h, key=order.__getitem__)) for h in best[1:])
     return here, there
 
 
@@ -185,15 +183,14 @@ class Compilation:
 
     @staticmethod
     def estimate(kernels: tuple[EntryKernel, ...]) -> float:
-        """Estimated wall s compiling ``kernels`` adds to the run: the sum of their CPU s in
-        one process; with two, the CPU s of this process's part, or of the second's with
-        its start-up (``CHILD_START_S``) less this process's other work meanwhile
+        """Estimated wall s compiling ``kernels`` adds to the run: their ``cost`` in one
+        process; with two, the cost of this process's part, or of the second's with its
+        start-up (``CHILD_START_S``) less this process's other work meanwhile
         (``PARENT_AHEAD_S``) when that ends later (0.0 for none)."""
         if processes() == 1 or not kernels:
-            return sum(k.cpu_s for k in kernels)
+            return cost(kernels)
         here, there = split(kernels)
-        return max(sum(k.cpu_s for k in here), sum(k.cpu_s for k in there) + CHILD_START_S
-                   - PARENT_AHEAD_S if there else 0.0)
+        return max(cost(here), cost(there) + CHILD_START_S - PARENT_AHEAD_S if there else 0.0)
 
     def finish(self) -> None:
         """Compiles this process's half and waits for the child's."""
@@ -224,20 +221,26 @@ def _record(out: pathlib.Path) -> None:
         from mrta_drake.stack.simulate import simulate
 
         entries, open_, compiled, begun, building = {}, [], set(), set(), set()
+        own = {}  # "module.name": CPU s of compiling the function less the ours it compiled
 
         class Listener(event.Listener):
             def on_start(self, ev):
                 if not open_:  # an entry kernel (numba compiles one function at a time)
                     function = ev.data["dispatcher"].py_func
                     begun.add((function.__module__, function.__name__))
-                open_.append(time.process_time())
+                open_.append([time.process_time(), 0.0])
 
             def on_end(self, ev):
-                seconds = time.process_time() - open_.pop()
+                start, inner = open_.pop()
+                seconds = time.process_time() - start
                 function = ev.data["dispatcher"].py_func
-                if function.__module__.startswith("mrta_drake."):
+                if function.__module__.startswith("mrta_drake."):  # numba's own: its caller's
                     compiled.add(ev.data["dispatcher"])
-                    if not open_:
+                    key = f"{function.__module__}.{function.__name__}"
+                    own[key] = own.get(key, 0.0) + seconds - inner
+                    if open_:
+                        open_[-1][1] += seconds
+                    else:
                         key = (function.__module__, function.__name__)
                         entries[key] = entries.get(key, 0.0) + seconds
 
@@ -264,7 +267,10 @@ def _record(out: pathlib.Path) -> None:
                         "helpers": sorted(helpers), "building": (module, name) in building})
     out.write_text(json.dumps({"command": "python -m mrta_drake.stack.kernel_cache record",
                                "run": "mrta-sim run " + " ".join(QUICKSTART),
-                               "kernels": kernels}, indent=1) + "\n", encoding="utf-8")
+                               "kernels": kernels,
+                               "functions": {name: round(seconds, 3)
+                                             for name, seconds in sorted(own.items())}},
+                              indent=1) + "\n", encoding="utf-8")
 
 
 def main(argv=None) -> int:

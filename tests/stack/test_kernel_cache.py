@@ -33,6 +33,8 @@ def fresh_kernels(tmp_path, monkeypatch):
         modules.append(importlib.import_module(f"{package}.kernels"))
         entries.append(EntryKernel(f"{package}.kernels", "twice", seconds, ("(int64,)",)))
     monkeypatch.setattr(kernel_cache, "ENTRY_KERNELS", tuple(entries))
+    monkeypatch.setattr(kernel_cache, "FUNCTION_CPU_S",
+                        {f"{k.module}.{k.name}": k.cpu_s for k in entries})
     yield modules
     for module in modules:
         sys.modules.pop(module.__name__, None)
@@ -56,24 +58,28 @@ def _two_processes(here: float, there: float) -> float:
     return max(here, there + kernel_cache.CHILD_START_S - kernel_cache.PARENT_AHEAD_S)
 
 
-def test_the_halves_share_no_compiled_function_and_keep_the_first_kernel_here():
-    here, there = kernel_cache.split(kernel_cache.ENTRY_KERNELS)
-    assert here[0] == kernel_cache.ENTRY_KERNELS[0]
-    assert sorted(here + there, key=kernel_cache.ENTRY_KERNELS.index) == list(
-        kernel_cache.ENTRY_KERNELS)
-    functions = [frozenset().union(*(k.functions for k in half)) for half in (here, there)]
-    assert not functions[0] & functions[1]
-    assert there  # the quickstart's kernels do not all share one helper
+def test_the_halves_keep_the_first_kernel_and_the_building_ones_here():
+    kernels = kernel_cache.ENTRY_KERNELS
+    here, there = kernel_cache.split(kernels)
+    assert here[0] == kernels[0] and all(k in here for k in kernels if k.building)
+    assert sorted(here + there, key=kernels.index) == list(kernels)
+    assert there and kernel_cache.cost(here) < kernel_cache.cost(kernels)
 
 
-def test_kernels_sharing_a_helper_stay_together():
-    first, shares, alone = (EntryKernel("m", name, seconds, (), helpers) for name, seconds,
-                            helpers in (("a", 1.0, ("m.h",)), ("b", 9.0, ("m.h",)),
-                                        ("c", 5.0, ())))
-    assert kernel_cache.groups((first, alone, shares)) == [[first, shares], [alone]]
-    assert kernel_cache.split((first, alone, shares)) == ((first, shares), (alone,))
-    builds = EntryKernel("m", "d", 20.0, (), (), building=True)  # called before the run
-    assert kernel_cache.split((first, alone, builds)) == ((first, builds), (alone,))
+def test_the_split_weighs_a_helper_both_parts_would_compile_against_the_balance(monkeypatch):
+    first, b, d = (EntryKernel("m", name, 0.0, (), helpers) for name, helpers in (
+        ("a", ()), ("b", ("m.h",)), ("d", ("m.h",))))
+    monkeypatch.setattr(kernel_cache, "CHILD_START_S", 0.0)
+    monkeypatch.setattr(kernel_cache, "PARENT_AHEAD_S", 0.0)
+    monkeypatch.setattr(kernel_cache, "FUNCTION_CPU_S", {"m.a": 8.0, "m.b": 4.0, "m.d": 4.0,
+                                                         "m.h": 3.0})
+    assert kernel_cache.cost((b, d)) == 11.0  # m.h once
+    assert kernel_cache.split((first, b, d)) == ((first,), (b, d))  # 11 s, not 15 s apart
+    monkeypatch.setitem(kernel_cache.FUNCTION_CPU_S, "m.a", 1.0)
+    assert kernel_cache.split((first, b, d)) == ((first, b), (d,))  # 8 s, not 11 s together
+    builds = EntryKernel("m", "e", 0.0, (), (), building=True)  # called before the run
+    monkeypatch.setitem(kernel_cache.FUNCTION_CPU_S, "m.e", 20.0)
+    assert kernel_cache.split((first, b, builds)) == ((first, builds), (b,))
 
 
 def test_the_cli_announces_a_cold_cache_and_compiles_in_two_processes(fresh_kernels, capsys):
