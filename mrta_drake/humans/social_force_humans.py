@@ -457,10 +457,11 @@ def _project(new, old, old_closest, old_clearance, radii, robot_p, robot_r, obst
     clearance below min(radius, old clearance), and so stay at ``old``."""
     a, b = len(new), len(robot_p)
     new = new.copy()
-    floor = _gaps(old, radii, robot_p, robot_r)
+    floor = np.empty((a, b))  # min(ROBOT_STANDOFF, gap before the step)
     for i in range(a):
         for j in range(b):
-            floor[i, j] = min(ROBOT_STANDOFF, floor[i, j])
+            floor[i, j] = min(ROBOT_STANDOFF, _gap_within(old, radii, robot_p, robot_r, i, j,
+                                                          ROBOT_STANDOFF))
     known, closest, clearance = old.copy(), old_closest.copy(), old_clearance.copy()
     deep = False  # someone ends the iteration pushed out of an obstacle
     for _ in range(PROJECTION_ITERATIONS):
@@ -484,11 +485,11 @@ def _project(new, old, old_closest, old_clearance, radii, robot_p, robot_r, obst
     if deep:
         _refresh_closest(new, known, closest, clearance, obstacles)
     blocked = np.zeros(a, dtype=np.bool_)
-    gaps = _gaps(new, radii, robot_p, robot_r)
     for i in range(a):
         blocked[i] = clearance[i] < min(radii[i], old_clearance[i]) - 1e-9
         for j in range(b):
-            if gaps[i, j] < floor[i, j] - 1e-9:
+            least = floor[i, j] - 1e-9
+            if _gap_within(new, radii, robot_p, robot_r, i, j, least) < least:
                 blocked[i] = True
         if blocked[i]:
             new[i, 0], new[i, 1] = old[i, 0], old[i, 1]
@@ -583,14 +584,15 @@ def _add_repulsion(p, direction, radii, q, q_velocity, q_radii, strength, reach,
 
 
 @compiled_helper
-def _gaps(p, radii, q, q_radii) -> np.ndarray:
-    """Surface distances (a, b) between circles at p (a, 2) and q (b, 2)."""
-    gaps = np.empty((len(p), len(q)))
-    for i in range(len(p)):
-        for j in range(len(q)):
-            gaps[i, j] = (math.sqrt((p[i, 0] - q[j, 0]) ** 2 + (p[i, 1] - q[j, 1]) ** 2)
-                          - radii[i] - q_radii[j])
-    return gaps
+def _gap_within(p, radii, q, q_radii, i, j, limit) -> float:
+    """The surface distance between the circles ``p[i]`` and ``q[j]`` where it is at most
+    ``limit`` (m), else ``limit`` or more: a pair clearly further apart is not measured
+    (``_CLEARLY_APART``), which gives every test against ``limit`` its exact answer."""
+    dx, dy = p[i, 0] - q[j, 0], p[i, 1] - q[j, 1]
+    near = limit + radii[i] + q_radii[j]
+    if near > 0.0 and dx * dx + dy * dy > _CLEARLY_APART * near * near:
+        return math.inf
+    return math.sqrt(dx ** 2 + dy ** 2) - radii[i] - q_radii[j]
 
 
 # Squared distances this far over a squared threshold are over it after the square root,
