@@ -142,7 +142,8 @@ class SocialForceHumans(LeafSystem):
                                     params.wall_strength, params.wall_range, params.max_speed,
                                     params.robot_repulsion_gain, params.yield_distance,
                                     params.waiting_gap, params.yield_time, params.passing_gap,
-                                    params.sidestep_ratio, float(params.yield_to_robots)],
+                                    params.sidestep_ratio, float(params.yield_to_robots),
+                                    params.negligible_force],
                                    dtype=float)
 
         first = self._waypoints[:, 0] - self._starts
@@ -253,7 +254,7 @@ def _placed(x, parking):
 # The update, compiled: indices of ``SocialForceHumans._constants``.
 (_DT, _TOLERANCE, _RELAXATION, _STRENGTH, _RANGE, _WALL_STRENGTH, _WALL_RANGE, _MAX_SPEED,
  _ROBOT_GAIN, _YIELD_DISTANCE, _WAITING_GAP, _YIELD_TIME, _PASSING_GAP, _SIDESTEP,
- _YIELDS) = range(15)
+ _YIELDS, _NEGLIGIBLE) = range(16)
 
 # The kernels below copy arrays element by element: numba's array expressions, slice and
 # fancy-index assignments (broadcasting, and error messages built from strings) take seconds
@@ -332,11 +333,12 @@ def _step_people(state, robots, cos, sin, robot_r, radii_all, speeds_all, counts
             accel[j, c] = (desired[j, c] - va[j, c]) / constants[_RELAXATION]
     force = np.zeros((k, 2))
     _add_repulsion(pa, direction, radii, pa, va, radii, constants[_STRENGTH],
-                   constants[_RANGE], force)
+                   constants[_RANGE], constants[_NEGLIGIBLE], force)
     _add_into(accel, force)
     force = np.zeros((k, 2))
     _add_repulsion(pa, direction, radii, robot_p, robot_v, robot_r,
-                   constants[_STRENGTH] * constants[_ROBOT_GAIN], constants[_RANGE], force)
+                   constants[_STRENGTH] * constants[_ROBOT_GAIN], constants[_RANGE],
+                   constants[_NEGLIGIBLE], force)
     _add_into(accel, force)
     closest, clearance = closest_points_of(pa, *obstacles)
     outward = _outward(pa, closest, clearance)
@@ -455,10 +457,11 @@ def _project(new, old, old_closest, old_clearance, radii, robot_p, robot_r, obst
     clearance below min(radius, old clearance), and so stay at ``old``."""
     a, b = len(new), len(robot_p)
     new = new.copy()
-    floor = _gaps(old, radii, robot_p, robot_r)
+    floor = np.empty((a, b))  # min(ROBOT_STANDOFF, gap before the step)
     for i in range(a):
         for j in range(b):
-            floor[i, j] = min(ROBOT_STANDOFF, floor[i, j])
+            floor[i, j] = min(ROBOT_STANDOFF, _gap_within(old, radii, robot_p, robot_r, i, j,
+                                                          ROBOT_STANDOFF))
     known, closest, clearance = old.copy(), old_closest.copy(), old_clearance.copy()
     deep = False  # someone ends the iteration pushed out of an obstacle
     for _ in range(PROJECTION_ITERATIONS):
@@ -482,11 +485,11 @@ def _project(new, old, old_closest, old_clearance, radii, robot_p, robot_r, obst
     if deep:
         _refresh_closest(new, known, closest, clearance, obstacles)
     blocked = np.zeros(a, dtype=np.bool_)
-    gaps = _gaps(new, radii, robot_p, robot_r)
     for i in range(a):
         blocked[i] = clearance[i] < min(radii[i], old_clearance[i]) - 1e-9
         for j in range(b):
-            if gaps[i, j] < floor[i, j] - 1e-9:
+            least = floor[i, j] - 1e-9
+            if _gap_within(new, radii, robot_p, robot_r, i, j, least) < least:
                 blocked[i] = True
         if blocked[i]:
             new[i, 0], new[i, 1] = old[i, 0], old[i, 1]
@@ -523,11 +526,26 @@ def _same(x, y) -> bool:
 
 
 @compiled_helper
-def _add_repulsion(p, direction, radii, q, q_velocity, q_radii, strength, reach, force):
+def _add_repulsion(p, direction, radii, q, q_velocity, q_radii, strength, reach, negligible,
+                   force):
     """Adds to ``force`` (a, 2) the elliptical-potential force (m/s^2) of every other (q) on
     each person (p) walking in ``direction`` (a, 2) (q may be the people themselves: nobody
-    repels a body at its own position); ``strength`` V0, ``reach`` sigma."""
+    repels a body at its own position); ``strength`` V0, ``reach`` sigma.
+
+    Pairs whose force is surely below ``negligible`` (m/s^2; 0: none) are skipped. A pair's
+    force is at most ``V0 / sigma GRADIENT_CAP (1 + KEEP_RIGHT) exp(-(b - r_i - r_j) /
+    sigma)``, and the semi-minor axis ``b`` of the ellipse through the person, with the
+    other's walk ``s`` (m) between its foci, is at least ``n - s`` at centre distance ``n``
+    >= ``s``; so a pair with ``n > s + r_i + r_j + cutoff`` is skipped, ``cutoff = sigma
+    ln(V0 GRADIENT_CAP (1 + KEEP_RIGHT) / (sigma negligible))``."""
     cos_view = math.cos(FIELD_OF_VIEW)
+    ceiling = strength / reach * GRADIENT_CAP * (1.0 + KEEP_RIGHT)  # m/s^2, at b = r_i + r_j
+    if negligible <= 0.0:
+        cutoff = math.inf
+    elif ceiling <= negligible:
+        return  # every pair's force is below negligible
+    else:
+        cutoff = reach * math.log(ceiling / negligible)
     # Each other's next ELLIPSE_TIME s of walk (m) and walking direction, once per other.
     walk, ux, uy = np.empty(len(q)), np.empty(len(q)), np.empty(len(q))
     for j in range(len(q)):
@@ -538,6 +556,9 @@ def _add_repulsion(p, direction, radii, q, q_velocity, q_radii, strength, reach,
         dx, dy = direction[i, 0], direction[i, 1]
         for j in range(len(q)):
             r1x, r1y = p[i, 0] - q[j, 0], p[i, 1] - q[j, 1]  # from the other to the person
+            far = walk[j] + radii[i] + q_radii[j] + cutoff
+            if r1x * r1x + r1y * r1y > far * far:
+                continue
             n1 = math.sqrt(r1x * r1x + r1y * r1y)
             if n1 < 1e-9:
                 continue
@@ -563,14 +584,20 @@ def _add_repulsion(p, direction, radii, q, q_velocity, q_radii, strength, reach,
 
 
 @compiled_helper
-def _gaps(p, radii, q, q_radii) -> np.ndarray:
-    """Surface distances (a, b) between circles at p (a, 2) and q (b, 2)."""
-    gaps = np.empty((len(p), len(q)))
-    for i in range(len(p)):
-        for j in range(len(q)):
-            gaps[i, j] = (math.sqrt((p[i, 0] - q[j, 0]) ** 2 + (p[i, 1] - q[j, 1]) ** 2)
-                          - radii[i] - q_radii[j])
-    return gaps
+def _gap_within(p, radii, q, q_radii, i, j, limit) -> float:
+    """The surface distance between the circles ``p[i]`` and ``q[j]`` where it is at most
+    ``limit`` (m), else ``limit`` or more: a pair clearly further apart is not measured
+    (``_CLEARLY_APART``), which gives every test against ``limit`` its exact answer."""
+    dx, dy = p[i, 0] - q[j, 0], p[i, 1] - q[j, 1]
+    near = limit + radii[i] + q_radii[j]
+    if near > 0.0 and dx * dx + dy * dy > _CLEARLY_APART * near * near:
+        return math.inf
+    return math.sqrt(dx ** 2 + dy ** 2) - radii[i] - q_radii[j]
+
+
+# Squared distances this far over a squared threshold are over it after the square root,
+# rounding included: pairs clearly apart are skipped without one (the same results).
+_CLEARLY_APART = 1.000001
 
 
 @compiled_helper
@@ -580,6 +607,8 @@ def _apart(p, radii) -> np.ndarray:
     for i in range(len(p)):
         for j in range(len(p)):
             ox, oy = p[i, 0] - p[j, 0], p[i, 1] - p[j, 1]
+            if ox * ox + oy * oy > _CLEARLY_APART * (radii[i] + radii[j]) ** 2:
+                continue  # no overlap, as the test below would find
             dist = math.sqrt(ox * ox + oy * oy)
             overlap = radii[i] + radii[j] - dist
             if i != j and overlap > 0 and dist > 1e-9:
@@ -596,6 +625,9 @@ def _away(p, radii, q, q_radii, floor) -> np.ndarray:
     for i in range(len(p)):
         for j in range(len(q)):
             ox, oy = p[i, 0] - q[j, 0], p[i, 1] - q[j, 1]
+            near = floor[i, j] + radii[i] + q_radii[j]
+            if near <= 0.0 or ox * ox + oy * oy > _CLEARLY_APART * near * near:
+                continue  # no deficit, as the test below would find (it would add zeros)
             dist = math.sqrt(ox * ox + oy * oy)
             deficit = max(floor[i, j] - (dist - radii[i] - q_radii[j]), 0.0)
             if dist > 1e-9:

@@ -28,6 +28,11 @@ class SocialForceParams:
     standing robot at 1 m/s slows from a 2.5 m gap); the person slows in proportion and
     walks aside (at ``sidestep_ratio`` of its speed at full urgency) to its right, or to its
     left when only that side has room to pass, or stands when neither has.
+
+    ``negligible_force`` (m/s^2) cuts the pair repulsions off: the repulsion of a person or
+    robot so far away that it cannot reach this value (a bound from the centre distance,
+    the other's next 2 s of walk and both radii: ``SocialForceHumans``) is not computed.
+    0 computes every pair.
     """
 
     radius: float = 0.25  # m, body radius
@@ -46,13 +51,15 @@ class SocialForceParams:
     passing_gap: float = 0.3  # m, surface gap kept sideways from a robot passed
     sidestep_ratio: float = 0.5  # sideways speed at full urgency, per unit of desired speed
     yield_to_robots: bool = True  # off: people walk on into a robot's way (the original)
+    negligible_force: float = 1e-9  # m/s^2: pair repulsions surely below it are left out
 
     def __post_init__(self):
         require_positive(self, "radius", "desired_speed", "max_speed", "relaxation_time",
                          "repulsion_range", "wall_range", "waypoint_tolerance",
                          "yield_distance", "waiting_gap", "passing_gap")
         require_non_negative(self, "repulsion_strength", "robot_repulsion_gain",
-                             "wall_strength", "yield_time", "sidestep_ratio")
+                             "wall_strength", "yield_time", "sidestep_ratio",
+                             "negligible_force")
         if self.desired_speed > self.max_speed:
             raise InputError(None, "desired_speed", f"must be <= max_speed {self.max_speed}, "
                              f"got {self.desired_speed}")

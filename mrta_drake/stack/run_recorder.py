@@ -32,6 +32,9 @@ from mrta_drake.results.deadlocks import stalled_waits
 from mrta_drake.stack.fleet_inputs import PerRobotInputs
 from mrta_drake.stack.sample_log import RowLog, TelemetryLog
 
+# The modes as plain ints, for the per-robot loop of ``RunRecorder._modes``.
+_IDLE, _DRIVE, _QUEUE, _SERVE = (int(mode) for mode in (
+    RobotMode.IDLE, RobotMode.DRIVE, RobotMode.QUEUE, RobotMode.SERVE))
 
 class RunRecorder(LeafSystem):
     """Samples the run at ``rate_hz`` (publish events only: it never changes the run).
@@ -243,34 +246,34 @@ class RunRecorder(LeafSystem):
                     at_lifts.update(lift.riders)
         waiting |= at_lifts
         holders = {queue.room: queue.holder for queue in queues.rooms}
-        modes = np.full(self._n, RobotMode.IDLE, dtype=np.int8)
+        modes = [_IDLE] * self._n  # plain ints: numpy scalars and IntEnum members are slow
         targets = self._targets.values(context)
         for k, name in enumerate(self.robot_names):
             stop = progress[k].current_stop
             if stop is None:
                 continue
             if name in queues.segment_waiting:  # holding back for a single-file stretch
-                modes[k] = RobotMode.QUEUE
+                modes[k] = _QUEUE
                 continue
             target = targets[k]
             if not target.active:
                 continue
             if name in waiting:
-                modes[k] = RobotMode.QUEUE
+                modes[k] = _QUEUE
             elif (holders.get(stop.location) == name and target.next is None
                   and target.current is not None
                   and math.dist(states[k, :2], target.current) <= self._serve_radius):
-                modes[k] = RobotMode.SERVE
+                modes[k] = _SERVE
             else:
-                modes[k] = RobotMode.DRIVE
-        live = at_lifts.union(
-            name for k, name in enumerate(self.robot_names)
-            if abs(states[k, 3]) > ROBOT_STOPPED_SPEED or modes[k] == RobotMode.SERVE)
+                modes[k] = _DRIVE
+        moving = (np.abs(states[:, 3]) > ROBOT_STOPPED_SPEED).tolist()
+        live = at_lifts.union(name for k, name in enumerate(self.robot_names)
+                              if moving[k] or modes[k] == _SERVE)
         stalled = stalled_waits(_waits(queues, self._requests.values(context)), live)
         for k, name in enumerate(self.robot_names):
-            if modes[k] == RobotMode.QUEUE and name in stalled:
-                modes[k] = RobotMode.DRIVE  # a gridlock, not a queue
-        return modes
+            if modes[k] == _QUEUE and name in stalled:
+                modes[k] = _DRIVE  # a gridlock, not a queue
+        return np.array(modes, dtype=np.int8)
 
     def _note_plan(self, context, t: float) -> None:
         plan = self._ports["plan"].Eval(context)

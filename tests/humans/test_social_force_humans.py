@@ -118,6 +118,23 @@ def test_two_humans_head_on_pass_without_overlapping():
     assert xy[passing, 0, 1] < 0 < xy[passing, 1, 1]
 
 
+def test_repulsion_cut_off_leaves_out_only_forces_below_negligible_force():
+    # Two people walking east 9.5 m apart: beyond the people's cut-off (sigma ln(V0 2 2 /
+    # (sigma 1e-9)) = 6.6 m plus both radii and the other's walk), where each one's force on
+    # the other is ~1e-13 m/s^2; a third walks beside the first, 1 m away, within it.
+    people = [Person("a", (0.0, 0.0), ((20.0, 0.0),), 1.0),
+              Person("b", (0.0, 9.5), ((20.0, 9.5),), 1.0),
+              Person("c", (0.0, -1.0), ((20.0, -1.0),), 1.0)]
+    every = _run(people, 1.0, params=dataclasses.replace(DEFAULTS, negligible_force=0.0)).xy
+    cut = _run(people, 1.0).xy
+    apart = np.abs(cut - every).max()
+    assert 0.0 < apart < 1e-9  # m: 1 s of a force below 1e-9 m/s^2 moves nobody further
+    # b's pull on a and c is left out: the two alone walk exactly as with b.
+    pair = _run([people[0], people[2]], 1.0, params=dataclasses.replace(
+        DEFAULTS, negligible_force=0.0)).xy
+    assert np.array_equal(cut[:, [0, 2]], pair)
+
+
 @pytest.mark.parametrize("wall_strength", [10.0, 0.0])
 def test_human_never_enters_a_wall(wall_strength):
     # A wall crossed at 30 degrees and a corner walked into: both targets lie behind walls.

@@ -25,6 +25,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
     ({"passing_gap": 0}, "passing_gap", "must be > 0, got 0"),
     ({"sidestep_ratio": "half"}, "sidestep_ratio", "must be >= 0, got 'half'"),
     ({"waiting_gap": 1.5}, "waiting_gap", "must be < yield_distance 1.5, got 1.5"),
+    ({"negligible_force": -1e-9}, "negligible_force", "must be >= 0, got -1e-09"),
 ])
 def test_bad_params_name_the_field_and_the_value(changes, field, message):
     with pytest.raises(InputError) as error:
