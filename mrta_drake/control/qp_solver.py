@@ -36,13 +36,14 @@ SLACK_IN_USE = 1e-6  # scaled rows, m/s^2: slack above this means the rows were 
 @dataclass(frozen=True)
 class QpParams:
     """The QP ``solver`` and the ``slack_weight`` W, the linear penalty per unit of slack
-    (scaled rows, m/s^2). ``clarabel`` (interior point) and ``osqp`` (ADMM) run through
-    Drake; ``active_set`` solves a QP whose rows can all be met without slack by the compiled
-    dual active-set method of ``active_set`` (its exact optimum, ~3 us instead of ~100 us)
-    and the others (rows that must be relaxed) with Clarabel; it changes trajectories in
-    their last bits and beyond against ``clarabel`` (docs/benchmarks.md, "Fifth round")."""
+    (scaled rows, m/s^2). ``active_set`` (the default) solves a QP whose rows can all be met
+    without slack by the compiled dual active-set method of ``active_set`` (its exact
+    optimum, ~3 us instead of ~100 us) and the others (rows that must be relaxed) with
+    Clarabel; ``clarabel`` (interior point) and ``osqp`` (ADMM) run every QP through Drake.
+    ``active_set`` changes trajectories in their last bits and beyond against ``clarabel``
+    (docs/benchmarks.md, "Fifth round"; why it is the default: docs/control.md)."""
 
-    solver: str = "clarabel"
+    solver: str = "active_set"
     slack_weight: float = 1e4
 
     def __post_init__(self):
@@ -105,7 +106,8 @@ class LoadedQp:
 
 class CbfQp:
     """Solves the CBF QP above with Clarabel or OSQP (through Drake), reusing one program per
-    problem size (k robots, m rows)."""
+    problem size (k robots, m rows), or with the compiled active-set method where its rows
+    can all be met (``active_set``)."""
 
     def __init__(self, solver: str = "clarabel", slack_weight: float = 1e4):
         if solver not in SOLVERS:

@@ -17,23 +17,28 @@ def steer_blocked(u_nominal, states, rows: SafetyRows, params: CbfParams) -> np.
     """The nominal inputs (k, 2) of a QP's robots ``states`` (k, 4), with a new yaw rate for
     every robot that stands (|v| < ``coordination.stall_speed``) and whose nominal push
     forward breaks a safety row: it turns towards the tangent of the most blocking obstacle
-    point nearer its goal heading."""
+    point nearer its goal heading. A push forward asks for more than standing: the speed
+    its acceleration a aims at, v + a / ``nominal.k_v``, is above the stall speed. A
+    standing robot turning in place (heading gate) or slowing down has a = -k v (k = k_v,
+    k_slow), which is positive or negative by rounding at v ~ 0: steered on it, the robot
+    turned to the tangent instead of its goal heading, and then, the goal outside its
+    heading gate, stood there for good (docs/control.md, "QP solvers")."""
     u = np.array(u_nominal, dtype=float).reshape(-1, 2)
     _steer_entry(u, np.ascontiguousarray(states, dtype=float).reshape(-1, 4),
           *(np.ascontiguousarray(a) for a in (rows.G, rows.b, rows.member, rows.other,
                                               rows.normal)),
-          params.coordination.stall_speed, params.nominal.k_theta)
+          params.coordination.stall_speed, params.nominal.k_v, params.nominal.k_theta)
     return u
 
 
 @numba.njit(cache=True)
-def _steer_entry(u, states, G, b, member, other, normal, stall_speed, k_theta):
+def _steer_entry(u, states, G, b, member, other, normal, stall_speed, k_v, k_theta):
     """``steer`` for Python, which cannot call a ``compiled_helper``."""
-    steer(u, states, G, b, member, other, normal, stall_speed, k_theta)
+    steer(u, states, G, b, member, other, normal, stall_speed, k_v, k_theta)
 
 
 @compiled_helper
-def steer(u, states, G, b, member, other, normal, stall_speed, k_theta):
+def steer(u, states, G, b, member, other, normal, stall_speed, k_v, k_theta):
     """``steer_blocked`` in place on ``u`` (k, 2), compiled: rows ``G``, ``b``, ``member``,
     ``other``, ``normal`` as in ``SafetyRows``."""
     violation = np.empty(len(b))
@@ -43,7 +48,7 @@ def steer(u, states, G, b, member, other, normal, stall_speed, k_theta):
             value += G[row, column] * u[column // 2, column % 2]
         violation[row] = value - b[row]
     for j in range(len(u)):
-        if not (abs(states[j, 3]) < stall_speed and u[j, 0] > 0.0):
+        if not (abs(states[j, 3]) < stall_speed and states[j, 3] + u[j, 0] / k_v > stall_speed):
             continue
         row, worst = -1, math.inf
         for r in range(len(b)):

@@ -144,8 +144,8 @@ def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocitie
             (human_velocities, (-1, 2)))),
         np.ascontiguousarray(hit_mask, dtype=bool).reshape(n, -1), members, group_start,
         movers, mover_start, params.row_params, params.coordination.stall_speed,
-        params.nominal.k_theta, params.nominal.corner_steering, u_nominal, lower, upper,
-        settled)
+        params.nominal.k_v, params.nominal.k_theta, params.nominal.corner_steering, u_nominal,
+        lower, upper, settled)
     standing = np.abs(np.asarray(states, dtype=float).reshape(n, 4)[:, 3]) < (
         params.coordination.stall_speed)
     return TickQps(groups, u_nominal, lower, upper, G, G_start, tuple(rows), row_start,
@@ -154,13 +154,13 @@ def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocitie
 
 @numba.njit(cache=True)
 def _group_rows(states, hits, humans, human_velocities, mask, members, group_start, movers,
-                mover_start, params, stall_speed, k_theta, corner_steering, u_nominal, lower,
-                upper, settled):
+                mover_start, params, stall_speed, k_v, k_theta, corner_steering, u_nominal,
+                lower, upper, settled):
     """``qp_problems`` for the groups ``members[group_start[g]:group_start[g + 1]]`` with
     movers ``movers[mover_start[g]:mover_start[g + 1]]``: every group's rows (G of group g
     flattened at ``G[G_start[g]:G_start[g + 1]]``, the other arrays at
     ``row_start[g]:row_start[g + 1]``), steering ``u_nominal`` in place (with
-    ``corner_steering``), and whether each
+    ``corner_steering``; ``k_v``, ``k_theta`` as in ``steering.steer``), and whether each
     group needs its QP solved; ``settled`` gets the others' clipped nominal inputs; and
     what ``TickQps.loaded`` reads for the groups that need a solver (``_load_groups``)."""
     groups = len(group_start) - 1
@@ -188,7 +188,7 @@ def _group_rows(states, hits, humans, human_velocities, mask, members, group_sta
         u = u_nominal[index]
         if corner_steering:
             steer(u, group_states, G_g, b[r0:r1], member[r0:r1], other[r0:r1],
-                  normal[r0:r1], stall_speed, k_theta)
+                  normal[r0:r1], stall_speed, k_v, k_theta)
         _scatter_rows(u_nominal, index, u)
         flat = u.ravel()
         clipped = np.minimum(np.maximum(flat, lower[index].ravel()), upper[index].ravel())
