@@ -36,14 +36,23 @@ from mrta_drake.stack.compiled_helper import compiled_helper
 @dataclass(frozen=True)
 class SafetyDistances:
     """Safety distance ``d`` (m) from a robot's centre to a wall ray hit, a human's centre and
-    another robot's centre."""
+    another robot's centre.
+
+    ``wall_contact`` (m, robot centre to wall) is the distance kept from the closest obstacle
+    point where no wall ray sees it (``SensingParams.closest_point_range``): a contact
+    guard, the demo robots' 0.22 m radius plus 0.08 m, not the rays' ``wall`` distance, so
+    that a robot on a path running nearer a wall than ``wall`` (derived lanes keep 0.47 m, a
+    path cutting a corner) goes on, while a thin wall end between two rays is kept off the
+    robot's body. Used as at most ``wall`` (``CbfParams.row_params``), by ``cluster_cbf``'s
+    safety rows only."""
 
     wall: float = 0.6
     human: float = 0.6
     robot: float = 0.6
+    wall_contact: float = 0.3
 
     def __post_init__(self):
-        require_non_negative(self, "wall", "human", "robot")
+        require_non_negative(self, "wall", "human", "robot", "wall_contact")
 
 
 @dataclass(frozen=True)

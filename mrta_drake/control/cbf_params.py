@@ -96,9 +96,12 @@ class CbfParams:
     @cached_property
     def row_params(self) -> np.ndarray:
         """Safety distance (m), alpha1, alpha2 (1/s) of walls, humans, robots, then the cluster
-        radius (m), for the compiled row kernel (``safety_rows.fill_rows``)."""
+        radius (m), the closest wall point's distance (m; ``SafetyDistances.wall_contact``,
+        at most ``wall``) and its column in the wall points (``SensingParams.ray_count``:
+        after the rays), for the compiled row kernel (``safety_rows.fill_rows``)."""
         d, rates = self.safety_distances, self.barrier_rates
         return np.array([d.wall, rates.alpha1_wall, rates.alpha2_wall,
                          d.human, rates.alpha1_human, rates.alpha2_human,
                          d.robot, rates.alpha1_robot, rates.alpha2_robot,
-                         self.coordination.cluster_radius])
+                         self.coordination.cluster_radius, min(d.wall_contact, d.wall),
+                         self.sensing.ray_count])

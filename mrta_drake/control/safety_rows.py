@@ -35,7 +35,9 @@ def safety_rows(states, hits, hit_mask, human_positions, human_velocities, mover
                 params: CbfParams) -> SafetyRows:
     """All safety rows of one QP whose inputs are those of the robots in ``states`` (k, 4):
 
-    - each robot's wall rows at its own ``hits`` (k, R, 2) where ``hit_mask`` (k, R);
+    - each robot's wall rows at its own ``hits`` (k, R, 2) where ``hit_mask`` (k, R) (the
+      closest point, after ``SensingParams.ray_count`` rays, at
+      ``SafetyDistances.wall_contact``);
     - each robot's rows for every human (positions and velocities (M, 2));
     - each robot's rows for every robot in ``movers`` (q, 4) within the cluster radius
       (``CoordinationParams.cluster_radius``): robots outside the QP, predicted at constant
@@ -100,9 +102,11 @@ def _within_radius(a, b, radius2):
 def fill_rows(states, hits, mask, humans, human_velocities, movers, params, G, b, kind, h,
               member, other, normal):
     """Fills ``safety_rows``' arrays (``params``: ``CbfParams.row_params``; ``G`` zero).
-    Rows in order: walls, humans, movers (each robot by robot), pairs."""
+    Rows in order: walls, humans, movers (each robot by robot), pairs. The wall point in
+    column ``params[11]`` (the closest point) takes the distance ``params[10]``."""
     k, rays, count = len(states), mask.shape[1], len(humans)
     radius2 = params[9] * params[9]
+    closest = np.int64(params[11])
     row = np.int64(0)  # not a literal: see _NO_OTHER
     for what in (WALL, HUMAN, ROBOT):
         base = 3 * what  # safety distance, alpha1, alpha2 of this kind in params
@@ -114,7 +118,7 @@ def fill_rows(states, hits, mask, humans, human_velocities, movers, params, G, b
                     if not mask[i, q]:
                         continue
                     terms = point_terms(x, y, theta, v, hits[i, q, 0], hits[i, q, 1], 0.0, 0.0,
-                                        params[base])
+                                        params[10] if q == closest else params[base])
                 elif what == HUMAN:
                     terms = point_terms(x, y, theta, v, humans[q, 0], humans[q, 1],
                                         human_velocities[q, 0], human_velocities[q, 1],

@@ -45,8 +45,8 @@ class TickWorld(NamedTuple):
 
     human_positions: np.ndarray  # (M, 2) m
     human_velocities: np.ndarray  # (M, 2) m/s
-    hits: np.ndarray  # (N, R, 2) m, as from WallRays
-    hit_mask: np.ndarray  # (N, R) bool
+    hits: np.ndarray  # (N, R + 1, 2) m, as from WallRays: R rays, then the closest point
+    hit_mask: np.ndarray  # (N, R + 1) bool
 
 
 class TickArrays(NamedTuple):
@@ -99,8 +99,9 @@ def plan_tick(robots, world, paths, settings, out):
     clustered = np.empty(n, dtype=np.bool_)
     for i in range(n):
         clustered[i] = size[labels[i]] > 1
+    rays = hits.shape[1] - 1  # the nominal's room to pass takes the rays in ray order only
     nominal_inputs(states, paths, clustered, _bodies(shared, human_positions, human_velocities),
-                   hits, hit_mask, gains, u_nominal)
+                   hits[:, :rays], hit_mask[:, :rays], gains, u_nominal)
     first = 0  # position in order of the current cluster's leader
     for k in range(n):
         i = order[k]

@@ -44,6 +44,7 @@ PAPER_SWITCHES = (
            "cluster_cbf"),
     Switch("blocks.controller.params.nominal.braking_profile", False, "cluster_cbf"),
     Switch("blocks.controller.params.predict_latency", False, "cluster_cbf"),
+    Switch("blocks.controller.params.sensing.closest_point_range", 0.0, "cluster_cbf"),
     Switch("blocks.allocator.params.greedy_start", False, "smt"),
     Switch("blocks.allocator.params.append_only", True, "smt"),
     Switch("blocks.allocator.params.learn_travel_times", False, "smt"),

@@ -15,6 +15,7 @@ from mrta_drake.control.cluster_cbf_controller import ClusterCbfController
 from mrta_drake.control.controller_common import predict_states
 from mrta_drake.control.go_to_goal_controller import GoToGoalController
 from mrta_drake.control.nominal import NominalParams, nominal_control
+from mrta_drake.control.wall_rays import SensingParams, WallRays
 from mrta_drake.payloads import PATH_OK, FleetPaths, HumanStates, RobotPath, frozen_array
 from mrta_drake.results.summary import SLACK_TOLERANCE
 from mrta_drake.robots.unicycle_robots import UnicycleRobots
@@ -164,6 +165,60 @@ def test_robot_goes_in_through_a_doorway_while_another_comes_out(mode):
     assert max(_arrival_times(states, goals)) < 28.0
     assert _min_separation(states) >= 2 * RADIUS
     assert _min_wall_distance(states, obstacles) >= RADIUS
+
+
+def test_thin_post_between_two_rays_is_kept_off_the_robot_by_the_contact_guard():
+    # A 4 cm post 0.2 m beside a path at 15 degrees: it lies between the wall rays (30
+    # degrees apart) until the robot is nearly on it (rays alone: the robot's centre comes
+    # within 0.338 m of it); the closest wall point keeps it at least the contact guard
+    # (SafetyDistances.wall_contact) away, and the robot still gets by.
+    heading = np.radians(15.0)
+    along = np.array([np.cos(heading), np.sin(heading)])
+    side = np.array([-along[1], along[0]])
+    post = Obstacles((Box("post", tuple(0.22 * side), (0.04, 0.04)),))  # near face 0.2 m off
+    path = [tuple(-4.0 * along), tuple(4.0 * along)]
+    states, _ = _run([[*(-4.0 * along), heading]], [path], post, 15.0)
+    clearance = post.signed_distance(states[:, 0, :2]).min()
+    assert clearance >= CbfParams().safety_distances.wall_contact - 0.005
+    assert _arrival_times(states, [path[-1]])[0] < 15.0
+
+
+def _divider():
+    # A 0.1 m thick wall along y = 0 from x = -3 to its end at x = 0.
+    return Obstacles((Box("divider", (-1.5, 0.0), (3.0, 0.1)),))
+
+
+def _unseen_by_rays(position, obstacles, reach):
+    """Whether none of the wall rays of a robot at ``position`` sees an obstacle within
+    ``reach`` m."""
+    hits, mask = WallRays(obstacles, SensingParams(closest_point_range=0.0))(
+        np.array([[*position, 0.0, 0.0]]))
+    return not np.any(mask[0] & (np.linalg.norm(hits[0] - position, axis=1) < reach))
+
+
+def test_a_robot_rounding_a_thin_wall_end_that_no_ray_sees_keeps_off_it():
+    # Driving at the divider's end from the north-east (as in the Open-RMF office demo),
+    # the world-frame rays at 180 and 210 degrees pass above it and east of it; the path
+    # rounds the end 0.125 m off its corner. Rays alone: the robot's centre comes within
+    # 0.158 m of the wall at 0.55 m/s (a contact); the closest point keeps it off.
+    divider, path = _divider(), [(1.8, 0.85), (0.3, 0.1), (-0.1, -0.35), (-2.0, -0.9)]
+    assert _unseen_by_rays((0.6, 0.25), divider, 1.0)
+    states, _ = _run([[1.8, 0.85, math.atan2(-0.75, -1.5)]], [path], divider, 12.0)
+    assert _min_wall_distance(states, divider) >= RADIUS + 0.02
+    assert _arrival_times(states, [path[-1]])[0] < 12.0
+
+
+def test_a_robot_backing_off_towards_a_thin_wall_end_that_no_ray_sees_keeps_off_it():
+    # A robot parked just south of the divider's line, 0.45 m east of its end, backs off
+    # from a leader whose path runs through its spot. Rays alone: it backs into the end
+    # (centre 0.199 m from it); the closest point stops it short.
+    divider = _divider()
+    start, path = (0.45, -0.12), [(3.0, -0.1), (0.3, -0.1), (0.3, -1.5)]
+    assert _unseen_by_rays(start, divider, 1.0)
+    states, _ = _run([[*start, 0.0], [3.0, -0.1, math.pi]], [[start, start], path], divider,
+                     8.0, priorities=[1.0, 0.0])
+    assert states[:, 0, 3].min() < -0.1  # it did back off
+    assert _min_wall_distance(states[:, :1], divider) >= RADIUS + 0.02
 
 
 def test_path_cutting_a_corner_is_followed_around_it():

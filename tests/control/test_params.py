@@ -52,7 +52,10 @@ def test_the_nested_layout_loads_into_the_groups():
         qp=dataclasses.replace(CbfParams().qp, solver="osqp"),
         coordination=CoordinationParams(mode="decentralized", cluster_radius=3.0),
         predict_latency=False)
-    assert params.row_params[[0, 3, 9]].tolist() == [0.6, 0.8, 3.0]
+    assert params.row_params[[0, 3, 9, 10, 11]].tolist() == [0.6, 0.8, 3.0, 0.3, 12]
+    # The closest point's contact guard is used as at most the rays' wall distance.
+    small = _controller_params("cluster_cbf", **{"safety_distances.wall": 0.25})
+    assert small.row_params[[0, 10]].tolist() == [0.25, 0.25]
     plain = _controller_params("go_to_goal", **{"nominal.k_x": 2.0})
     assert plain == GoToGoalParams(nominal=NominalParams(k_x=2.0))
 

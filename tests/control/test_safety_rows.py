@@ -24,13 +24,18 @@ def test_cluster_rows_use_each_members_own_state():
     rows = safety_rows(states, hits, mask, humans, np.array([[0.5, 0.0]]), np.zeros((0, 4)),
                        params)
     assert set(rows.kind) == {WALL, HUMAN, ROBOT}
+    # The rays' points at the wall distance (0.6 m), the closest point (after the 12 rays)
+    # at the contact guard.
+    wall2 = np.append(np.full(params.sensing.ray_count, 0.36),
+                      params.safety_distances.wall_contact**2)
     for member in range(2):
         mine = (rows.kind != ROBOT) & (np.abs(rows.G[:, 2 * member:2 * member + 2]).sum(1) > 0)
         other = 1 - member
         assert not np.any(rows.G[mine, 2 * other:2 * other + 2])
         mine_h = np.sort(rows.h[mine])
         expected = np.concatenate([
-            np.sum((hits[member][mask[member]] - states[member, :2]) ** 2, 1) - 0.36,
+            np.sum((hits[member][mask[member]] - states[member, :2]) ** 2, 1)
+            - wall2[mask[member]],
             np.sum((humans - states[member, :2]) ** 2, 1) - 0.36])
         np.testing.assert_allclose(mine_h, np.sort(expected))
     (pair,) = np.flatnonzero(rows.kind == ROBOT)
