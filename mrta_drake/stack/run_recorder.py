@@ -10,6 +10,7 @@ import numpy as np
 from pydrake.common.value import Value
 from pydrake.systems.framework import LeafSystem
 
+from mrta_drake.navigation.standstills import waits_for
 from mrta_drake.payloads import (
     PATH_FAILED,
     ROBOT_STATE_SIZE,
@@ -266,7 +267,7 @@ class RunRecorder(LeafSystem):
         live = at_lifts.union(
             name for k, name in enumerate(self.robot_names)
             if abs(states[k, 3]) > ROBOT_STOPPED_SPEED or modes[k] == RobotMode.SERVE)
-        stalled = stalled_waits(_waits(queues, self._requests.values(context)), live)
+        stalled = stalled_waits(waits_for(queues, self._requests.values(context)), live)
         for k, name in enumerate(self.robot_names):
             if modes[k] == RobotMode.QUEUE and name in stalled:
                 modes[k] = RobotMode.DRIVE  # a gridlock, not a queue
@@ -419,24 +420,6 @@ def _as_dict(event) -> dict:
     if isinstance(event, dict):
         return dict(event)
     return {"kind": type(event).__name__, "value": str(event)}
-
-
-def _waits(queues: QueueState, requests: tuple[QueueRequest, ...]) -> dict[str, set[str]]:
-    """Who each robot waiting for a room or single-file segments waits for: the room's
-    holder; the other robots holding segments it asks for (also those it holds with them:
-    where robots stop, a segment is one robot's at a time), or, with none, the robots
-    before it waiting for one of those segments (first come, first served)."""
-    waits = {robot: {queue.holder} - {None} for queue in queues.rooms
-             for robot in queue.waiting}
-    wanted = {request.robot: [k for k, _ in request.segments] for request in requests}
-    for i, robot in enumerate(queues.segment_waiting):
-        asked = wanted.get(robot, ())
-        held = {other for k in asked for other in queues.segments[k].holders} - {robot}
-        if not held:
-            held = {other for other in queues.segment_waiting[:i]
-                    if not set(wanted.get(other, ())).isdisjoint(asked)}
-        waits.setdefault(robot, set()).update(held)
-    return waits
 
 
 def _jsonable(value):
