@@ -174,16 +174,20 @@ class DeadlockWatchdog(LeafSystem):
        ``WaypointParams.door_patience`` bounds) are joined with the robots they wait for
        (``standstills.gridlocks``). A robot is in a gridlock since the update it first
        was, without a break. A gridlock in which a robot has been for ``gridlock_time``,
-       and no member backs off, is broken: the first of its waiting robots, in this
-       order, that holds no room (a holder serves, enters or leaves: undoing that costs
-       a visit), is not broken down, and has not given way within ``gridlock_cooldown``,
-       lowest priority first (then robot order), for which ``standstills.back_off_spot``
-       finds a spot clear of the other members' ways (their targets' ways and the lanes
-       of the segments they ask for), is ordered there with ``releases`` set: while the
-       order is in force it also leaves its room's queue and gives up the segments it
-       does not stand in, so the others get them; when the order ends it asks again, at
-       the queues' tail. Every member's gridlock time starts again, so the others get
-       another ``gridlock_time`` to move before the next order.
+       and no member backs off, is broken by the robots that give way: of its waiting
+       robots that may (holding no room: a holder serves, enters or leaves, and undoing
+       that costs a visit; not broken down; not given way within ``gridlock_cooldown``),
+       those holding a segment another waiting member asks for (all of them: robots
+       queueing one behind the other in a segment leave it together), or, with none
+       such, the first, lowest priority first (then robot order). Each is ordered, with
+       ``releases`` set, to the spot ``standstills.back_off_spot`` finds clear of the
+       other members' ways (their targets' ways and the lanes of the segments they ask
+       for) and of the spots given before it (none if one of them has no spot: tried
+       again at the next update). While the order is in force it leaves its room's queue
+       and gives up the segments it does not stand in, so the others get them; when the
+       order ends it asks again, at the queues' tails. Every member's gridlock time
+       starts again, so the others get another ``gridlock_time`` to move before the next
+       orders.
 
     ``costmap``: the static costmap the spots are checked against (the way to a spot
     keeps to its ``FREE`` cells). ``priorities``: per robot, smaller keeps its way
@@ -270,9 +274,9 @@ class DeadlockWatchdog(LeafSystem):
                 anchors[k] = None
         gridlocked = old.gridlocked
         if self._queue_state.HasValue(context):
-            gridlocked, order = self._gridlocks(context, states, targets, old.gridlocked,
+            gridlocked, given = self._gridlocks(context, states, targets, old.gridlocked,
                                                 backing, history, now)
-            if order is not None:
+            for order in given:
                 active, history = active + (order,), history + (order,)
                 anchors[self._robots.index(order.robot)] = None
         orders = (old.orders if (active, history) == (old.orders.active, old.orders.history)
@@ -285,9 +289,10 @@ class DeadlockWatchdog(LeafSystem):
         return EventStatus.Succeeded()
 
     def _gridlocks(self, context, states, targets, since, backing, history, now
-                   ) -> tuple[tuple[float | None, ...], BackOff | None]:
-        """Step 5 (class docstring): each robot's time in a gridlock of waits after this
-        update, and the order that breaks one, or None (at most one per update)."""
+                   ) -> tuple[tuple[float | None, ...], tuple[BackOff, ...]]:
+        """Step 5 (class docstring): since when each robot has been in a gridlock of waits
+        after this update, and the orders that break one (none, or those of one gridlock
+        per update)."""
         queues: QueueState = self._queue_state.Eval(context)
         requests = self._requests.values(context)
         waits = waits_for(queues, requests)
@@ -308,18 +313,22 @@ class DeadlockWatchdog(LeafSystem):
             if (backing.intersection(group)
                     or now - min(since[k] for k in index) < p.gridlock_time - 1e-9):
                 continue
-            order = self._give_way(context, group, waits, holders, states, targets,
-                                   requests, history, min(since[k] for k in index), now)
-            if order is not None:
+            given = self._give_way(context, group, waits, holders, states, targets,
+                                   requests, history, queues, min(since[k] for k in index),
+                                   now)
+            if given:
                 for k in index:
                     since[k] = now
-                return tuple(since), order
-        return tuple(since), None
+                return tuple(since), given
+        return tuple(since), ()
 
     def _give_way(self, context, group, waits, holders, states, targets, requests, history,
-                  stalled_since, now) -> BackOff | None:
-        """The ``releases`` order of the first robot of gridlock ``group`` that may give
-        way and has a spot (class docstring, step 5), or None."""
+                  queues, stalled_since, now) -> tuple[BackOff, ...]:
+        """The ``releases`` orders that break gridlock ``group`` (class docstring, step 5):
+        of every robot that may give way and holds a segment another member asks for (all
+        of them: robots queueing one behind the other in a segment leave it together), or,
+        with none such, of the first that may give way; each to a spot off the others'
+        ways and the spots given before; () if one of them has none."""
         p = self._params
         broken = (self._disturbances.Eval(context).broken
                   if self._disturbances.HasValue(context) else ())
@@ -329,26 +338,33 @@ class DeadlockWatchdog(LeafSystem):
                              if robot in waits and robot not in holders
                              and robot not in recent),
                             key=lambda k: (-self._priorities[k], k))
+        asked = {k for robot in group for k, _ in requests[self._robots.index(robot)].segments
+                 if robot in waits}
+        held = {robot for k in asked for robot in queues.segments[k].holders}
+        candidates = [k for k in candidates if k not in broken]
+        chosen = [k for k in candidates if self._robots[k] in held] or candidates[:1]
         humans: HumanStates = (self._humans.Eval(context) if self._humans.HasValue(context)
                                else NO_HUMANS)
         xy = states[:, :2]
-        for k in candidates:
-            if k in broken:
-                continue
+        given, spots = [], []
+        for k in chosen:
             others = [self._robots.index(robot) for robot in group if robot != self._robots[k]]
             ways = [(_way(xy[j], targets[j]), self._radii[j]) for j in others]
             ways += [(np.asarray(lane, dtype=float), self._radii[j]) for j in others
                      for lane in self._lanes_asked(requests[j])]
+            ways += [(np.asarray(spot, dtype=float), self._radii[j]) for j, spot in spots]
             spot = back_off_spot(k, xy, self._radii, ways,
                                  np.asarray(humans.positions).reshape(-1, 2),
                                  np.asarray(humans.radii).reshape(-1), self._costmap,
                                  p.search_reach, p.spot_clearance, p.wall_clearance,
                                  min_move=p.back_off_distance)
-            if spot is not None:
-                return BackOff(self._robots[k], spot, now, now + p.yield_time,
-                               tuple(self._robots[j] for j in others), stalled_since,
-                               releases=True)
-        return None
+            if spot is None:
+                return ()
+            spots.append((k, spot))
+            given.append(BackOff(self._robots[k], spot, now, now + p.yield_time,
+                                 tuple(self._robots[j] for j in others), stalled_since,
+                                 releases=True))
+        return tuple(given)
 
     def _lanes_asked(self, request: QueueRequest) -> list:
         """The lanes (start, end) of the single-file segments ``request`` asks for."""
