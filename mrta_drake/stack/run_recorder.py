@@ -90,7 +90,8 @@ class RunRecorder(LeafSystem):
     - ``lift``: an event of the lift bank's ``events`` output (``LiftEvent``: ``lift``,
       ``robot``, ``kind``, ``level``, ``at`` s).
     - ``back_off``: the deadlock watchdog ordered ``robot`` to ``point`` (x, y) at ``at``
-      until ``until`` (s), blocked by ``blockers`` since ``stalled_since`` (s).
+      until ``until`` (s), blocked by ``blockers`` since ``stalled_since`` (s); with
+      ``releases`` (true, else absent) it gives way to break a gridlock of waits.
 
     With ``out_dir`` it appends every sample to ``timeline.csv`` and every event to
     ``events.jsonl`` as they happen, flushed, so a crash loses nothing.
@@ -368,7 +369,8 @@ class RunRecorder(LeafSystem):
             self._event({"time": t, "type": "back_off", "robot": order.robot,
                          "point": list(order.point), "at": order.issued, "until": order.until,
                          "blockers": list(order.blockers),
-                         "stalled_since": order.stalled_since})
+                         "stalled_since": order.stalled_since}
+                        | ({"releases": True} if order.releases else {}))
         self._back_offs_seen = len(history)
 
     def _note_disturbances(self, context, t: float) -> None:
