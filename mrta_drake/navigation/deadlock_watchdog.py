@@ -79,7 +79,7 @@ class WatchdogParams:
     yield_time: float = 15.0
     retry_window: float = 120.0
     gridlock_time: float = 20.0
-    gridlock_cooldown: float = 120.0
+    gridlock_cooldown: float = 60.0
 
     def __post_init__(self):
         require_positive(self, "standstill_time", "yield_time", "retry_window",
@@ -207,6 +207,10 @@ class DeadlockWatchdog(LeafSystem):
         self._priorities = (np.arange(n, dtype=float) if priorities is None
                             else np.asarray(priorities, dtype=float).reshape(n))
         self._roadways = roadways
+        # Every single-file segment's lane, as a way (radius 0) a spot keeps clear of.
+        self._all_lanes = [] if roadways is None else [
+            (np.asarray(lane, dtype=float), 0.0) for k in range(roadways.segment_count)
+            for lane in segment_lanes(roadways, k)]
         self._state_index = self.DeclareAbstractState(
             Value[object](_WatchdogState((None,) * n, gridlocked=(None,) * n)))
         self._robot_state = self.DeclareVectorInputPort(
@@ -324,44 +328,75 @@ class DeadlockWatchdog(LeafSystem):
 
     def _give_way(self, context, group, waits, holders, states, targets, requests, history,
                   queues, stalled_since, now) -> tuple[BackOff, ...]:
-        """The ``releases`` orders that break gridlock ``group`` (class docstring, step 5):
-        of every robot that may give way and holds a segment another member asks for (all
-        of them: robots queueing one behind the other in a segment leave it together), or,
-        with none such, of the first that may give way; each to a spot off the others'
-        ways and the spots given before; () if one of them has none."""
+        """The ``releases`` orders that break gridlock ``group`` (class docstring, step 5),
+        or () when no robot may give way with a spot to go to."""
         p = self._params
         broken = (self._disturbances.Eval(context).broken
                   if self._disturbances.HasValue(context) else ())
         recent = {order.robot for order in history
                   if order.releases and order.issued > now - p.gridlock_cooldown + 1e-9}
-        candidates = sorted((self._robots.index(robot) for robot in group
-                             if robot in waits and robot not in holders
-                             and robot not in recent),
-                            key=lambda k: (-self._priorities[k], k))
-        asked = {k for robot in group for k, _ in requests[self._robots.index(robot)].segments
-                 if robot in waits}
-        held = {robot for k in asked for robot in queues.segments[k].holders}
-        candidates = [k for k in candidates if k not in broken]
-        chosen = [k for k in candidates if self._robots[k] in held] or candidates[:1]
+        may = {robot for k, robot in enumerate(self._robots)
+               if robot in waits and robot not in holders and k not in broken}
+        asks = {request.robot: {k for k, _ in request.segments} for request in requests}
+        line = queues.segment_waiting
+        rank = {robot: (robot not in holders, self._priorities[self._robots.index(robot)],
+                        self._robots.index(robot)) for robot in group}
+        for robot in sorted((r for r in group if r in line), key=rank.get):
+            wanted = asks[robot]
+            inside = {j for k in wanted for j in queues.segments[k].holders} - {robot}
+            ahead = {j for j in line[:line.index(robot)] if asks[j] & wanted} - inside
+            if not (inside or ahead) or not inside <= may - recent or not ahead <= may:
+                continue
+            given = self._orders(context, sorted(inside, key=self._robots.index), group,
+                                 robot, states, targets, requests, stalled_since, now)
+            if inside and not given:
+                continue
+            return given + tuple(  # those before it in the line stand, asking for nothing
+                BackOff(j, (float(states[self._robots.index(j), 0]),
+                            float(states[self._robots.index(j), 1])),
+                        now, now + p.yield_time, (robot,), stalled_since, releases=True)
+                for j in sorted(ahead, key=self._robots.index))
+        for robot in sorted((may - recent).intersection(group),
+                            key=lambda r: (-rank[r][1], rank[r][2])):
+            given = self._orders(context, [robot], group, None, states, targets, requests,
+                                 stalled_since, now)
+            if given:
+                return given
+        return ()
+
+    def _orders(self, context, robots, group, freed, states, targets, requests,
+                stalled_since, now) -> tuple[BackOff, ...]:
+        """Orders sending each of ``robots`` (names) to its own spot, off the ways of the
+        other robots of ``group`` (and of ``freed``, the robot they make way for): their
+        targets' ways and the lanes of the segments they ask for; off every single-file
+        segment's lane if there is such a spot (standing on one it would hold it); and
+        off the spots given before. () if one of them has no spot."""
+        p = self._params
         humans: HumanStates = (self._humans.Eval(context) if self._humans.HasValue(context)
                                else NO_HUMANS)
         xy = states[:, :2]
-        given, spots = [], []
-        for k in chosen:
-            others = [self._robots.index(robot) for robot in group if robot != self._robots[k]]
+        given = []
+        for robot in robots:
+            k = self._robots.index(robot)
+            others = [self._robots.index(j) for j in {*group, *([freed] if freed else [])}
+                      if j != robot]
+            others.sort()
             ways = [(_way(xy[j], targets[j]), self._radii[j]) for j in others]
             ways += [(np.asarray(lane, dtype=float), self._radii[j]) for j in others
                      for lane in self._lanes_asked(requests[j])]
-            ways += [(np.asarray(spot, dtype=float), self._radii[j]) for j, spot in spots]
-            spot = back_off_spot(k, xy, self._radii, ways,
-                                 np.asarray(humans.positions).reshape(-1, 2),
-                                 np.asarray(humans.radii).reshape(-1), self._costmap,
-                                 p.search_reach, p.spot_clearance, p.wall_clearance,
-                                 min_move=p.back_off_distance)
+            ways += [(np.asarray(order.point, dtype=float), self._radii[k]) for order in given]
+            spot = None
+            for extra in (self._all_lanes, []):
+                spot = back_off_spot(k, xy, self._radii, ways + extra,
+                                     np.asarray(humans.positions).reshape(-1, 2),
+                                     np.asarray(humans.radii).reshape(-1), self._costmap,
+                                     p.search_reach, p.spot_clearance, p.wall_clearance,
+                                     min_move=p.back_off_distance)
+                if spot is not None:
+                    break
             if spot is None:
                 return ()
-            spots.append((k, spot))
-            given.append(BackOff(self._robots[k], spot, now, now + p.yield_time,
+            given.append(BackOff(robot, spot, now, now + p.yield_time,
                                  tuple(self._robots[j] for j in others), stalled_since,
                                  releases=True))
         return tuple(given)

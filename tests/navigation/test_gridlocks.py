@@ -167,20 +167,22 @@ def test_a_holder_leaving_through_the_segment_where_its_next_robot_queues_is_fre
     assert 30.0 + params.gridlock_time <= orders[0].issued <= 30.0 + params.gridlock_time + 25
 
 
-def test_two_robots_queueing_in_the_segment_give_way_together_and_all_get_through():
-    # As above with r2 coming from G behind r0: it waits for the segment r0 holds (three
-    # robots in the gridlock). r0 holds the segment r1 asks for: it gives way; r2 takes
-    # the segment first (it asked before r1) and gridlocks with r1 in turn: it gives way
-    # next (r0 is in its cool-down), and all three get through.
-    stuck, _, _ = _gridlock_run([H, R, G], [[R], [R, H], [R]], until=200.0, sees_waits=False)
+def test_the_robot_in_the_segment_and_the_one_before_the_holder_in_line_give_way_at_once():
+    # As above with r2 coming from G behind r0: it waits for the segment r0 holds, and it
+    # asked before r1 (three robots in the gridlock). Freeing r1, the holder: r0, which
+    # holds the segment r1 asks for, goes off the lane, and r2, before r1 in the segments'
+    # line, stands where it is asking for nothing (else it would take the segment first
+    # and gridlock with r1 in turn); all three get through.
+    stuck, _, queues = _gridlock_run([H, R, G], [[R], [R, H], [R]], until=200.0,
+                                     sees_waits=False)
     assert stuck == [[], [R], []]
+    assert queues.segment_waiting == ("r2", "r1")
     visits, orders, _ = _gridlock_run([H, R, G], [[R], [R, H], [R]], until=300.0)
     assert visits == [[R], [R, H], [R]]
-    assert all(o.releases for o in orders)
-    givers = [o.robot for o in orders]
-    assert "r1" not in givers  # the holder never gives way
-    assert all(b - a >= WatchdogParams().gridlock_time - 1e-9 for a, b in zip(
-        [o.issued for o in orders], [o.issued for o in orders][1:], strict=False))
+    assert [(o.robot, o.issued, o.releases) for o in orders] == [
+        ("r0", orders[0].issued, True), ("r2", orders[0].issued, True)]
+    assert orders[1].point == pytest.approx(tuple(_dead_end().node_position("J")), abs=1.6)
+    assert orders[1].blockers == ("r1",)
 
 
 @pytest.mark.parametrize("field", ["gridlock_time", "gridlock_cooldown"])
