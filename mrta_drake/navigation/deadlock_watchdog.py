@@ -174,20 +174,24 @@ class DeadlockWatchdog(LeafSystem):
        ``WaypointParams.door_patience`` bounds) are joined with the robots they wait for
        (``standstills.gridlocks``). A robot is in a gridlock since the update it first
        was, without a break. A gridlock in which a robot has been for ``gridlock_time``,
-       and no member backs off, is broken by the robots that give way: of its waiting
-       robots that may (holding no room: a holder serves, enters or leaves, and undoing
-       that costs a visit; not broken down; not given way within ``gridlock_cooldown``),
-       those holding a segment another waiting member asks for (all of them: robots
-       queueing one behind the other in a segment leave it together), or, with none
-       such, the first, lowest priority first (then robot order). Each is ordered, with
-       ``releases`` set, to the spot ``standstills.back_off_spot`` finds clear of the
-       other members' ways (their targets' ways and the lanes of the segments they ask
-       for) and of the spots given before it (none if one of them has no spot: tried
-       again at the next update). While the order is in force it leaves its room's queue
-       and gives up the segments it does not stand in, so the others get them; when the
-       order ends it asks again, at the queues' tails. Every member's gridlock time
-       starts again, so the others get another ``gridlock_time`` to move before the next
-       orders.
+       and no member backs off, is broken by robots giving way (orders with
+       ``releases``). A robot may give way if it waits, holds no room (a holder serves,
+       enters or leaves: undoing that costs a visit) and is not broken down; it moves off
+       only if it has not given way within ``gridlock_cooldown``. The members waiting
+       for segments are taken in turn (room holders first, then by priority, highest
+       first) until one can be freed: the robots holding segments it asks for go, each to
+       the spot ``standstills.back_off_spot`` finds clear of the other members' ways
+       (their targets' ways and the lanes of the segments they ask for) and of the spots
+       given before it, and where there is one, off every single-file segment's lane
+       (standing on one it would hold it); the robots before it in the segments' line
+       asking for one of them stand where they are (else they would take the segments
+       first and gridlock with it in turn); all at once, or none if one of those going
+       has no spot. A gridlock of room waits only: the first robot that may give way,
+       lowest priority first, goes to a spot. While its order is in force a robot asks
+       for no room (it leaves the queue) and only for the segments it stands in, so the
+       others get them; when it ends, it asks again, at the queues' tails. Every
+       member's gridlock time starts again, so the others get another ``gridlock_time``
+       to move before the next orders.
 
     ``costmap``: the static costmap the spots are checked against (the way to a spot
     keeps to its ``FREE`` cells). ``priorities``: per robot, smaller keeps its way
