@@ -178,16 +178,17 @@ class DeadlockWatchdog(LeafSystem):
        ``releases``). A robot may give way if it waits, holds no room (a holder serves,
        enters or leaves: undoing that costs a visit) and is not broken down; it moves off
        only if it has not given way within ``gridlock_cooldown``. The members waiting
-       for segments are taken in turn (room holders first, then by priority, highest
-       first) until one can be freed: the robots holding segments it asks for go, each to
-       the spot ``standstills.back_off_spot`` finds clear of the other members' ways
-       (their targets' ways and the lanes of the segments they ask for) and of the spots
-       given before it, and where there is one, off every single-file segment's lane
-       (standing on one it would hold it); the robots before it in the segments' line
-       asking for one of them stand where they are (else they would take the segments
-       first and gridlock with it in turn); all at once, or none if one of those going
-       has no spot. A gridlock of room waits only: the first robot that may give way,
-       lowest priority first, goes to a spot. While its order is in force a robot asks
+       for segments are taken in turn (first the holders of rooms other members wait
+       for, then other holders, then by priority, highest first) until one can be
+       freed: the robots holding segments it asks for go, each to the spot
+       ``standstills.back_off_spot`` finds clear of the other members' ways (their
+       targets' ways and the lanes of the segments they ask for) and of the spots given
+       before it, and where there is one, off every single-file segment's lane (standing
+       on one it would hold it); the robots before it in the segments' line asking for
+       one of them (holders too: they keep their rooms) stand where they are (else they
+       would take the segments first and gridlock with it in turn); all at once, or none
+       if one of those going has no spot. A gridlock of room waits only: the first robot
+       that may give way, lowest priority first, goes to a spot. While its order is in force a robot asks
        for no room (it leaves the queue) and only for the segments it stands in, so the
        others get them; when it ends, it asks again, at the queues' tails. Every
        member's gridlock time starts again, so the others get another ``gridlock_time``
@@ -339,17 +340,21 @@ class DeadlockWatchdog(LeafSystem):
                   if self._disturbances.HasValue(context) else ())
         recent = {order.robot for order in history
                   if order.releases and order.issued > now - p.gridlock_cooldown + 1e-9}
-        may = {robot for k, robot in enumerate(self._robots)
-               if robot in waits and robot not in holders and k not in broken}
+        waiting = {robot for k, robot in enumerate(self._robots)
+                   if robot in waits and k not in broken}
+        may = waiting - holders
         asks = {request.robot: {k for k, _ in request.segments} for request in requests}
         line = queues.segment_waiting
-        rank = {robot: (robot not in holders, self._priorities[self._robots.index(robot)],
-                        self._robots.index(robot)) for robot in group}
+        awaited = {queue.holder for queue in queues.rooms
+                   if not set(queue.waiting).isdisjoint(group)}
+        rank = {robot: (robot not in awaited, robot not in holders,
+                        self._priorities[self._robots.index(robot)], self._robots.index(robot))
+                for robot in group}
         for robot in sorted((r for r in group if r in line), key=rank.get):
             wanted = asks[robot]
             inside = {j for k in wanted for j in queues.segments[k].holders} - {robot}
             ahead = {j for j in line[:line.index(robot)] if asks[j] & wanted} - inside
-            if not (inside or ahead) or not inside <= may - recent or not ahead <= may:
+            if not (inside or ahead) or not inside <= may - recent or not ahead <= waiting:
                 continue
             given = self._orders(context, sorted(inside, key=self._robots.index), group,
                                  robot, states, targets, requests, stalled_since, now)
@@ -361,7 +366,7 @@ class DeadlockWatchdog(LeafSystem):
                         now, now + p.yield_time, (robot,), stalled_since, releases=True)
                 for j in sorted(ahead, key=self._robots.index))
         for robot in sorted((may - recent).intersection(group),
-                            key=lambda r: (-rank[r][1], rank[r][2])):
+                            key=lambda r: (-rank[r][2], rank[r][3])):
             given = self._orders(context, [robot], group, None, states, targets, requests,
                                  stalled_since, now)
             if given:
