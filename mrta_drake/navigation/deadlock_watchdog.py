@@ -188,9 +188,9 @@ class DeadlockWatchdog(LeafSystem):
        one of them (holders too: they keep their rooms) stand where they are (else they
        would take the segments first and gridlock with it in turn); all at once, or none
        if one of those going has no spot. A gridlock of room waits only: the first robot
-       that may give way, lowest priority first, goes to a spot. While its order is in force a robot asks
-       for no room (it leaves the queue) and only for the segments it stands in, so the
-       others get them; when it ends, it asks again, at the queues' tails. Every
+       that may give way, lowest priority first, goes to a spot. While its order is in
+       force a robot asks for no room (it leaves the queue) and only for the segments it
+       stands in, so the others get them; when it ends, it asks again, at the queues' tails. Every
        member's gridlock time starts again, so the others get another ``gridlock_time``
        to move before the next orders.
 
