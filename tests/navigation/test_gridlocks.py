@@ -2,6 +2,8 @@
 found from the room queues' facts (``standstills.waits_for``, ``standstills.gridlocks``) and
 broken by the deadlock watchdog (``releases`` orders, step 5 of ``DeadlockWatchdog``)."""
 
+from dataclasses import replace
+
 import pytest
 from pydrake.common.value import Value
 from pydrake.systems.analysis import Simulator
@@ -13,13 +15,21 @@ from mrta_drake.navigation.costmap import Costmap
 from mrta_drake.navigation.deadlock_watchdog import DeadlockWatchdog, WatchdogParams
 from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.room_queues import RoomQueues
-from mrta_drake.navigation.single_file import SingleFileParams, stop_segments
+from mrta_drake.navigation.single_file import Need, SingleFileParams, stop_segments
 from mrta_drake.navigation.standstills import gridlocks, waits_for
-from mrta_drake.navigation.waypoint_generator import WaypointGenerator, WaypointParams
+from mrta_drake.navigation.waypoint_generator import (
+    WaypointGenerator,
+    WaypointParams,
+    WaypointPolicy,
+    _Drive,
+)
 from mrta_drake.payloads import (
     NO_BACK_OFFS,
+    BackOff,
+    BackOffOrders,
     QueueRequest,
     QueueState,
+    RobotMode,
     RoomQueue,
     SegmentHold,
     WaypointTarget,
@@ -27,7 +37,14 @@ from mrta_drake.payloads import (
 from mrta_drake.results.deadlocks import stalled_waits
 from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig
 from mrta_drake.world.obstacles import Obstacles
-from tests.navigation.test_waypoint_generator import FakeRobots
+from tests.navigation.test_waypoint_generator import (
+    B,
+    FakeRobots,
+    _Inputs,
+    queueing_at_b,
+    spur_world,
+    stepper,
+)
 
 R, H, G = 0, 1, 2  # the room at the corridor's dead end, and two rooms west of it
 BOUNDS = (-14.0, 24.0, -4.0, 6.0)
@@ -189,3 +206,34 @@ def test_the_robot_in_the_segment_and_the_one_before_the_holder_in_line_give_way
 def test_gridlock_params_must_be_positive(field):
     with pytest.raises(InputError, match=field):
         WatchdogParams(**{field: 0.0})
+
+
+def test_a_robot_giving_way_asks_only_for_the_segments_it_stands_in_and_no_room():
+    # Driving home through the run W-J-S it needs segments 0 and 2; giving way (a
+    # releases order in force) only the spur it stands in, and it stands.
+    policy = WaypointPolicy(["r0"], 0, spur_world(), None, WaypointParams(), home=(10.0, 5.0))
+    route = ((0.0, 0.0), (10.0, 0.0), (10.0, 5.0))
+    held = QueueState(segments=(SegmentHold(("r0",), True),) * 3)
+    s = _Drive(phase=RobotMode.HOME, route=route, index=2)
+    here = [[10.0, 3.0, 0.0, 0.5]]
+    assert [k for k, _ in policy.update(s, _Inputs(10.0, held, here)).lanes.segments] == [0, 2]
+    order = BackOff("r0", (12.0, 3.0), 9.0, 24.0, ("r1",), 0.0, releases=True)
+    giving = policy.update(s, _Inputs(10.0, held, here, BackOffOrders((order,), (order,))))
+    assert giving.lanes == Need(((2, True),), hold=True) and giving.giving_way
+    assert not policy.outputs(giving).target.active
+    # An order of the standstill rule (no releases) leaves its claims alone.
+    plain = replace(order, releases=False)
+    kept = policy.update(s, _Inputs(10.0, held, here, BackOffOrders((plain,), (plain,))))
+    assert [k for k, _ in kept.lanes.segments] == [0, 2] and not kept.giving_way
+
+
+def test_a_robot_giving_way_leaves_its_rooms_queue():
+    generator, context, place = queueing_at_b(RoomQueue(B, holder="r1", waiting=("r0",)),
+                                              slot=0)
+    step = stepper(generator, context, place.queue[0])
+    step((30.0, 10.0), 0.0)
+    assert generator.GetOutputPort("queue_request").Eval(context).room == B
+    order = BackOff("r0", (0.0, 0.0), 0.0, 15.0, ("r1",), 0.0, releases=True)
+    generator.GetInputPort("back_offs").FixValue(context, BackOffOrders((order,), (order,)))
+    step((30.0, 10.0), 0.0)
+    assert generator.GetOutputPort("queue_request").Eval(context).room is None
