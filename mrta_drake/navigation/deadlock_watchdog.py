@@ -175,9 +175,10 @@ class DeadlockWatchdog(LeafSystem):
        (``standstills.gridlocks``). A robot is in a gridlock since the update it first
        was, without a break. A gridlock in which a robot has been for ``gridlock_time``,
        and no member backs off, is broken by robots giving way (orders with
-       ``releases``). A robot may give way if it waits, holds no room (a holder serves,
-       enters or leaves: undoing that costs a visit) and is not broken down; it moves off
-       only if it has not given way within ``gridlock_cooldown``. The members waiting
+       ``releases``). A robot may give way if it holds no room (a holder serves, enters
+       or leaves: undoing that costs a visit) and is not broken down (e.g. one waiting,
+       or standing at home in a segment others wait for); it moves off only if it has
+       not given way within ``gridlock_cooldown``. The members waiting
        for segments are taken in turn (first the holders of rooms other members wait
        for, then other holders, then by priority, highest first) until one can be
        freed: the robots holding segments it asks for go, each to the spot
@@ -340,9 +341,10 @@ class DeadlockWatchdog(LeafSystem):
                   if self._disturbances.HasValue(context) else ())
         recent = {order.robot for order in history
                   if order.releases and order.issued > now - p.gridlock_cooldown + 1e-9}
+        may = {robot for k, robot in enumerate(self._robots)
+               if robot not in holders and k not in broken}
         waiting = {robot for k, robot in enumerate(self._robots)
                    if robot in waits and k not in broken}
-        may = waiting - holders
         asks = {request.robot: {k for k, _ in request.segments} for request in requests}
         line = queues.segment_waiting
         awaited = {queue.holder for queue in queues.rooms
