@@ -324,8 +324,8 @@ class DeadlockWatchdog(LeafSystem):
                     or now - min(since[k] for k in index) < p.gridlock_time - 1e-9):
                 continue
             given = self._give_way(context, group, waits, holders, states, targets,
-                                   requests, history, queues, min(since[k] for k in index),
-                                   now)
+                                   requests, history, queues, backing,
+                                   min(since[k] for k in index), now)
             if given:
                 for k in index:
                     since[k] = now
@@ -333,9 +333,10 @@ class DeadlockWatchdog(LeafSystem):
         return tuple(since), ()
 
     def _give_way(self, context, group, waits, holders, states, targets, requests, history,
-                  queues, stalled_since, now) -> tuple[BackOff, ...]:
+                  queues, backing, stalled_since, now) -> tuple[BackOff, ...]:
         """The ``releases`` orders that break gridlock ``group`` (class docstring, step 5),
-        or () when no robot may give way with a spot to go to."""
+        or () when no robot may give way with a spot to go to (``backing``: the robots
+        under an order already, given none)."""
         p = self._params
         broken = (self._disturbances.Eval(context).broken
                   if self._disturbances.HasValue(context) else ())
@@ -356,7 +357,8 @@ class DeadlockWatchdog(LeafSystem):
             wanted = asks[robot]
             inside = {j for k in wanted for j in queues.segments[k].holders} - {robot}
             ahead = {j for j in line[:line.index(robot)] if asks[j] & wanted} - inside
-            if not (inside or ahead) or not inside <= may - recent or not ahead <= waiting:
+            if (not (inside or ahead) or not inside <= may - recent or not ahead <= waiting
+                    or not backing.isdisjoint(inside | ahead)):
                 continue
             given = self._orders(context, sorted(inside, key=self._robots.index), group,
                                  robot, states, targets, requests, stalled_since, now)
