@@ -296,7 +296,9 @@ class BackOff:
     m) and stands there, instead of following its target, until ``until`` (s); ordered at
     ``issued`` (s) to make way for ``blockers`` (robot names, or people's when it stood
     with people only; stalled since ``stalled_since``, s); ``arrived`` (s) once it reached
-    the spot."""
+    the spot. ``releases``: an order that breaks a gridlock of waits: while it is in force
+    the robot also gives up its place in a room's queue and the single-file segments it
+    does not stand in (its waypoints block asks for neither), and asks again after it."""
 
     robot: str
     point: tuple[float, float]
@@ -305,6 +307,7 @@ class BackOff:
     blockers: tuple[str, ...] = ()
     stalled_since: float = 0.0
     arrived: float | None = None
+    releases: bool = False
 
 
 @dataclass(frozen=True)

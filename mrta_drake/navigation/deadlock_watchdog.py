@@ -10,13 +10,17 @@ from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
 from mrta_drake.errors import InputError, require_non_negative, require_positive
 from mrta_drake.navigation.costmap import Costmap
+from mrta_drake.navigation.roadways import Roadways
+from mrta_drake.navigation.single_file import segment_lanes
 from mrta_drake.navigation.standstills import (
     Anchor,
     back_off_spot,
     blocked_groups,
+    gridlocks,
     in_ways,
     near_walls,
     next_anchor,
+    waits_for,
     yield_order,
 )
 from mrta_drake.payloads import (
@@ -24,11 +28,17 @@ from mrta_drake.payloads import (
     NO_DISTURBANCES,
     NO_HUMANS,
     ROBOT_STATE_SIZE,
+    ROBOT_STOPPED_SPEED,
     BackOff,
     BackOffOrders,
     HumanStates,
+    LiftState,
+    QueueRequest,
+    QueueState,
     WaypointTarget,
 )
+from mrta_drake.results.deadlocks import stalled_waits
+from mrta_drake.stack.fleet_inputs import PerRobotInputs
 
 
 @dataclass(frozen=True)
@@ -49,8 +59,13 @@ class WatchdogParams:
     0.51 m off moved 3.5 cm each time). An order is *missed* when its robot did not reach
     the spot in that time; for ``retry_window`` after a miss, the robot is asked to yield
     only after robots that missed fewer orders, and never to a spot within
-    ``progress_distance`` of the one it missed. ``enabled`` off: no watchdog in the diagram
-    (as in the paper)."""
+    ``progress_distance`` of the one it missed. A gridlock of waits (robots waiting for
+    rooms or single-file segments, the waits leading to no robot that moves, serves or
+    uses a lift) that lasts ``gridlock_time`` is broken by one of its robots giving way
+    (``DeadlockWatchdog``, step 5), and a robot that gave way is not chosen again for
+    ``gridlock_cooldown``: shorter than the run recorder's ``STUCK_TIME`` (30 s), it ends
+    such a gridlock before it counts as a deadlock. ``enabled`` off: no watchdog in the
+    diagram (as in the paper)."""
 
     enabled: bool = True
     standstill_time: float = 15.0
@@ -63,9 +78,12 @@ class WatchdogParams:
     spot_clearance: float = 0.3
     yield_time: float = 15.0
     retry_window: float = 120.0
+    gridlock_time: float = 20.0
+    gridlock_cooldown: float = 60.0
 
     def __post_init__(self):
-        require_positive(self, "standstill_time", "yield_time", "retry_window", unit=" s")
+        require_positive(self, "standstill_time", "yield_time", "retry_window",
+                         "gridlock_time", "gridlock_cooldown", unit=" s")
         require_positive(self, "progress_distance", "goal_tolerance", "search_reach",
                          "wall_clearance", "back_off_distance", unit=" m")
         require_non_negative(self, "block_gap", "spot_clearance", unit=" m")
@@ -76,12 +94,14 @@ class WatchdogParams:
 
 @dataclass(frozen=True)
 class _WatchdogState:
-    """Each robot's ``Anchor`` (None: no goal, or backing off), the orders, and the orders
-    missed within the retry window (each as ordered, ``until`` the time it ended)."""
+    """Each robot's ``Anchor`` (None: no goal, or backing off), the orders, the orders
+    missed within the retry window (each as ordered, ``until`` the time it ended), and
+    since when each robot has been in a gridlock of waits (s; None: it is in none)."""
 
     anchors: tuple[Anchor | None, ...]
     orders: BackOffOrders = NO_BACK_OFFS
     misses: tuple[BackOff, ...] = ()
+    gridlocked: tuple[float | None, ...] = ()
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the state can share it
@@ -98,6 +118,10 @@ class DeadlockWatchdog(LeafSystem):
         - target_<robot>
         - human_states (optional)
         - disturbances (optional)
+        - queue_state (optional)
+        - queue_request_<robot> (optional)
+        - fleet_queue_requests (optional)
+        - lift_state (optional)
         output_ports:
         - back_offs
 
@@ -105,9 +129,13 @@ class DeadlockWatchdog(LeafSystem):
     m/s), ``target_<robot>`` (abstract ``WaypointTarget``, each waypoint generator's), one
     per robot in ``robot_names`` order, and optionally ``human_states`` (``HumanStates``):
     back-off spots keep clear of people, and ``disturbances`` (``Disturbances``): a
-    broken-down robot is never asked to yield. Output: ``back_offs`` (abstract
+    broken-down robot is never asked to yield; ``queue_state`` (``QueueState``) with each
+    robot's ``queue_request_<robot>`` (``QueueRequest``, or instead ``fleet_queue_requests``,
+    their tuple in robot order) and ``lift_state`` (``LiftState``): who waits for whom
+    (step 5; without ``queue_state``, no step 5). Output: ``back_offs`` (abstract
     ``BackOffOrders``, from the state): the planner plans an ordered robot's path to its
-    spot instead of its target; the recorder notes each order.
+    spot instead of its target; the waypoints block drops a ``releases`` order's robot's
+    claims; the recorder notes each order.
 
     ``rate_hz`` times a second an unrestricted update (see ``WatchdogParams`` for the
     terms):
@@ -136,15 +164,46 @@ class DeadlockWatchdog(LeafSystem):
        misses within ``retry_window`` are asked first (a stable sort of ``yield_order``),
        and a robot's spots keep ``progress_distance`` from those it missed, so a
        standstill is never met with the same order again and again.
+    5. Gridlocks of waits, from the facts the run recorder uses (``standstills.waits_for``:
+       the robots waiting for a room wait for its holder; those waiting for single-file
+       segments for the segments' holders, or the robots before them in the segments'
+       queue): the waiting robots whose waits lead to no robot *live*
+       (``results.deadlocks.stalled_waits``; live: moving faster than
+       ``ROBOT_STOPPED_SPEED``, at a lift (waiting for it or riding), or holding a room
+       and waiting for nothing: serving, entering, or waiting at its door, which
+       ``WaypointParams.door_patience`` bounds) are joined with the robots they wait for
+       (``standstills.gridlocks``). A robot is in a gridlock since the update it first
+       was, without a break. A gridlock in which a robot has been for ``gridlock_time``,
+       and no member backs off, is broken by robots giving way (orders with
+       ``releases``). A robot may give way if it holds no room (a holder serves, enters
+       or leaves: undoing that costs a visit) and is not broken down (e.g. one waiting,
+       or standing at home in a segment others wait for); it moves off only if it has
+       not given way within ``gridlock_cooldown``. The members waiting
+       for segments are taken in turn (first the holders of rooms other members wait
+       for, then other holders, then by priority, highest first) until one can be
+       freed: the robots holding segments it asks for go, each to the spot
+       ``standstills.back_off_spot`` finds clear of the other members' ways (their
+       targets' ways and the lanes of the segments they ask for) and of the spots given
+       before it, and where there is one, off every single-file segment's lane (standing
+       on one it would hold it); the robots before it in the segments' line asking for
+       one of them (holders too: they keep their rooms) stand where they are (else they
+       would take the segments first and gridlock with it in turn); all at once, or none
+       if one of those going has no spot. A gridlock of room waits only: the first robot
+       that may give way, lowest priority first, goes to a spot. While its order is in
+       force a robot asks for no room (it leaves the queue) and only for the segments it
+       stands in, so the others get them; when it ends, it asks again, at the queues' tails. Every
+       member's gridlock time starts again, so the others get another ``gridlock_time``
+       to move before the next orders.
 
     ``costmap``: the static costmap the spots are checked against (the way to a spot
     keeps to its ``FREE`` cells). ``priorities``: per robot, smaller keeps its way
-    (default: robot order, as the controller's cluster leaders).
+    (default: robot order, as the controller's cluster leaders). ``roadways``: where the
+    single-file segments lie (step 5; None: no segments' lanes kept clear).
     """
 
     def __init__(self, robot_names: Sequence[str], radii: Sequence[float], costmap: Costmap,
                  params: WatchdogParams = WatchdogParams(), priorities=None, *,
-                 rate_hz: float):
+                 rate_hz: float, roadways: Roadways | None = None):
         super().__init__()
         self._robots = tuple(robot_names)
         n = len(self._robots)
@@ -153,8 +212,13 @@ class DeadlockWatchdog(LeafSystem):
         self._params = params
         self._priorities = (np.arange(n, dtype=float) if priorities is None
                             else np.asarray(priorities, dtype=float).reshape(n))
+        self._roadways = roadways
+        # Every single-file segment's lane, as a way (radius 0) a spot keeps clear of.
+        self._all_lanes = [] if roadways is None else [
+            (np.asarray(lane, dtype=float), 0.0) for k in range(roadways.segment_count)
+            for lane in segment_lanes(roadways, k)]
         self._state_index = self.DeclareAbstractState(
-            Value[object](_WatchdogState((None,) * n)))
+            Value[object](_WatchdogState((None,) * n, gridlocked=(None,) * n)))
         self._robot_state = self.DeclareVectorInputPort(
             "robot_state", BasicVector(ROBOT_STATE_SIZE * n))
         self._targets = [
@@ -163,6 +227,11 @@ class DeadlockWatchdog(LeafSystem):
         self._humans = self.DeclareAbstractInputPort("human_states", Value[object](NO_HUMANS))
         self._disturbances = self.DeclareAbstractInputPort(
             "disturbances", Value[object](NO_DISTURBANCES))
+        self._queue_state = self.DeclareAbstractInputPort(
+            "queue_state", Value[object](QueueState()))
+        self._requests = PerRobotInputs(self, "queue_request", "queue_requests", self._robots,
+                                        QueueRequest)
+        self._lift_state = self.DeclareAbstractInputPort("lift_state", Value[object](LiftState()))
         self.DeclareAbstractOutputPort(
             "back_offs", lambda: Value[object](NO_BACK_OFFS), self._calc_back_offs,
             prerequisites_of_calc={self.abstract_state_ticket(self._state_index)})
@@ -213,13 +282,143 @@ class DeadlockWatchdog(LeafSystem):
                 active, history = active + (order,), history + (order,)
                 backing.add(order.robot)
                 anchors[k] = None
+        gridlocked = old.gridlocked
+        if self._queue_state.HasValue(context):
+            gridlocked, given = self._gridlocks(context, states, targets, old.gridlocked,
+                                                backing, history, now)
+            for order in given:
+                active, history = active + (order,), history + (order,)
+                anchors[self._robots.index(order.robot)] = None
         orders = (old.orders if (active, history) == (old.orders.active, old.orders.history)
                   else BackOffOrders(active, history))
-        if tuple(anchors) == old.anchors and orders is old.orders and misses == old.misses:
+        if (tuple(anchors) == old.anchors and orders is old.orders and misses == old.misses
+                and gridlocked == old.gridlocked):
             return EventStatus.DidNothing()
         state.get_mutable_abstract_state(self._state_index).set_value(
-            _WatchdogState(tuple(anchors), orders, misses))
+            _WatchdogState(tuple(anchors), orders, misses, gridlocked))
         return EventStatus.Succeeded()
+
+    def _gridlocks(self, context, states, targets, since, backing, history, now
+                   ) -> tuple[tuple[float | None, ...], tuple[BackOff, ...]]:
+        """Step 5 (class docstring): since when each robot has been in a gridlock of waits
+        after this update, and the orders that break one (none, or those of one gridlock
+        per update)."""
+        queues: QueueState = self._queue_state.Eval(context)
+        requests = self._requests.values(context)
+        waits = waits_for(queues, requests)
+        holders = {queue.holder for queue in queues.rooms} - {None}
+        live = {robot for k, robot in enumerate(self._robots)
+                if abs(states[k, 3]) > ROBOT_STOPPED_SPEED
+                or (robot in holders and not waits.get(robot))}
+        if self._lift_state.HasValue(context):
+            for lift in self._lift_state.Eval(context).lifts:
+                live.update(lift.waiting, lift.riders)
+        groups = gridlocks(waits, stalled_waits(waits, live))
+        member = {robot for group in groups for robot in group}
+        since = [(s if s is not None else now) if robot in member else None
+                 for robot, s in zip(self._robots, since, strict=True)]
+        p = self._params
+        for group in groups:
+            index = [self._robots.index(robot) for robot in group]
+            if (backing.intersection(group)
+                    or now - min(since[k] for k in index) < p.gridlock_time - 1e-9):
+                continue
+            given = self._give_way(context, group, waits, holders, states, targets,
+                                   requests, history, queues, backing,
+                                   min(since[k] for k in index), now)
+            if given:
+                for k in index:
+                    since[k] = now
+                return tuple(since), given
+        return tuple(since), ()
+
+    def _give_way(self, context, group, waits, holders, states, targets, requests, history,
+                  queues, backing, stalled_since, now) -> tuple[BackOff, ...]:
+        """The ``releases`` orders that break gridlock ``group`` (class docstring, step 5),
+        or () when no robot may give way with a spot to go to (``backing``: the robots
+        under an order already, given none)."""
+        p = self._params
+        broken = (self._disturbances.Eval(context).broken
+                  if self._disturbances.HasValue(context) else ())
+        recent = {order.robot for order in history
+                  if order.releases and order.issued > now - p.gridlock_cooldown + 1e-9}
+        may = {robot for k, robot in enumerate(self._robots)
+               if robot not in holders and k not in broken}
+        waiting = {robot for k, robot in enumerate(self._robots)
+                   if robot in waits and k not in broken}
+        asks = {request.robot: {k for k, _ in request.segments} for request in requests}
+        line = queues.segment_waiting
+        awaited = {queue.holder for queue in queues.rooms
+                   if not set(queue.waiting).isdisjoint(group)}
+        rank = {robot: (robot not in awaited, robot not in holders,
+                        self._priorities[self._robots.index(robot)], self._robots.index(robot))
+                for robot in group}
+        for robot in sorted((r for r in group if r in line), key=rank.get):
+            wanted = asks[robot]
+            inside = {j for k in wanted for j in queues.segments[k].holders} - {robot}
+            ahead = {j for j in line[:line.index(robot)] if asks[j] & wanted} - inside
+            if (not (inside or ahead) or not inside <= may - recent or not ahead <= waiting
+                    or not backing.isdisjoint(inside | ahead)):
+                continue
+            given = self._orders(context, sorted(inside, key=self._robots.index), group,
+                                 robot, states, targets, requests, stalled_since, now)
+            if inside and not given:
+                continue
+            return given + tuple(  # those before it in the line stand, asking for nothing
+                BackOff(j, (float(states[self._robots.index(j), 0]),
+                            float(states[self._robots.index(j), 1])),
+                        now, now + p.yield_time, (robot,), stalled_since, releases=True)
+                for j in sorted(ahead, key=self._robots.index))
+        for robot in sorted((may - recent).intersection(group),
+                            key=lambda r: (-rank[r][2], rank[r][3])):
+            given = self._orders(context, [robot], group, None, states, targets, requests,
+                                 stalled_since, now)
+            if given:
+                return given
+        return ()
+
+    def _orders(self, context, robots, group, freed, states, targets, requests,
+                stalled_since, now) -> tuple[BackOff, ...]:
+        """Orders sending each of ``robots`` (names) to its own spot, off the ways of the
+        other robots of ``group`` (and of ``freed``, the robot they make way for): their
+        targets' ways and the lanes of the segments they ask for; off every single-file
+        segment's lane if there is such a spot (standing on one it would hold it); and
+        off the spots given before. () if one of them has no spot."""
+        p = self._params
+        humans: HumanStates = (self._humans.Eval(context) if self._humans.HasValue(context)
+                               else NO_HUMANS)
+        xy = states[:, :2]
+        given = []
+        for robot in robots:
+            k = self._robots.index(robot)
+            others = [self._robots.index(j) for j in {*group, *([freed] if freed else [])}
+                      if j != robot]
+            others.sort()
+            ways = [(_way(xy[j], targets[j]), self._radii[j]) for j in others]
+            ways += [(np.asarray(lane, dtype=float), self._radii[j]) for j in others
+                     for lane in self._lanes_asked(requests[j])]
+            ways += [(np.asarray(order.point, dtype=float), self._radii[k]) for order in given]
+            spot = None
+            for extra in (self._all_lanes, []):
+                spot = back_off_spot(k, xy, self._radii, ways + extra,
+                                     np.asarray(humans.positions).reshape(-1, 2),
+                                     np.asarray(humans.radii).reshape(-1), self._costmap,
+                                     p.search_reach, p.spot_clearance, p.wall_clearance,
+                                     min_move=p.back_off_distance)
+                if spot is not None:
+                    break
+            if spot is None:
+                return ()
+            given.append(BackOff(robot, spot, now, now + p.yield_time,
+                                 tuple(self._robots[j] for j in others), stalled_since,
+                                 releases=True))
+        return tuple(given)
+
+    def _lanes_asked(self, request: QueueRequest) -> list:
+        """The lanes (start, end) of the single-file segments ``request`` asks for."""
+        if self._roadways is None:
+            return []
+        return [lane for k, _ in request.segments for lane in segment_lanes(self._roadways, k)]
 
     def _has_goal(self, robot_state: np.ndarray, target: WaypointTarget) -> bool:
         return (target.active and target.current is not None

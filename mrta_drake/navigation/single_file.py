@@ -185,6 +185,12 @@ def _segment_lanes(roadways: Roadways) -> tuple[tuple[int, tuple[float, float],
     return tuple(lanes)
 
 
+def segment_lanes(roadways: Roadways, segment: int
+                  ) -> tuple[tuple[tuple[float, float], tuple[float, float]], ...]:
+    """The lanes (start, end; world frame, m) of single-file segment ``segment``."""
+    return tuple((a, b) for k, a, b in _segment_lanes(roadways) if k == segment)
+
+
 def _near(roadways: Roadways, xy, distance: float) -> tuple[int, ...]:
     """The segments (sorted indices) with a lane within ``distance`` (m) of point ``xy``."""
     found = set()

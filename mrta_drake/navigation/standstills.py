@@ -5,11 +5,13 @@ Units: metres, seconds; world frame (x east, y north).
 """
 
 import math
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from mrta_drake.navigation.costmap import FREE, INSCRIBED, Costmap
+from mrta_drake.payloads import QueueRequest, QueueState
 
 SEARCH_STEP = 0.1  # m between the points searched for a back-off spot
 
@@ -59,6 +61,50 @@ def blocked_groups(stalled: np.ndarray, xy: np.ndarray, radii: np.ndarray,
         if stalled[k] or links[k].any():
             members.setdefault(root(k), []).append(k)
     return [tuple(m) for _, m in sorted(members.items()) if len(m) > 1]
+
+
+def waits_for(queues: QueueState, requests: Sequence[QueueRequest]) -> dict[str, set[str]]:
+    """Who each robot waiting for a room or single-file segments waits for (robot name ->
+    robot names): the room's holder; the other robots holding segments it asks for (also
+    those it holds with them: where robots stop, a segment is one robot's at a time), or,
+    with none, the robots before it waiting for one of those segments (first come, first
+    served). The run recorder's and the watchdog's facts of a gridlock of waits."""
+    waits = {robot: {queue.holder} - {None} for queue in queues.rooms
+             for robot in queue.waiting}
+    wanted = {request.robot: [k for k, _ in request.segments] for request in requests}
+    for i, robot in enumerate(queues.segment_waiting):
+        asked = wanted.get(robot, ())
+        held = {other for k in asked for other in queues.segments[k].holders} - {robot}
+        if not held:
+            held = {other for other in queues.segment_waiting[:i]
+                    if not set(wanted.get(other, ())).isdisjoint(asked)}
+        waits.setdefault(robot, set()).update(held)
+    return waits
+
+
+def gridlocks(waits: Mapping[str, Collection[str]], stalled: Collection[str]
+              ) -> list[tuple[str, ...]]:
+    """The gridlocks of waits: each ``stalled`` robot (waiting, its waits leading to no
+    robot that moves or serves: ``results.deadlocks.stalled_waits``) joined with the robots
+    it waits for, transitively (a cycle of waits, or a chain ending in a robot that stands
+    for good). Each gridlock is sorted, and the gridlocks by their first member."""
+    group = {robot: robot for robot in stalled}
+
+    def root(robot: str) -> str:
+        while group[robot] != robot:
+            robot = group[robot]
+        return robot
+
+    for robot in sorted(stalled):
+        for other in sorted(waits.get(robot, ())):
+            group.setdefault(other, other)
+            a, b = root(robot), root(other)
+            if a != b:
+                group[max(a, b)] = min(a, b)
+    members: dict[str, list[str]] = {}
+    for robot in sorted(group):
+        members.setdefault(root(robot), []).append(robot)
+    return sorted(tuple(m) for m in members.values())
 
 
 def yield_order(group: tuple[int, ...], idle: np.ndarray, stalled: np.ndarray,

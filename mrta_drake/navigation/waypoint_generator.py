@@ -19,9 +19,11 @@ from mrta_drake.navigation.single_file import (
 )
 from mrta_drake.navigation.standstills import distance_to_polyline
 from mrta_drake.payloads import (
+    NO_BACK_OFFS,
     NO_DISTURBANCES,
     ROBOT_STATE_SIZE,
     ROBOT_STOPPED_SPEED,
+    BackOffOrders,
     Detour,
     Disturbances,
     FleetPlan,
@@ -80,7 +82,8 @@ class _Drive:
     once it rides, standing at ``berth`` in the cabin (world frame, m). ``lanes``: the
     single-file segments it needs now, and whether it stands until it holds them.
     ``door_since``: holding the room and not yet through its door, since when the doorway
-    has been taken (``WaypointPolicy._door_busy``; s), else None."""
+    has been taken (``WaypointPolicy._door_busy``; s), else None. ``giving_way``: a
+    ``releases`` order of the deadlock watchdog is in force for the robot."""
 
     phase: RobotMode = RobotMode.IDLE
     stop: Stop | None = None
@@ -98,6 +101,7 @@ class _Drive:
     berth: tuple[float, float] | None = None
     lanes: Need = NOTHING
     door_since: float | None = None
+    giving_way: bool = False
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the state can share it
@@ -127,7 +131,8 @@ class _Outputs:
 class WaypointInputs:
     """What the waypoint policies read at one update, read once for all of them: the time
     ``t`` (s), ``plan`` (``FleetPlan``), ``queues`` (``QueueState``), ``disturbances``
-    (``Disturbances``), and, read from their ports only when first needed (a parked or idle
+    (``Disturbances``), ``back_offs`` (``BackOffOrders``, the deadlock watchdog's), and,
+    read from their ports only when first needed (a parked or idle
     robot's update mostly needs neither), ``states``: (N, 4) ``[x, y, theta, v]`` per robot
     in ``robot_names`` order (world frame, m, rad, m/s), and ``lifts`` (``LiftState``)."""
 
@@ -138,6 +143,8 @@ class WaypointInputs:
         self.queues = ports.queue_state.Eval(context)
         self.disturbances = (ports.disturbances.Eval(context)
                              if ports.disturbances.HasValue(context) else NO_DISTURBANCES)
+        self.back_offs: BackOffOrders = (ports.back_offs.Eval(context)
+                                         if ports.back_offs.HasValue(context) else NO_BACK_OFFS)
         self._states: np.ndarray | None = None
         self._lifts: LiftState | None = None
 
@@ -166,17 +173,19 @@ class _InputPorts:
     queue_state: object
     lift_state: object
     disturbances: object
+    back_offs: object
 
 
 def _declare_inputs(system: LeafSystem, robots: int) -> _InputPorts:
     """Declares the waypoints inputs ``plan``, ``robot_state`` (4 x ``robots``),
-    ``queue_state``, ``lift_state`` and ``disturbances`` on ``system``."""
+    ``queue_state``, ``lift_state``, ``disturbances`` and ``back_offs`` on ``system``."""
     return _InputPorts(
         system.DeclareAbstractInputPort("plan", Value[object](FleetPlan(()))),
         system.DeclareVectorInputPort("robot_state", BasicVector(ROBOT_STATE_SIZE * robots)),
         system.DeclareAbstractInputPort("queue_state", Value[object](QueueState())),
         system.DeclareAbstractInputPort("lift_state", Value[object](LiftState())),
-        system.DeclareAbstractInputPort("disturbances", Value[object](Disturbances())))
+        system.DeclareAbstractInputPort("disturbances", Value[object](Disturbances())),
+        system.DeclareAbstractInputPort("back_offs", Value[object](NO_BACK_OFFS)))
 
 
 class _Robots:
@@ -348,6 +357,12 @@ class WaypointPolicy:
       left to the stop the robot waits (wait, target inactive) until the blockages change.
     - a breakdown of this robot makes it drop its stop and stand (idle): it leaves any
       queue, gives up any room it holds and ignores the plan until it is repaired.
+
+    Optional input ``back_offs`` (abstract ``BackOffOrders``, the deadlock watchdog's):
+    while a ``releases`` order is in force for the robot (it gives way to break a gridlock
+    of waits) it asks for no room (leaving the queue it waits in) and only for the
+    single-file segments it stands in, and stands (the planner drives it to the order's
+    spot); after the order it asks again as before, joining the queues' tails.
     """
 
     def __init__(
@@ -390,7 +405,7 @@ class WaypointPolicy:
             outputs = self._last_outputs = _Outputs(
                 s, self._target(s),
                 QueueRequest(self._robot, s.stop.location if s.phase in _ASKING_PHASES
-                             else None, s.release, s.lanes.segments),
+                             and not s.giving_way else None, s.release, s.lanes.segments),
                 RobotProgress(self._robot, s.visits, s.last_location, s.stop, s.detours),
                 self._lift_request(s))
         return outputs
@@ -453,7 +468,10 @@ class WaypointPolicy:
             s = self._follow_plan(s, _first_to_do(stops, s.visits), robots, lanes, t)
             s = self._advance(s, robots, t, queues, stops, lanes, lifts)
         s = _changed(s, release=self._release(s, robots, queues))
-        s = _changed(s, lanes=self._lanes(s, robots, queues))
+        order = inputs.back_offs.of(self._robot) if inputs.back_offs.active else None
+        giving_way = order is not None and order.releases
+        s = _changed(s, lanes=self._standing_in(robots, queues) if giving_way
+                     else self._lanes(s, robots, queues), giving_way=giving_way)
         if s.stop is not None and (old.stop is None or old.stop.key != s.stop.key):
             s = replace(s, began=t)
         return s
@@ -731,6 +749,15 @@ class WaypointPolicy:
             return Need(wanted.segments)
         return wanted
 
+    def _standing_in(self, robots: _Robots, queues: QueueState) -> Need:
+        """Giving way (a ``releases`` order): only the single-file segments the robot
+        stands in, each the way it holds it (or forward), standing (the planner drives it
+        to its spot)."""
+        held = {k: hold.forward for k, hold in enumerate(queues.segments)
+                if self._robot in hold.holders}
+        here = standing(self._roadways, robots.xy, robots.xy, held, self._params.single_file)
+        return Need(here.segments, hold=True)
+
     def _to_lift(self, s: _Drive, xy) -> _Drive:
         """Into the lift phase within ``lift_request_distance`` of the cabin where the
         route ahead next takes a lift."""
@@ -905,6 +932,7 @@ class WaypointGenerator(LeafSystem):
         - queue_state
         - lift_state (optional)
         - disturbances (optional)
+        - back_offs (optional)
         output_ports:
         - target
         - queue_request
@@ -965,6 +993,7 @@ class FleetWaypoints(LeafSystem):
         - queue_state
         - lift_state (optional)
         - disturbances (optional)
+        - back_offs (optional)
         output_ports:
         - target_<robot>
         - queue_request_<robot>

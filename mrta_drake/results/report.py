@@ -92,8 +92,10 @@ def format_summary(summary: dict) -> str:
     lines.append(_format_deadlocks(summary["deadlocks"]))
     if summary.get("back_offs", {}).get("count"):
         per_robot = ", ".join(f"{robot} {n}" for robot, n in summary["back_offs"]["robots"].items())
+        releases = summary["back_offs"].get("releases")
         lines.append(f"back-offs  {summary['back_offs']['count']} ordered by the deadlock "
-                     f"watchdog ({per_robot})")
+                     f"watchdog ({per_robot})"
+                     + (f", {releases} to break gridlocks of waits" if releases else ""))
     lines += _format_disturbances(summary.get("disturbances") or [], summary["duration"])
     return "\n".join(lines)
 

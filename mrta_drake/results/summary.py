@@ -45,8 +45,9 @@ clearances), times in s of simulation time unless named ``wall``/``cpu``. The ke
   ``mean_wait`` and ``max_wait`` (s) from a robot's request to its boarding; empty without
   lifts. A robot's ``distance`` leaves out the jump of a lift ride (a step longer than
   ``RELOCATION_STEP``).
-- ``back_offs``: the deadlock watchdog's orders (recorder ``back_off`` events): ``count``
-  and ``robots`` (orders per robot ordered aside); 0 without the watchdog.
+- ``back_offs``: the deadlock watchdog's orders (recorder ``back_off`` events): ``count``,
+  ``robots`` (orders per robot ordered aside) and ``releases`` (those that broke a
+  gridlock of waits); 0 without the watchdog.
 - ``communication``: with a network (``communication:`` not ideal), the age of information
   and the time robots' views of their clusters disagreed and followers braked for want of a
   command (``communication.communication_metrics``); None when ideal.
@@ -143,7 +144,8 @@ def summarize(stack, duration: float, wall_time: float, cpu_time: float) -> dict
 def _back_offs(events: list[dict]) -> dict:
     """The deadlock watchdog's interventions: how many, and per robot ordered aside."""
     return {"count": len(events),
-            "robots": dict(sorted(Counter(e["robot"] for e in events).items()))}
+            "robots": dict(sorted(Counter(e["robot"] for e in events).items())),
+            "releases": sum(1 for e in events if e.get("releases"))}
 
 
 def _lifts(events: list[dict]) -> dict:

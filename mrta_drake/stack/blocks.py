@@ -27,7 +27,10 @@ lifts       request_<robot> (LiftRequest),        lift_state (LiftState), reloca
             robot_state (4N)                      events (only with lifts: a building run
                                                   across levels)
 watchdog    robot_state (4N), target_<robot>,     back_offs (BackOffOrders; not in the
-            human_states (optional)               diagram when its ``enabled`` is off)
+            human_states, queue_state,            diagram when its ``enabled`` is off)
+            queue_request_<robot> (or
+            fleet_queue_requests), lift_state
+            (optional)
 network     robot_state (4N), leader_commands     views (NetworkViews) (only when the
             (CommandMessages)                     ``communication:`` is not ideal)
 =========== ===================================== ============================================
@@ -373,7 +376,8 @@ def _back_off_watchdog() -> BlockType:
         costmap = Costmap.from_obstacles(ctx.obstacles, ctx.floor_plan.bounds,
                                          getattr(planner, "costmap", CostmapParams()))
         return DeadlockWatchdog(ctx.robot_names, [r.radius for r in ctx.scenario.robots],
-                                costmap, params, _priorities(ctx), rate_hz=ctx.rates.watchdog)
+                                costmap, params, _priorities(ctx), rate_hz=ctx.rates.watchdog,
+                                roadways=ctx.roadways)
 
     return BlockType(WatchdogParams, make)
 

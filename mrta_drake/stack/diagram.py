@@ -149,6 +149,16 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
                         controller.GetInputPort("human_states"))
     watchdog = _add_watchdog(builder, scenario, make, state, waypoints("target"), planner,
                              humans)
+    if watchdog is not None and watchdog.HasInputPort("queue_state"):
+        # Who waits for whom (gridlocks of waits); the waypoints drop a giving-way robot's
+        # claims.
+        builder.Connect(queues.GetOutputPort("queue_state"), watchdog.GetInputPort("queue_state"))
+        per_robot("queue_request", watchdog, "queue_request", "queue_requests")
+        if lifts is not None:
+            builder.Connect(lifts.GetOutputPort("lift_state"), watchdog.GetInputPort("lift_state"))
+        for generator in generators:
+            builder.Connect(watchdog.GetOutputPort("back_offs"),
+                            generator.GetInputPort("back_offs"))
     human_positions = humans.GetOutputPort("plant_positions") if humans is not None else None
     contacts = None
     if robots_type.physics is None:

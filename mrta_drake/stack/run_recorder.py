@@ -10,6 +10,7 @@ import numpy as np
 from pydrake.common.value import Value
 from pydrake.systems.framework import LeafSystem
 
+from mrta_drake.navigation.standstills import waits_for
 from mrta_drake.payloads import (
     PATH_FAILED,
     ROBOT_STATE_SIZE,
@@ -92,7 +93,8 @@ class RunRecorder(LeafSystem):
     - ``lift``: an event of the lift bank's ``events`` output (``LiftEvent``: ``lift``,
       ``robot``, ``kind``, ``level``, ``at`` s).
     - ``back_off``: the deadlock watchdog ordered ``robot`` to ``point`` (x, y) at ``at``
-      until ``until`` (s), blocked by ``blockers`` since ``stalled_since`` (s).
+      until ``until`` (s), blocked by ``blockers`` since ``stalled_since`` (s); with
+      ``releases`` (true, else absent) it gives way to break a gridlock of waits.
 
     With ``out_dir`` it appends every sample to ``timeline.csv`` and every event to
     ``events.jsonl`` as they happen, flushed, so a crash loses nothing.
@@ -269,7 +271,7 @@ class RunRecorder(LeafSystem):
         moving = (np.abs(states[:, 3]) > ROBOT_STOPPED_SPEED).tolist()
         live = at_lifts.union(name for k, name in enumerate(self.robot_names)
                               if moving[k] or modes[k] == _SERVE)
-        stalled = stalled_waits(_waits(queues, self._requests.values(context)), live)
+        stalled = stalled_waits(waits_for(queues, self._requests.values(context)), live)
         for k, name in enumerate(self.robot_names):
             if modes[k] == _QUEUE and name in stalled:
                 modes[k] = _DRIVE  # a gridlock, not a queue
@@ -370,7 +372,8 @@ class RunRecorder(LeafSystem):
             self._event({"time": t, "type": "back_off", "robot": order.robot,
                          "point": list(order.point), "at": order.issued, "until": order.until,
                          "blockers": list(order.blockers),
-                         "stalled_since": order.stalled_since})
+                         "stalled_since": order.stalled_since}
+                        | ({"releases": True} if order.releases else {}))
         self._back_offs_seen = len(history)
 
     def _note_disturbances(self, context, t: float) -> None:
@@ -422,24 +425,6 @@ def _as_dict(event) -> dict:
     if isinstance(event, dict):
         return dict(event)
     return {"kind": type(event).__name__, "value": str(event)}
-
-
-def _waits(queues: QueueState, requests: tuple[QueueRequest, ...]) -> dict[str, set[str]]:
-    """Who each robot waiting for a room or single-file segments waits for: the room's
-    holder; the other robots holding segments it asks for (also those it holds with them:
-    where robots stop, a segment is one robot's at a time), or, with none, the robots
-    before it waiting for one of those segments (first come, first served)."""
-    waits = {robot: {queue.holder} - {None} for queue in queues.rooms
-             for robot in queue.waiting}
-    wanted = {request.robot: [k for k, _ in request.segments] for request in requests}
-    for i, robot in enumerate(queues.segment_waiting):
-        asked = wanted.get(robot, ())
-        held = {other for k in asked for other in queues.segments[k].holders} - {robot}
-        if not held:
-            held = {other for other in queues.segment_waiting[:i]
-                    if not set(wanted.get(other, ())).isdisjoint(asked)}
-        waits.setdefault(robot, set()).update(held)
-    return waits
 
 
 def _jsonable(value):

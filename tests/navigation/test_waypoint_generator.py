@@ -20,6 +20,7 @@ from mrta_drake.navigation.waypoint_generator import (
     _Drive,
 )
 from mrta_drake.payloads import (
+    NO_BACK_OFFS,
     NO_DISTURBANCES,
     Breakdown,
     Disturbances,
@@ -578,11 +579,13 @@ def test_queued_robots_move_up_without_entering_while_another_holds_the_room():
 
 class _Inputs:
     """What ``WaypointPolicy.update`` reads, fixed: time ``t`` (s), an empty plan,
-    ``queues``, no disturbances, ``states`` (N, 4) and no lifts."""
+    ``queues``, no disturbances, ``states`` (N, 4), no lifts and the watchdog's
+    ``back_offs``."""
 
-    def __init__(self, t, queues, states):
+    def __init__(self, t, queues, states, back_offs=NO_BACK_OFFS):
         self.t, self.queues, self.states = t, queues, np.asarray(states, dtype=float)
         self.plan, self.disturbances, self.lifts = FleetPlan(()), NO_DISTURBANCES, LiftState()
+        self.back_offs = back_offs
 
 
 def spur_world() -> Roadways:

@@ -348,7 +348,7 @@ def test_recorder_notes_each_new_back_off_and_the_summary_counts_them_per_robot(
     for name, value in fixed.items():
         recorder.GetInputPort(name).FixValue(context, value)
     first = BackOff("b", (1.0, 2.0), 0.0, 15.0, ("a",), 0.0)
-    second = BackOff("b", (1.5, 2.0), 30.0, 45.0, ("a",), 15.0)
+    second = BackOff("b", (1.5, 2.0), 30.0, 45.0, ("a",), 15.0, releases=True)
     for t, history in ((0.0, (first,)), (0.1, (first,)), (30.0, (first, second))):
         recorder.GetInputPort("back_offs").FixValue(context, BackOffOrders(history[-1:],
                                                                             history))
@@ -357,7 +357,8 @@ def test_recorder_notes_each_new_back_off_and_the_summary_counts_them_per_robot(
     noted = [e for e in recorder.events if e["type"] == "back_off"]
     assert [(e["robot"], e["at"], e["point"], e["blockers"]) for e in noted] == [
         ("b", 0.0, [1.0, 2.0], ["a"]), ("b", 30.0, [1.5, 2.0], ["a"])]
-    assert summary._back_offs(noted) == {"count": 2, "robots": {"b": 2}}
+    assert "releases" not in noted[0] and noted[1]["releases"]
+    assert summary._back_offs(noted) == {"count": 2, "robots": {"b": 2}, "releases": 1}
 
 # --- Time near walls -----------------------------------------------------------------------------
 
