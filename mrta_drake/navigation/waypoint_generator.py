@@ -58,13 +58,14 @@ class WaypointParams:
     # it enters as without the wait
     parking: bool = True  # a robot with nothing to do parks off the point: on a parking spot
     # of the location, or where it has none, back on its start spot (off: it stays there)
+    overflow_spacing: float = 1.0  # robots beyond a queue's last slot wait this far apart
     lift_request_distance: float = 4.0  # ask for a lift this close to its cabin's point
     lift_wait_distance: float = 3.0  # wait for it this far back along the route from the
     # cabin's point, one more metre per robot ahead in its queue
     single_file: SingleFileParams = SingleFileParams()  # holding single-file segments
 
     def __post_init__(self):
-        require_positive(self, "door_clearance", unit=" m")
+        require_positive(self, "door_clearance", "overflow_spacing", unit=" m")
         require_positive(self, "door_patience", unit=" s")
 
 
@@ -276,8 +277,13 @@ class WaypointPolicy:
       count as reached within ``waypoint_tolerance``. Within ``request_distance`` of the
       tail slot, on the last segment, go to queue. A robot that still holds the stop's room
       (sent back to it) drives straight to the point instead.
-    - queue: request the room and wait at slot ``min(place, slots - 1)``, moving up as the
-      queue advances; robots beyond the last slot all wait at the tail slot.
+    - queue: request the room and wait at slot ``place`` (0 the head slot), moving up as
+      the queue advances; one slot further back while the holder stands at the head slot
+      (within ``waypoint_tolerance``: it waits there, for single-file segments or its
+      doorway, and the first robot waiting would stand in its way in); robots beyond the
+      last slot wait ``overflow_spacing`` apart back from the tail slot towards the
+      approach node (``_queue_spot``; before, they all drove to the tail slot and stood
+      round it: office seed 2, coe's one slot, whose holder, waiting at it, was boxed in).
     - lift: a route through a lift (``Roadways.lift_edge``: its cabin's node on this level,
       then on the next) is cut there. Within ``lift_request_distance`` of the cabin's point
       the robot requests the lift and waits ``lift_wait_distance`` back along its route
@@ -419,7 +425,7 @@ class WaypointPolicy:
         if s.phase in (RobotMode.DRIVE, RobotMode.ENTER):
             return self._along_route(s)
         place = self._roadways.place(s.stop.location)
-        spot = place.queue[s.index] if s.phase == RobotMode.QUEUE else place.point
+        spot = self._queue_spot(place, s.index) if s.phase == RobotMode.QUEUE else place.point
         return WaypointTarget(self._robot, True, _point(spot), None, True)
 
     def _along_route(self, s: _Drive) -> WaypointTarget:
@@ -672,11 +678,13 @@ class WaypointPolicy:
             s = replace(s, phase=RobotMode.QUEUE, route=(), index=slot)
         if s.phase == RobotMode.QUEUE:
             if holding and not waits:
-                route = _points(place.queue[s.index::-1]) + _points(place.entry)
+                route = _points(place.queue[min(s.index, len(place.queue) - 1)::-1]) + \
+                    _points(place.entry)
                 s = replace(s, phase=RobotMode.ENTER, route=route + (_point(place.point),),
                             index=0)
             elif not holding and queue is not None and queue.slot_of(self._robot) is not None:
-                s = _changed(s, index=min(queue.slot_of(self._robot), len(place.queue) - 1))
+                s = _changed(s, index=queue.slot_of(self._robot) + self._holder_at_head(
+                    queue, place, robots.states))
         if s.phase == RobotMode.ENTER:
             s = _changed(s, index=self._reached(s, xy))
             if s.index == len(s.route) - 1:
@@ -716,7 +724,8 @@ class WaypointPolicy:
         spot = None
         if s.phase in (RobotMode.QUEUE, RobotMode.SERVE):
             place = self._roadways.place(s.stop.location)
-            spot = place.queue[s.index] if s.phase == RobotMode.QUEUE else place.point
+            spot = self._queue_spot(place, s.index) if s.phase == RobotMode.QUEUE \
+                else place.point
         elif s.phase == RobotMode.HOME and s.route and _distance(
                 robots.xy, s.route[-1]) <= self._params.single_file.stand_distance:
             spot = s.route[-1]
@@ -878,8 +887,31 @@ class WaypointPolicy:
     def _at_slot(self, s: _Drive, xy) -> bool:
         """Whether the robot waits at its queue slot (within ``waypoint_tolerance``)."""
         return s.phase == RobotMode.QUEUE and _distance(
-            xy, self._roadways.place(s.stop.location).queue[s.index]) <= \
+            xy, self._queue_spot(self._roadways.place(s.stop.location), s.index)) <= \
             self._params.waypoint_tolerance
+
+    def _holder_at_head(self, queue, place, states: np.ndarray) -> int:
+        """1 if another robot holds ``place``'s room and stands within
+        ``waypoint_tolerance`` of its head slot (waiting there), else 0."""
+        if queue.holder is None or queue.holder == self._robot:
+            return 0
+        holder = states[self._names.index(queue.holder), :2]
+        return int(_distance(holder, place.queue[0]) <= self._params.waypoint_tolerance)
+
+    def _queue_spot(self, place, index: int) -> tuple[float, float]:
+        """Where the robot at place ``index`` of ``place``'s queue waits (world frame, m):
+        that slot; beyond the last, ``overflow_spacing`` m apart from the tail slot
+        towards the approach node, at most as far as that node."""
+        last = len(place.queue) - 1
+        if index <= last:
+            return _point(place.queue[index])
+        tail = place.tail
+        towards = self._roadways.node_position(place.approach_node) - tail
+        length = float(np.linalg.norm(towards))
+        if length == 0.0:
+            return _point(tail)
+        back = min((index - last) * self._params.overflow_spacing, length)
+        return _point(tail + towards * (back / length))
 
 
 _OUTPUTS = ("target", "queue_request", "progress", "lift_request")  # _Outputs' payloads

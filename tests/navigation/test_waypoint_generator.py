@@ -206,7 +206,7 @@ def test_robots_visit_in_order_queue_enter_and_release():
     assert not any(target.active for target in targets)
 
 
-def test_more_robots_than_slots_wait_at_the_tail_slot():
+def test_more_robots_than_slots_wait_back_from_the_tail_slot():
     world = World([C] * 5, fixed(*[[B]] * 5))
     world.run(until=70)
     times = [world.progress(i).visits[0].time for i in range(5)]
@@ -218,7 +218,10 @@ def test_more_robots_than_slots_wait_at_the_tail_slot():
     assert full
     queue, targets = full[-1]
     slots = [targets[int(robot[1:])].current for robot in queue.waiting]
-    assert slots == [tuple(map(float, place.queue[k])) for k in (0, 1)] + [tail, tail]
+    # The fourth 1 m (overflow_spacing) back from the tail slot towards the approach node
+    # (N20, 2 m east of it), not on the third robot at the tail slot.
+    assert slots == [tuple(map(float, place.queue[k])) for k in (0, 1)] + [
+        tail, (tail[0] + 1.0, tail[1])]
 
 
 def plan(*stops) -> FleetPlan:
@@ -574,6 +577,21 @@ def test_queued_robots_move_up_without_entering_while_another_holds_the_room():
         context, [*place.queue[2], 0.0, 0.0, *place.point, 0.0, 0.5])
     Simulator(generator, context).AdvanceTo(0.05)
     assert generator.GetOutputPort("target").Eval(context).current == tuple(place.queue[0])
+
+
+def test_the_first_robot_waiting_keeps_a_slot_back_while_the_holder_stands_at_the_head():
+    # r1 holds B and stands at the head slot (waiting there for its way in): r0, first in
+    # the queue, waits at the next slot, not in r1's way in (office seed 2: coe's holder
+    # boxed in at its one slot); once r1 is in, r0 moves up.
+    generator, context, place = queueing_at_b(RoomQueue(B, holder="r1", waiting=("r0",)),
+                                              slot=2)
+    simulator = Simulator(generator, context)
+    for r1_xy, slot in ((place.queue[0], 1), (place.point, 0)):
+        generator.GetInputPort("robot_state").FixValue(
+            context, [*place.queue[2], 0.0, 0.0, *r1_xy, 0.0, 0.0])
+        simulator.AdvanceTo(context.get_time() + 0.1)
+        assert generator.GetOutputPort("target").Eval(context).current == \
+            tuple(place.queue[slot])
 
 
 class _Inputs:
