@@ -16,6 +16,7 @@ from mrta_drake.navigation.single_file import (
     SingleFileParams,
     need,
     standing,
+    stands_in,
 )
 from mrta_drake.navigation.standstills import distance_to_polyline
 from mrta_drake.payloads import (
@@ -294,8 +295,11 @@ class WaypointPolicy:
     - single file: while driving or entering, the robot asks the room queues for the
       single-file segments of the stretch ahead (``single_file.need``) from
       ``single_file.request_distance`` before it, and stands (target inactive) within
-      ``single_file.hold_distance`` of it, or in it, until it holds them all; it gives
-      them up ``single_file.clear_distance`` past the stretch. Queueing or serving, it
+      ``single_file.hold_distance`` of it, or in it, until it holds them all; while it so
+      waits, it gives up (for one update) those it holds but does not stand in
+      (``single_file.stands_in``), so that it never holds part of a stretch while waiting
+      for the rest; it gives them up ``single_file.clear_distance`` past the stretch.
+      Queueing or serving, it
       holds the segments it stands in or at its slot or point (``single_file.standing``)
       and no others, standing still until it holds those at its slot or point; but not
       while it waits at a point for a room another robot holds (that robot must come in).
@@ -736,8 +740,19 @@ class WaypointPolicy:
         if s.phase not in (RobotMode.DRIVE, RobotMode.ENTER, RobotMode.HOME):
             return NOTHING
         wanted = need(self._roadways, s.route, s.index, robots.xy, self._params.single_file)
-        if wanted.hold and queues.holds_segments(self._robot, wanted.segments):
+        if not wanted.hold:
+            return wanted
+        if queues.holds_segments(self._robot, wanted.segments):
             return Need(wanted.segments)
+        # Held back, it holds none of the run's segments it does not stand in: it gives
+        # them up for an update and then waits for them all (office seed 6: a robot served
+        # beside a segment kept it from serving there into its next run, and waited for
+        # the rest, held by the robot standing on its way that waited for that segment).
+        held = {k for k, hold in enumerate(queues.segments) if self._robot in hold.holders}
+        dropped = held.intersection(k for k, _ in wanted.segments).difference(
+            stands_in(self._roadways, robots.xy, self._params.single_file))
+        if dropped:
+            return Need(tuple(seg for seg in wanted.segments if seg[0] not in dropped), True)
         return wanted
 
     def _to_lift(self, s: _Drive, xy) -> _Drive:
