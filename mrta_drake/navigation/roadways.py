@@ -341,15 +341,18 @@ class Roadways:
         return [place.point, *place.entry[::-1]]
 
     def _past_queue(self, place: Place) -> tuple[str, str] | None:
-        """The single-file lane from ``place``'s point (its exit node) on which its own
-        queue waits, which a robot leaving it could not pass: legs leave the other way where
-        they can. None when the exit node is not on the point or the queue is elsewhere."""
-        if not self._segment_of or not np.array_equal(
-                self.node_position(place.exit_node), place.point):
+        """The single-file lane from ``place``'s exit node on which its own queue waits,
+        which a robot leaving it could not pass: legs leave the other way where they can.
+        None when the exit node is neither on the point nor beside it (nearer it than the
+        head slot: a point served beside its node, as the office's patrol_B, whose holder
+        otherwise left through the robot at its head slot), or the queue is elsewhere."""
+        exit_xy = self.node_position(place.exit_node)
+        if not self._segment_of or np.linalg.norm(exit_xy - place.point) >= \
+                np.linalg.norm(place.queue[0] - place.point):
             return None
         for n in self.graph.successors(place.exit_node):
-            if (self.segment_of(place.point, self.node_position(n)) is not None
-                    and _on_segment(place.queue[0], place.point, self.node_position(n))):
+            if (self.segment_of(exit_xy, self.node_position(n)) is not None
+                    and _on_segment(place.queue[0], exit_xy, self.node_position(n))):
                 return (place.exit_node, n)
         return None
 

@@ -63,7 +63,12 @@ class RoomQueues(LeafSystem):
        for the ``exclusive`` segments, where robots stop), and, unless it holds some
        already, none is named by a robot before it still waiting; else it gets none. (A
        robot standing in a segment goes as soon as its way is free: one waiting before it
-       may wait for the very segment it stands in.)
+       may wait for the very segment it stands in.) A robot waiting before it keeps its
+       turn only while that robot does not wait, through others, for this one: for the
+       holders of the segments it cannot have, for the robots before it whose turn it
+       keeps, for the holder of the room it queues for (office seed 3: a room's holder,
+       leaving away from its queue, kept behind a robot that waited for the segment in
+       which the robot at the room's head slot stood: a gridlock).
 
     All or nothing, so a robot that asks for every segment of a single-file stretch at its
     start never holds one part of it while waiting for another part; robots driving one way
@@ -106,7 +111,7 @@ class RoomQueues(LeafSystem):
         requests = self._requests.values(context)
         new = self._applied(old, requests) if self._changes_anything(old, requests) else old
         if self._segments:
-            holds, waiting = self._segments_applied(old, requests)
+            holds, waiting = self._segments_applied(old, requests, new.rooms)
             if holds != old.segments or waiting != old.segment_waiting:
                 new = dataclasses.replace(new, segments=holds, segment_waiting=waiting)
         if new is old:  # unchanged: Drake applies an instant's updates only if one changed
@@ -114,9 +119,11 @@ class RoomQueues(LeafSystem):
         state.get_mutable_abstract_state(self._state_index).set_value(new)
         return EventStatus.Succeeded()
 
-    def _segments_applied(self, old: QueueState, requests: Sequence[QueueRequest]
+    def _segments_applied(self, old: QueueState, requests: Sequence[QueueRequest],
+                          rooms: Sequence[RoomQueue]
                           ) -> tuple[tuple[SegmentHold, ...], tuple[str, ...]]:
-        """The segments' holders and waiting robots after ``requests`` (class docstring)."""
+        """The segments' holders and waiting robots after ``requests`` (class docstring);
+        ``rooms``: the rooms' queues after this update's room rules."""
         wanted = {robot: dict(request.segments)
                   for robot, request in zip(self._robots, requests, strict=True)}
         holds = []
@@ -128,24 +135,49 @@ class RoomQueues(LeafSystem):
         def needs(robot):
             return any(robot not in holds[k].holders for k in wanted[robot])
 
-        def open_to(robot):
-            return all(set(holds[k].holders) <= {robot} or (
-                k not in self._exclusive and holds[k].forward == way)
-                for k, way in wanted[robot].items())
+        def blocked(robot):
+            """The other robots holding segments ``robot`` names and cannot have now."""
+            return {r for k, way in wanted[robot].items() if not (
+                set(holds[k].holders) <= {robot}
+                or (k not in self._exclusive and holds[k].forward == way))
+                for r in holds[k].holders if r != robot}
 
         order = [r for r in old.segment_waiting if needs(r)]
         order += [r for r in self._robots if r not in order and needs(r)]
+        # Whom each robot waits for (class docstring), the turns kept added as they come.
+        waits_for = {robot: blocked(robot) for robot in order}
+        for queue in rooms:
+            for robot in queue.waiting if queue.holder is not None else ():
+                waits_for.setdefault(robot, set()).add(queue.holder)
+
+        def reaches(start, goal):
+            seen, todo = set(), [start]
+            while todo:
+                robot = todo.pop()
+                if robot == goal:
+                    return True
+                if robot not in seen:
+                    seen.add(robot)
+                    todo.extend(waits_for.get(robot, ()))
+            return False
+
         inside = [r for r in order if any(r in holds[k].holders for k in wanted[r])]
         order = inside + [r for r in order if r not in inside]
-        waiting, named = [], set()
+        waiting, named = [], {}  # named: segment -> the robots still waiting that name it
         for robot in order:
-            if open_to(robot) and (robot in inside or named.isdisjoint(wanted[robot])):
+            turns = set() if robot in inside else {
+                r for k in wanted[robot] for r in named.get(k, ()) if not reaches(r, robot)}
+            if not blocked(robot) and not turns:
                 for k, way in wanted[robot].items():
                     if robot not in holds[k].holders:
                         holds[k] = SegmentHold((*holds[k].holders, robot), way)
+                for other in waiting:  # who now waits for it
+                    waits_for[other] = blocked(other) | waits_for[other]
             else:
                 waiting.append(robot)
-                named.update(wanted[robot])
+                waits_for[robot] = waits_for.get(robot, set()) | turns
+                for k in wanted[robot]:
+                    named.setdefault(k, []).append(robot)
         return tuple(holds), tuple(waiting)
 
     def _changes_anything(self, old: QueueState, requests: Sequence[QueueRequest]) -> bool:

@@ -205,6 +205,12 @@ def _near(roadways: Roadways, xy, distance: float) -> tuple[int, ...]:
     return tuple(sorted(found))
 
 
+def stands_in(roadways: Roadways, xy, params: SingleFileParams) -> tuple[int, ...]:
+    """The segments (sorted indices) a robot at ``xy`` stands in: within
+    ``stand_distance`` of one of their lanes."""
+    return _near(roadways, xy, params.stand_distance) if roadways.segment_count else ()
+
+
 def standing(roadways: Roadways, xy, spot, held, params: SingleFileParams) -> Need:
     """What a robot at ``xy`` standing at, or moving up to, ``spot`` (a queue slot, a
     location's point) needs: the segments within ``stand_distance`` of either, each the
@@ -212,7 +218,7 @@ def standing(roadways: Roadways, xy, spot, held, params: SingleFileParams) -> Ne
     holds those at ``spot`` unless it stands in them already."""
     if roadways.segment_count == 0:
         return NOTHING
-    here = _near(roadways, xy, params.stand_distance)
+    here = stands_in(roadways, xy, params)
     there = _near(roadways, spot, params.stand_distance)
     wanted = sorted(set(here) | set(there))
     if not wanted:

@@ -16,6 +16,7 @@ from mrta_drake.navigation.single_file import (
     SingleFileParams,
     need,
     standing,
+    stands_in,
 )
 from mrta_drake.navigation.standstills import distance_to_polyline
 from mrta_drake.payloads import (
@@ -60,13 +61,14 @@ class WaypointParams:
     # it enters as without the wait
     parking: bool = True  # a robot with nothing to do parks off the point: on a parking spot
     # of the location, or where it has none, back on its start spot (off: it stays there)
+    overflow_spacing: float = 1.0  # robots beyond a queue's last slot wait this far apart
     lift_request_distance: float = 4.0  # ask for a lift this close to its cabin's point
     lift_wait_distance: float = 3.0  # wait for it this far back along the route from the
     # cabin's point, one more metre per robot ahead in its queue
     single_file: SingleFileParams = SingleFileParams()  # holding single-file segments
 
     def __post_init__(self):
-        require_positive(self, "door_clearance", unit=" m")
+        require_positive(self, "door_clearance", "overflow_spacing", unit=" m")
         require_positive(self, "door_patience", unit=" s")
 
 
@@ -285,8 +287,14 @@ class WaypointPolicy:
       count as reached within ``waypoint_tolerance``. Within ``request_distance`` of the
       tail slot, on the last segment, go to queue. A robot that still holds the stop's room
       (sent back to it) drives straight to the point instead.
-    - queue: request the room and wait at slot ``min(place, slots - 1)``, moving up as the
-      queue advances; robots beyond the last slot all wait at the tail slot.
+    - queue: request the room and wait at slot ``place`` (0 the head slot), moving up as
+      the queue advances; one slot further back while the holder stands at the head slot
+      (within ``waypoint_tolerance``: it waits there, for single-file segments or its
+      doorway, and the first robot waiting would stand in its way in); robots beyond the
+      last slot wait ``overflow_spacing`` apart back from the tail slot towards the
+      approach node, but not in a single-file segment the tail slot is not in
+      (``_queue_spot``; before, they all drove to the tail slot and stood round it: office
+      seed 2, coe's one slot, whose holder, waiting at it, was boxed in).
     - lift: a route through a lift (``Roadways.lift_edge``: its cabin's node on this level,
       then on the next) is cut there. Within ``lift_request_distance`` of the cabin's point
       the robot requests the lift and waits ``lift_wait_distance`` back along its route
@@ -297,8 +305,11 @@ class WaypointPolicy:
     - single file: while driving or entering, the robot asks the room queues for the
       single-file segments of the stretch ahead (``single_file.need``) from
       ``single_file.request_distance`` before it, and stands (target inactive) within
-      ``single_file.hold_distance`` of it, or in it, until it holds them all; it gives
-      them up ``single_file.clear_distance`` past the stretch. Queueing or serving, it
+      ``single_file.hold_distance`` of it, or in it, until it holds them all; while it so
+      waits, it gives up (for one update) those it holds but does not stand in
+      (``single_file.stands_in``), so that it never holds part of a stretch while waiting
+      for the rest; it gives them up ``single_file.clear_distance`` past the stretch.
+      Queueing or serving, it
       holds the segments it stands in or at its slot or point (``single_file.standing``)
       and no others, standing still until it holds those at its slot or point; but not
       while it waits at a point for a room another robot holds (that robot must come in).
@@ -434,7 +445,7 @@ class WaypointPolicy:
         if s.phase in (RobotMode.DRIVE, RobotMode.ENTER):
             return self._along_route(s)
         place = self._roadways.place(s.stop.location)
-        spot = place.queue[s.index] if s.phase == RobotMode.QUEUE else place.point
+        spot = self._queue_spot(place, s.index) if s.phase == RobotMode.QUEUE else place.point
         return WaypointTarget(self._robot, True, _point(spot), None, True)
 
     def _along_route(self, s: _Drive) -> WaypointTarget:
@@ -690,11 +701,13 @@ class WaypointPolicy:
             s = replace(s, phase=RobotMode.QUEUE, route=(), index=slot)
         if s.phase == RobotMode.QUEUE:
             if holding and not waits:
-                route = _points(place.queue[s.index::-1]) + _points(place.entry)
+                route = _points(place.queue[min(s.index, len(place.queue) - 1)::-1]) + \
+                    _points(place.entry)
                 s = replace(s, phase=RobotMode.ENTER, route=route + (_point(place.point),),
                             index=0)
             elif not holding and queue is not None and queue.slot_of(self._robot) is not None:
-                s = _changed(s, index=min(queue.slot_of(self._robot), len(place.queue) - 1))
+                s = _changed(s, index=queue.slot_of(self._robot) + self._holder_at_head(
+                    queue, place, robots.states))
         if s.phase == RobotMode.ENTER:
             s = _changed(s, index=self._reached(s, xy))
             if s.index == len(s.route) - 1:
@@ -734,7 +747,8 @@ class WaypointPolicy:
         spot = None
         if s.phase in (RobotMode.QUEUE, RobotMode.SERVE):
             place = self._roadways.place(s.stop.location)
-            spot = place.queue[s.index] if s.phase == RobotMode.QUEUE else place.point
+            spot = self._queue_spot(place, s.index) if s.phase == RobotMode.QUEUE \
+                else place.point
         elif s.phase == RobotMode.HOME and s.route and _distance(
                 robots.xy, s.route[-1]) <= self._params.single_file.stand_distance:
             spot = s.route[-1]
@@ -745,8 +759,19 @@ class WaypointPolicy:
         if s.phase not in (RobotMode.DRIVE, RobotMode.ENTER, RobotMode.HOME):
             return NOTHING
         wanted = need(self._roadways, s.route, s.index, robots.xy, self._params.single_file)
-        if wanted.hold and queues.holds_segments(self._robot, wanted.segments):
+        if not wanted.hold:
+            return wanted
+        if queues.holds_segments(self._robot, wanted.segments):
             return Need(wanted.segments)
+        # Held back, it holds none of the run's segments it does not stand in: it gives
+        # them up for an update and then waits for them all (office seed 6: a robot served
+        # beside a segment kept it from serving there into its next run, and waited for
+        # the rest, held by the robot standing on its way that waited for that segment).
+        held = {k for k, hold in enumerate(queues.segments) if self._robot in hold.holders}
+        dropped = held.intersection(k for k, _ in wanted.segments).difference(
+            stands_in(self._roadways, robots.xy, self._params.single_file))
+        if dropped:
+            return Need(tuple(seg for seg in wanted.segments if seg[0] not in dropped), True)
         return wanted
 
     def _standing_in(self, robots: _Robots, queues: QueueState) -> Need:
@@ -905,8 +930,38 @@ class WaypointPolicy:
     def _at_slot(self, s: _Drive, xy) -> bool:
         """Whether the robot waits at its queue slot (within ``waypoint_tolerance``)."""
         return s.phase == RobotMode.QUEUE and _distance(
-            xy, self._roadways.place(s.stop.location).queue[s.index]) <= \
+            xy, self._queue_spot(self._roadways.place(s.stop.location), s.index)) <= \
             self._params.waypoint_tolerance
+
+    def _holder_at_head(self, queue, place, states: np.ndarray) -> int:
+        """1 if another robot holds ``place``'s room and stands within
+        ``waypoint_tolerance`` of its head slot (waiting there), else 0."""
+        if queue.holder is None or queue.holder == self._robot:
+            return 0
+        holder = states[self._names.index(queue.holder), :2]
+        return int(_distance(holder, place.queue[0]) <= self._params.waypoint_tolerance)
+
+    def _queue_spot(self, place, index: int) -> tuple[float, float]:
+        """Where the robot at place ``index`` of ``place``'s queue waits (world frame, m):
+        that slot; beyond the last, ``overflow_spacing`` m apart from the tail slot
+        towards the approach node, at most as far as that node, and nearer where the spot
+        would stand in a single-file segment the tail slot does not (a waiting robot
+        there would hold it, which the holder may need to leave: office seed 1, a robot
+        waiting on v48 held the corridor presupplies' holder left by); else the tail."""
+        last = len(place.queue) - 1
+        if index <= last:
+            return _point(place.queue[index])
+        tail = place.tail
+        towards = self._roadways.node_position(place.approach_node) - tail
+        length = float(np.linalg.norm(towards))
+        lanes, single_file = self._roadways, self._params.single_file
+        allowed = set(stands_in(lanes, tail, single_file))
+        for k in range(index - last, 0, -1):
+            spot = tail + towards * (min(k * self._params.overflow_spacing, length)
+                                     / max(length, 1e-9))
+            if set(stands_in(lanes, spot, single_file)) <= allowed:
+                return _point(spot)
+        return _point(tail)
 
 
 _OUTPUTS = ("target", "queue_request", "progress", "lift_request")  # _Outputs' payloads

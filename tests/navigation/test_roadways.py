@@ -163,3 +163,7 @@ def test_a_robot_leaving_a_point_on_a_single_file_lane_does_not_drive_into_its_q
     leg = single.leg(0, 1)
     assert leg[1].tolist() == [20.0, 0.0]  # east, round the ring, not through its queue
     assert single.leg_length(0, 1) == pytest.approx(10 + 10 + 20 + 10 + 8.7)
+    # Served beside its node (the point 0.8 m off the lane), the same.
+    beside = [replace(locations[0], point=[10, -0.8]), locations[1]]
+    leg = Roadways(replace(config, single_file=[["R0", "P", "R2"]]), beside).leg(0, 1)
+    assert leg[:3].tolist() == [[10.0, -0.8], [10.0, 0.0], [20.0, 0.0]]

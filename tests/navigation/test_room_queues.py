@@ -152,9 +152,10 @@ class SegmentBench(Bench):
             self.want(robot)
         self.simulator.AdvanceTo(0.05)
 
-    def want(self, robot, *segments):
+    def want(self, robot, *segments, room=None):
         port = self.queues.get_request_input_port(robot)
-        port.FixValue(self.context, Value[object](QueueRequest(robot, segments=segments)))
+        port.FixValue(self.context, Value[object](QueueRequest(robot, room,
+                                                               segments=segments)))
 
     def state(self):
         return self.queues.GetOutputPort("queue_state").Eval(self.context)
@@ -249,6 +250,33 @@ def test_a_robot_standing_in_a_segment_passes_one_waiting_for_that_segment():
     state = bench.state()
     assert state.holds_segments("b", ((0, True), (1, True)))
     assert state.segment_waiting == ("a",)
+
+
+def test_a_robot_keeps_no_turn_that_waits_for_the_robot_behind_it():
+    # h holds the room and, to leave, wants 1; q waits for the room standing in 0 (where
+    # robots stop); w, waiting first, wants 0 and 1. w waits for q, q for h: w keeping its
+    # turn on 1 before h would wait for ever (office seed 3), so h goes. x, for whom w
+    # does not wait, still waits its turn behind w.
+    bench = SegmentBench(["h", "q", "w", "x"], exclusive=frozenset({0}))
+    bench.want("h", room=ROOM)
+    bench.want("q", (0, True))
+    bench.step()
+    bench.want("q", (0, True), room=ROOM)
+    bench.want("w", (0, True), (1, True))
+    bench.step()
+    assert bench.state().segment_waiting == ("w",)
+    bench.want("h", (1, False), room=ROOM)
+    bench.want("x", (1, False))
+    bench.step()
+    state = bench.state()
+    assert state.holds_segments("h", ((1, False),))
+    assert state.segment_waiting == ("w", "x")
+    bench.want("h")
+    bench.want("q")
+    bench.step()
+    state = bench.state()
+    assert state.holds_segments("w", ((0, True), (1, True)))
+    assert state.segment_waiting == ("x",)
 
 
 class _QueueReader(LeafSystem):

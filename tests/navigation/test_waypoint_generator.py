@@ -207,7 +207,7 @@ def test_robots_visit_in_order_queue_enter_and_release():
     assert not any(target.active for target in targets)
 
 
-def test_more_robots_than_slots_wait_at_the_tail_slot():
+def test_more_robots_than_slots_wait_back_from_the_tail_slot():
     world = World([C] * 5, fixed(*[[B]] * 5))
     world.run(until=70)
     times = [world.progress(i).visits[0].time for i in range(5)]
@@ -219,7 +219,10 @@ def test_more_robots_than_slots_wait_at_the_tail_slot():
     assert full
     queue, targets = full[-1]
     slots = [targets[int(robot[1:])].current for robot in queue.waiting]
-    assert slots == [tuple(map(float, place.queue[k])) for k in (0, 1)] + [tail, tail]
+    # The fourth 1 m (overflow_spacing) back from the tail slot towards the approach node
+    # (N20, 2 m east of it), not on the third robot at the tail slot.
+    assert slots == [tuple(map(float, place.queue[k])) for k in (0, 1)] + [
+        tail, (tail[0] + 1.0, tail[1])]
 
 
 def plan(*stops) -> FleetPlan:
@@ -577,6 +580,21 @@ def test_queued_robots_move_up_without_entering_while_another_holds_the_room():
     assert generator.GetOutputPort("target").Eval(context).current == tuple(place.queue[0])
 
 
+def test_the_first_robot_waiting_keeps_a_slot_back_while_the_holder_stands_at_the_head():
+    # r1 holds B and stands at the head slot (waiting there for its way in): r0, first in
+    # the queue, waits at the next slot, not in r1's way in (office seed 2: coe's holder
+    # boxed in at its one slot); once r1 is in, r0 moves up.
+    generator, context, place = queueing_at_b(RoomQueue(B, holder="r1", waiting=("r0",)),
+                                              slot=2)
+    simulator = Simulator(generator, context)
+    for r1_xy, slot in ((place.queue[0], 1), (place.point, 0)):
+        generator.GetInputPort("robot_state").FixValue(
+            context, [*place.queue[2], 0.0, 0.0, *r1_xy, 0.0, 0.0])
+        simulator.AdvanceTo(context.get_time() + 0.1)
+        assert generator.GetOutputPort("target").Eval(context).current == \
+            tuple(place.queue[slot])
+
+
 class _Inputs:
     """What ``WaypointPolicy.update`` reads, fixed: time ``t`` (s), an empty plan,
     ``queues``, no disturbances, ``states`` (N, 4), no lifts and the watchdog's
@@ -614,3 +632,37 @@ def test_a_robot_back_home_holds_only_the_segment_it_stands_in():
     assert [k for k, _ in driving.lanes.segments] == [0, 2]
     home = policy.update(s, _Inputs(10.0, held, [[10.0, 4.9, 0.0, 0.0]]))
     assert home.lanes == Need(((2, True),))
+
+
+def test_a_robot_held_back_gives_up_the_segments_of_its_run_it_does_not_stand_in():
+    # r0 drives from beside the corridor (A's point) onto J-E at E, then E - J - W: one
+    # run, J-E and W-J. Holding J-E (kept from serving at A) but not W-J (x holds it), it
+    # stands 1.5 m off the lanes: it gives J-E up, then waits for both (office seed 6:
+    # keeping it, it held back the robot that stood in W-J's place and waited for J-E).
+    # Standing in J-E, it keeps it.
+    policy = WaypointPolicy(["r0"], 0, spur_world(), None, WaypointParams())
+    route = ((14.0, 1.5), (20.0, 0.0), (10.0, 0.0), (0.0, 0.0))
+    s = _Drive(phase=RobotMode.HOME, route=route, index=1)
+    part = QueueState(segments=(SegmentHold(("x",), True), SegmentHold(("r0",), False),
+                                SegmentHold()))
+    beside = policy.update(s, _Inputs(10.0, part, [[13.5, 1.5, 0.0, 0.0]]))
+    assert beside.lanes == Need(((0, False),), hold=True)
+    none = QueueState(segments=(SegmentHold(("x",), True), SegmentHold(), SegmentHold()))
+    again = policy.update(beside, _Inputs(10.1, none, [[13.5, 1.5, 0.0, 0.0]]))
+    assert again.lanes == Need(((0, False), (1, False)), hold=True)
+    inside = policy.update(s, _Inputs(10.0, part, [[15.0, 0.2, 0.0, 0.0]]))
+    assert inside.lanes == Need(((0, False), (1, False)), hold=True)
+
+
+def test_robots_beyond_the_last_slot_wait_out_of_single_file_segments():
+    # A's one slot stands 1.5 m beside the corridor, its approach node J on it: the second
+    # robot beyond the slot would wait 2.4 m back towards J, 0.3 m from the corridor's lane
+    # (standing in it, it would hold it, which the holder may need: office seed 1); it
+    # waits 1.2 m back, as the first.
+    roadways = spur_world()
+    policy = WaypointPolicy(["r0"], 0, roadways, None, WaypointParams(overflow_spacing=1.2))
+    place = roadways.place(0)
+    one_back = policy._queue_spot(place, 1)
+    assert np.isclose(math.dist(one_back, place.tail), 1.2)
+    assert policy._queue_spot(place, 2) == one_back
+    assert policy._queue_spot(place, 0) == tuple(place.tail)
