@@ -129,7 +129,8 @@ def test_the_watchdog_backs_one_robot_into_the_bay_and_both_arrive():
     first = orders.history[0]
     # r1 yields first by priority, but no spot is free of r0's way on its side: r0 yields.
     assert first.robot == "r0" and first.blockers == ("r1",)
-    assert BAY[0] < first.point[0] < BAY[1] and first.point[1] > 0.8
+    # At the bay: its body reaches into the bay past the corridor's north side (0.8 m).
+    assert BAY[0] < first.point[0] < BAY[1] and first.point[1] + RADIUS > 0.8
     assert first.issued - first.stalled_since == pytest.approx(15.0, abs=0.5)
     assert not orders.active
 
