@@ -292,9 +292,8 @@ class WaypointPolicy:
       (within ``waypoint_tolerance``: it waits there, for single-file segments or its
       doorway, and the first robot waiting would stand in its way in); robots beyond the
       last slot wait ``overflow_spacing`` apart back from the tail slot towards the
-      approach node, but not in a single-file segment the tail slot is not in
-      (``_queue_spot``; before, they all drove to the tail slot and stood round it: office
-      seed 2, coe's one slot, whose holder, waiting at it, was boxed in).
+      approach node (``_queue_spot``; before, they all drove to the tail slot and stood
+      round it: office seed 2, coe's one slot, whose holder, waiting at it, was boxed in).
     - lift: a route through a lift (``Roadways.lift_edge``: its cabin's node on this level,
       then on the next) is cut there. Within ``lift_request_distance`` of the cabin's point
       the robot requests the lift and waits ``lift_wait_distance`` back along its route
@@ -944,24 +943,17 @@ class WaypointPolicy:
     def _queue_spot(self, place, index: int) -> tuple[float, float]:
         """Where the robot at place ``index`` of ``place``'s queue waits (world frame, m):
         that slot; beyond the last, ``overflow_spacing`` m apart from the tail slot
-        towards the approach node, at most as far as that node, and nearer where the spot
-        would stand in a single-file segment the tail slot does not (a waiting robot
-        there would hold it, which the holder may need to leave: office seed 1, a robot
-        waiting on v48 held the corridor presupplies' holder left by); else the tail."""
+        towards the approach node, at most as far as that node."""
         last = len(place.queue) - 1
         if index <= last:
             return _point(place.queue[index])
         tail = place.tail
         towards = self._roadways.node_position(place.approach_node) - tail
         length = float(np.linalg.norm(towards))
-        lanes, single_file = self._roadways, self._params.single_file
-        allowed = set(stands_in(lanes, tail, single_file))
-        for k in range(index - last, 0, -1):
-            spot = tail + towards * (min(k * self._params.overflow_spacing, length)
-                                     / max(length, 1e-9))
-            if set(stands_in(lanes, spot, single_file)) <= allowed:
-                return _point(spot)
-        return _point(tail)
+        if length == 0.0:
+            return _point(tail)
+        back = min((index - last) * self._params.overflow_spacing, length)
+        return _point(tail + towards * (back / length))
 
 
 _OUTPUTS = ("target", "queue_request", "progress", "lift_request")  # _Outputs' payloads

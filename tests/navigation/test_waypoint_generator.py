@@ -652,17 +652,3 @@ def test_a_robot_held_back_gives_up_the_segments_of_its_run_it_does_not_stand_in
     assert again.lanes == Need(((0, False), (1, False)), hold=True)
     inside = policy.update(s, _Inputs(10.0, part, [[15.0, 0.2, 0.0, 0.0]]))
     assert inside.lanes == Need(((0, False), (1, False)), hold=True)
-
-
-def test_robots_beyond_the_last_slot_wait_out_of_single_file_segments():
-    # A's one slot stands 1.5 m beside the corridor, its approach node J on it: the second
-    # robot beyond the slot would wait 2.4 m back towards J, 0.3 m from the corridor's lane
-    # (standing in it, it would hold it, which the holder may need: office seed 1); it
-    # waits 1.2 m back, as the first.
-    roadways = spur_world()
-    policy = WaypointPolicy(["r0"], 0, roadways, None, WaypointParams(overflow_spacing=1.2))
-    place = roadways.place(0)
-    one_back = policy._queue_spot(place, 1)
-    assert np.isclose(math.dist(one_back, place.tail), 1.2)
-    assert policy._queue_spot(place, 2) == one_back
-    assert policy._queue_spot(place, 0) == tuple(place.tail)
