@@ -911,9 +911,9 @@ class WaypointPolicy:
         for queue in queues.rooms:
             if queue.holder != self._robot:
                 continue
-            if s.stop is None:
+            if s.stop is None:  # parked: keeps only the room it parked in (its index)
                 place = self._roadways.place(queue.room)
-                if (s.phase != RobotMode.PARK
+                if (s.phase != RobotMode.PARK or queue.room != s.last_location
                         or _distance(robots.xy, place.point) > self._params.reach_tolerance
                         or self._spot_taken(place.parking[s.index], robots.states)):
                     return queue.room

@@ -439,6 +439,16 @@ def at_b(queue: RoomQueue | QueueState, drive: _Drive, params: WaypointParams | 
     return generator, context, roadways.place(B)
 
 
+def test_a_robot_parked_at_one_room_gives_back_another_it_holds():
+    # r0 parked on B's second spot with nothing to do, still holding A and standing by A's
+    # point: it is not parked at A (its spot index is B's), so it gives A back.
+    generator, context, _ = at_b(RoomQueue(A, holder="r0"), _Drive(
+        phase=RobotMode.PARK, stop=None, index=1, last_location=B))
+    generator.GetInputPort("plan").FixValue(context, FleetPlan(()))
+    stepper(generator, context, loop_world(parking=True).place(A).point)((20.0, 0.0), 0.0)
+    assert generator.GetOutputPort("queue_request").Eval(context).release == A
+
+
 def queueing_at_b(queue: RoomQueue | QueueState, slot: int,
                   params: WaypointParams | None = None, spots=()):
     """Robot r0 alone (of two), in the queue phase for its stop at B at ``slot``, with B's
