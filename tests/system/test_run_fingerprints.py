@@ -23,10 +23,14 @@ SCRIPT = pathlib.Path(__file__).with_name("run_fingerprint.py")
 # docs/humans.md: the yielding gap counts the person's own closing speed), together with the
 # holder's door wait for a robot standing in the doorway (branch door5): soak seeds 101-108
 # and 115, 0 episodes, 0 contacts, slack 0.15-0.85 % (docs/benchmarks.md "Soak").
+# Both changed on 2026-11-27 (morning) with the compiled active-set QP as the default solver
+# and steering only a real push forward (branch qp6, docs/control.md "QP solvers"), and the
+# people's far pairs cut off below 1e-9 m/s^2 (branch scale6, docs/humans.md "The
+# cut-off"): soak seeds 101-108 and 115 re-run on the merged tree (docs/benchmarks.md "Soak").
 FINGERPRINTS = {
-    "hospital_6_robots.yaml": "9b5c9708b53cfcf9f58e1b8535a3619d1d4121d6444cad522f9996941185d944",
+    "hospital_6_robots.yaml": "7b9b8bb8d1ef95b851c2d713766e57797a1209fdc338ded1afcfc941683af757",
     "hospital_disturbances.yaml":
-        "0ac55b869ddff5da1d071f45b3e4a416caf77922a6f65e1d40c10dd87e0e03ae",
+        "2b4f83cc282736ce0cec28987c1b55a9dd81678a2b978049d4df4f245fece7fd",
 }
 
 
