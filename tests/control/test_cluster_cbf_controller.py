@@ -168,14 +168,14 @@ def test_robot_goes_in_through_a_doorway_while_another_comes_out(mode):
 
 
 def test_thin_post_between_two_rays_is_kept_off_the_robot_by_the_contact_guard():
-    # A 4 cm post 0.2 m beside a path at 15 degrees: it lies between the wall rays (30
+    # A 4 cm post 0.1 m beside a path at 15 degrees: it lies between the wall rays (30
     # degrees apart) until the robot is nearly on it (rays alone: the robot's centre comes
-    # within 0.338 m of it); the closest wall point keeps it at least the contact guard
+    # within 0.244 m of it); the closest wall point keeps it at least the contact guard
     # (SafetyDistances.wall_contact) away, and the robot still gets by.
     heading = np.radians(15.0)
     along = np.array([np.cos(heading), np.sin(heading)])
     side = np.array([-along[1], along[0]])
-    post = Obstacles((Box("post", tuple(0.22 * side), (0.04, 0.04)),))  # near face 0.2 m off
+    post = Obstacles((Box("post", tuple(0.12 * side), (0.04, 0.04)),))  # near face 0.1 m off
     path = [tuple(-4.0 * along), tuple(4.0 * along)]
     states, _ = _run([[*(-4.0 * along), heading]], [path], post, 15.0)
     clearance = post.signed_distance(states[:, 0, :2]).min()
