@@ -208,6 +208,19 @@ def test_a_robot_rounding_a_thin_wall_end_that_no_ray_sees_keeps_off_it():
     assert _arrival_times(states, [path[-1]])[0] < 12.0
 
 
+def test_a_fast_robot_rounding_a_thin_wall_end_brakes_in_time():
+    # The same rounding from 3 m further out: the robot meets the end at full speed, where
+    # a fixed guard range (0.4 m) leaves too little room to brake; the range grows with the
+    # speed towards the point (SensingParams.closest_point_braking).
+    divider, path = _divider(), [(4.5, 2.2), (0.3, 0.1), (-0.1, -0.35), (-2.0, -0.9)]
+    states, _ = _run([[4.5, 2.2, math.atan2(-2.1, -4.2)]], [path], divider, 16.0)
+    # (A fixed range: the centre comes within 0.240 m of the wall at 0.75 m/s; with the
+    # braking room, 0.376 m.)
+    assert states[:, 0, 3].max() > 0.7  # at speed on the way in
+    assert _min_wall_distance(states, divider) >= CbfParams().safety_distances.wall_contact - 0.005
+    assert _arrival_times(states, [path[-1]])[0] < 16.0
+
+
 def test_a_robot_backing_off_towards_a_thin_wall_end_that_no_ray_sees_keeps_off_it():
     # A robot parked just south of the divider's line, 0.45 m east of its end, backs off
     # from a leader whose path runs through its spot. Rays alone: it backs into the end
