@@ -104,10 +104,12 @@ def _watch(process: subprocess.Popen, out_dir: str, kill_at: float | None = None
 
 
 def _growth(samples, start: float, end: float) -> float | None:
-    """RSS growth (%) from the first sample at or after ``start`` s to the last at or before
-    ``end`` s of simulated time."""
+    """RSS growth (%) from the first sample at or after ``start`` s to the last before ``end``
+    s of simulated time: samples at ``end`` are taken after the simulation, while the run
+    writes its summary (the whole timeline in memory at once, ~40 MiB for an hour), which
+    is not growth of the running stack."""
     first = next((rss for t, rss in samples if t >= start), None)
-    last = next((rss for t, rss in reversed(samples) if t <= end), None)
+    last = next((rss for t, rss in reversed(samples) if t < end), None)
     if first is None or last is None:
         return None
     return 100.0 * (last - first) / first
