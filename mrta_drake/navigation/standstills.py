@@ -8,6 +8,7 @@ import math
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 
+import networkx as nx
 import numpy as np
 
 from mrta_drake.navigation.costmap import FREE, INSCRIBED, Costmap
@@ -45,22 +46,18 @@ def blocked_groups(stalled: np.ndarray, xy: np.ndarray, radii: np.ndarray,
     gaps = np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=-1) - radii[:, None] - radii
     near = (gaps <= block_gap) & ~np.eye(n, dtype=bool)
     links = near & (stalled[:, None] | stalled[None, :])
-    group = list(range(n))
+    members = [k for k in range(n) if stalled[k] or links[k].any()]
+    return [group for group in _joined(members, zip(*np.nonzero(links), strict=True))
+            if len(group) > 1]
 
-    def root(k: int) -> int:
-        while group[k] != k:
-            k = group[k]
-        return k
 
-    for i, j in zip(*np.nonzero(links), strict=True):
-        a, b = root(int(i)), root(int(j))
-        if a != b:
-            group[max(a, b)] = min(a, b)
-    members: dict[int, list[int]] = {}
-    for k in range(n):
-        if stalled[k] or links[k].any():
-            members.setdefault(root(k), []).append(k)
-    return [tuple(m) for _, m in sorted(members.items()) if len(m) > 1]
+def _joined(members, links) -> list[tuple]:
+    """The groups of ``members`` joined by ``links`` (pairs), transitively: each group
+    sorted, the groups by their first member."""
+    graph = nx.Graph()
+    graph.add_nodes_from(members)
+    graph.add_edges_from(links)
+    return sorted(tuple(sorted(group)) for group in nx.connected_components(graph))
 
 
 def waits_for(queues: QueueState, requests: Sequence[QueueRequest]) -> dict[str, set[str]]:
@@ -88,23 +85,8 @@ def gridlocks(waits: Mapping[str, Collection[str]], stalled: Collection[str]
     robot that moves or serves: ``results.deadlocks.stalled_waits``) joined with the robots
     it waits for, transitively (a cycle of waits, or a chain ending in a robot that stands
     for good). Each gridlock is sorted, and the gridlocks by their first member."""
-    group = {robot: robot for robot in stalled}
-
-    def root(robot: str) -> str:
-        while group[robot] != robot:
-            robot = group[robot]
-        return robot
-
-    for robot in sorted(stalled):
-        for other in sorted(waits.get(robot, ())):
-            group.setdefault(other, other)
-            a, b = root(robot), root(other)
-            if a != b:
-                group[max(a, b)] = min(a, b)
-    members: dict[str, list[str]] = {}
-    for robot in sorted(group):
-        members.setdefault(root(robot), []).append(robot)
-    return sorted(tuple(m) for m in members.values())
+    return _joined(stalled, ((robot, other) for robot in stalled
+                             for other in waits.get(robot, ())))
 
 
 def yield_order(group: tuple[int, ...], idle: np.ndarray, stalled: np.ndarray,
