@@ -752,9 +752,8 @@ class WaypointPolicy:
                 robots.xy, s.route[-1]) <= self._params.single_file.stand_distance:
             spot = s.route[-1]
         if spot is not None:
-            held = {k: hold.forward for k, hold in enumerate(queues.segments)
-                    if self._robot in hold.holders}
-            return standing(self._roadways, robots.xy, spot, held, self._params.single_file)
+            return standing(self._roadways, robots.xy, spot, self._held(queues),
+                            self._params.single_file)
         if s.phase not in (RobotMode.DRIVE, RobotMode.ENTER, RobotMode.HOME):
             return NOTHING
         wanted = need(self._roadways, s.route, s.index, robots.xy, self._params.single_file)
@@ -766,8 +765,8 @@ class WaypointPolicy:
         # them up for an update and then waits for them all (office seed 6: a robot served
         # beside a segment kept it from serving there into its next run, and waited for
         # the rest, held by the robot standing on its way that waited for that segment).
-        held = {k for k, hold in enumerate(queues.segments) if self._robot in hold.holders}
-        dropped = held.intersection(k for k, _ in wanted.segments).difference(
+        held = self._held(queues)
+        dropped = {k for k, _ in wanted.segments if k in held}.difference(
             stands_in(self._roadways, robots.xy, self._params.single_file))
         if dropped:
             return Need(tuple(seg for seg in wanted.segments if seg[0] not in dropped), True)
@@ -777,10 +776,15 @@ class WaypointPolicy:
         """Giving way (a ``releases`` order): only the single-file segments the robot
         stands in, each the way it holds it (or forward), standing (the planner drives it
         to its spot)."""
-        held = {k: hold.forward for k, hold in enumerate(queues.segments)
-                if self._robot in hold.holders}
-        here = standing(self._roadways, robots.xy, robots.xy, held, self._params.single_file)
+        here = standing(self._roadways, robots.xy, robots.xy, self._held(queues),
+                        self._params.single_file)
         return Need(here.segments, hold=True)
+
+    def _held(self, queues: QueueState) -> dict[int, bool]:
+        """The single-file segments the robot holds, each with the way it holds it
+        (``SegmentHold.forward``)."""
+        return {k: hold.forward for k, hold in enumerate(queues.segments)
+                if self._robot in hold.holders}
 
     def _to_lift(self, s: _Drive, xy) -> _Drive:
         """Into the lift phase within ``lift_request_distance`` of the cabin where the
