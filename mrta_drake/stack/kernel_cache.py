@@ -104,26 +104,42 @@ def cost(kernels) -> float:
         k.functions for k in kernels)))
 
 
+def added_seconds(here, there) -> float:
+    """Estimated wall s compiling the kernels ``here`` in this process and ``there`` in a
+    second one adds to the run: the ``cost`` of this process's part, or of the second's
+    with its start-up (``CHILD_START_S``) less this process's other work meanwhile
+    (``PARENT_AHEAD_S``) when that ends later (0.0 for none)."""
+    return max(cost(here), cost(there) + CHILD_START_S - PARENT_AHEAD_S if there else 0.0)
+
+
+def parts(kernels: tuple[EntryKernel, ...]) -> tuple[tuple[EntryKernel, ...],
+                                                     tuple[EntryKernel, ...]]:
+    """``kernels`` as compiled here and in a second process: ``split`` on 2 cores or more,
+    else all here."""
+    return split(kernels) if processes() > 1 else (kernels, ())
+
+
 def split(kernels: tuple[EntryKernel, ...]) -> tuple[tuple[EntryKernel, ...],
                                                      tuple[EntryKernel, ...]]:
     """``kernels`` in two parts that finish soonest: the one compiled here and the one for a
     second process. The first kernel and those loading the scenario or building the diagram
     call stay here (this process calls them before the second could have compiled them);
     of every way to place the others (the manifest lists a dozen kernels: a few thousand
-    ways at most), the first whose later part finishes soonest, this process starting
-    ``PARENT_AHEAD_S`` behind with its other work, the second ``CHILD_START_S`` behind with
-    its start-up. Each part costs ``cost``: a helper both parts call is compiled in both,
-    which the split weighs against the balance (kernels that share only a cheap helper may
-    go apart; before, any shared helper kept them together)."""
+    ways at most), the first whose later part finishes soonest (``added_seconds``), this
+    process starting ``PARENT_AHEAD_S`` behind with its other work, the second
+    ``CHILD_START_S`` behind with its start-up. Each part costs ``cost``: a helper both
+    parts call is compiled in both, which the split weighs against the balance (kernels
+    that share only a cheap helper may go apart; before, any shared helper kept them
+    together)."""
     pinned = [k for i, k in enumerate(kernels) if i == 0 or k.building]
     free = [k for k in kernels if k not in pinned]
     best = None
     for places in itertools.product((0, 1), repeat=len(free)):
         there = [k for k, place in zip(free, places, strict=True) if place]
         here = pinned + [k for k, place in zip(free, places, strict=True) if not place]
-        finish = max(PARENT_AHEAD_S + cost(here), CHILD_START_S + cost(there) if there else 0.0)
-        if best is None or finish < best[0]:
-            best = (finish, here, there)
+        added = added_seconds(here, there)
+        if best is None or added < best[0]:
+            best = (added, here, there)
     order = {kernel: i for i, kernel in enumerate(kernels)}
     here, there = (tuple(sorted(h, key=order.__getitem__)) for h in best[1:])
     return here, there
@@ -165,11 +181,8 @@ class Compilation:
     as without it); ``finish`` compiles the earlier half here and waits for the child."""
 
     def __init__(self, kernels: tuple[EntryKernel, ...]):
-        self.seconds = self.estimate(kernels)
-        if processes() == 1:
-            self._here, there = kernels, ()
-        else:
-            self._here, there = split(kernels)
+        self._here, there = parts(kernels)
+        self.seconds = added_seconds(self._here, there)
         self._child = None
         if there:
             package_root = str(pathlib.Path(__file__).resolve().parents[2])
@@ -183,14 +196,9 @@ class Compilation:
 
     @staticmethod
     def estimate(kernels: tuple[EntryKernel, ...]) -> float:
-        """Estimated wall s compiling ``kernels`` adds to the run: their ``cost`` in one
-        process; with two, the cost of this process's part, or of the second's with its
-        start-up (``CHILD_START_S``) less this process's other work meanwhile
-        (``PARENT_AHEAD_S``) when that ends later (0.0 for none)."""
-        if processes() == 1 or not kernels:
-            return cost(kernels)
-        here, there = split(kernels)
-        return max(cost(here), cost(there) + CHILD_START_S - PARENT_AHEAD_S if there else 0.0)
+        """Estimated wall s compiling ``kernels`` adds to the run (``added_seconds`` of
+        their ``parts``)."""
+        return added_seconds(*parts(kernels))
 
     def finish(self) -> None:
         """Compiles this process's half and waits for the child's."""
