@@ -25,9 +25,9 @@ def steer_blocked(u_nominal, states, rows: SafetyRows, params: CbfParams) -> np.
     heading gate, stood there for good (docs/control.md, "QP solvers")."""
     u = np.array(u_nominal, dtype=float).reshape(-1, 2)
     _steer_entry(u, np.ascontiguousarray(states, dtype=float).reshape(-1, 4),
-          *(np.ascontiguousarray(a) for a in (rows.G, rows.b, rows.member, rows.other,
-                                              rows.normal)),
-          params.coordination.stall_speed, params.nominal.k_v, params.nominal.k_theta)
+                 *(np.ascontiguousarray(a) for a in (rows.G, rows.b, rows.member, rows.other,
+                                                     rows.normal)),
+                 params.coordination.stall_speed, params.nominal.k_v, params.nominal.k_theta)
     return u
 
 

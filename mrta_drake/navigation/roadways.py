@@ -366,7 +366,6 @@ class Roadways:
         return _without_repeats([*self.way_out(start),
                                  *(self.node_position(n) for n in reached[nearest]), xy])
 
-
     def spots_reached(self, from_location: int, spots) -> list:
         """Of ``spots`` ((x, y) m each), in their order, those whose nearest roadway node is
         reached from ``from_location``'s exit node along the lanes without lift rides: for a

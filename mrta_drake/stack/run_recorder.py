@@ -37,6 +37,7 @@ from mrta_drake.stack.sample_log import RowLog, TelemetryLog
 _IDLE, _DRIVE, _QUEUE, _SERVE = (int(mode) for mode in (
     RobotMode.IDLE, RobotMode.DRIVE, RobotMode.QUEUE, RobotMode.SERVE))
 
+
 class RunRecorder(LeafSystem):
     """Samples the run at ``rate_hz`` (publish events only: it never changes the run).
 
