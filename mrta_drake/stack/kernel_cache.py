@@ -13,7 +13,7 @@ argument types change: ``tests/stack/test_kernel_cache.py`` says when).
 
 ``cold_kernel_seconds`` reads the cache index of each entry kernel (one small file read each,
 nothing compiled) and estimates how long compiling the missing ones will take, so that the
-CLI can say so before the run starts. ``Compilation`` starts a second process
+CLI can say so before the run starts. ``Compilation`` forks a second process
 that compiles part of the missing kernels (``split``) into the shared cache while this one
 loads the scenario and builds the diagram (compiling what that calls) and then compiles the
 rest of its part (``compile_kernels``); the run then loads everything from the cache. Numba
@@ -29,15 +29,16 @@ import json
 import os
 import pathlib
 import pickle
-import subprocess
+import signal
 import sys
 
 MANIFEST = pathlib.Path(__file__).with_name("kernel_signatures.json")
 QUICKSTART = ("scenarios/hospital_6_robots.yaml", "--duration", "60")
-# CPU s the second process spends besides compiling its kernels (starting Python, importing
-# numba and the kernels' modules, compiling numba's own helpers again): its CPU time less its
-# kernels' in the quickstart, on the benchmark host (docs/benchmarks.md, "The first run").
-CHILD_START_S = 1.6
+# CPU s the second process spends besides compiling its kernels (forked with numba and the
+# kernels' modules imported: copying pages it writes, compiling numba's own helpers again):
+# its CPU time less its kernels' in the quickstart, on the benchmark host
+# (docs/benchmarks.md, "The first run").
+CHILD_START_S = 1.0
 # CPU s this process spends, once the second has started, on work other than compiling before
 # the run (loading the scenario, building the diagram): its CPU time from starting the second
 # process to the end of ``Compilation.finish`` less its kernels', measured alike.
@@ -146,9 +147,10 @@ def split(kernels: tuple[EntryKernel, ...]) -> tuple[tuple[EntryKernel, ...],
 
 
 def processes() -> int:
-    """How many processes compile at once: 2 when this process may use 2 cores or more."""
+    """How many processes compile at once: 2 when this process may use 2 cores or more and
+    can fork (``_fork_compiling``)."""
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return 2 if (cores or 1) >= 2 else 1
+    return 2 if (cores or 1) >= 2 and hasattr(os, "fork") else 1
 
 
 def cold_kernel_seconds() -> float:
@@ -174,6 +176,26 @@ def compile_kernels(kernels) -> None:
                 dispatcher.compile(signature)
 
 
+def _fork_compiling(kernels: tuple[EntryKernel, ...]) -> int:
+    """Forks a child process that compiles ``kernels`` into the shared cache (its output
+    discarded, the collector off: it compiles and exits, ``os._exit``, without the parent's
+    clean-up) and returns its process id. Forked, it starts with this process's imports
+    (numba, the kernels' modules) done: the second process's start-up is a fork's."""
+    child = os.fork()
+    if child == 0:
+        code = 1
+        try:
+            devnull = os.open(os.devnull, os.O_RDWR)
+            for stream in (0, 1, 2):
+                os.dup2(devnull, stream)
+            gc.disable()
+            compile_kernels(kernels)
+            code = 0
+        finally:
+            os._exit(code)  # never back into the parent's code, whatever happened
+    return child
+
+
 class Compilation:
     """Compiling ``kernels`` (entry kernels missing from the cache) before a run: on 2 cores
     or more, the later half (``split``) starts at once in a child process, compiling into the
@@ -183,16 +205,7 @@ class Compilation:
     def __init__(self, kernels: tuple[EntryKernel, ...]):
         self._here, there = parts(kernels)
         self.seconds = added_seconds(self._here, there)
-        self._child = None
-        if there:
-            package_root = str(pathlib.Path(__file__).resolve().parents[2])
-            env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-                [package_root, *filter(None, [os.environ.get("PYTHONPATH")])]))
-            self._child = subprocess.Popen(
-                [sys.executable, "-m", "mrta_drake.stack.kernel_cache", "compile",
-                 json.dumps([dataclasses.asdict(k) for k in there])],
-                env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                stderr=subprocess.DEVNULL)
+        self._child = _fork_compiling(there) if there else None
 
     @staticmethod
     def estimate(kernels: tuple[EntryKernel, ...]) -> float:
@@ -204,13 +217,14 @@ class Compilation:
         """Compiles this process's half and waits for the child's."""
         compile_kernels(self._here)
         if self._child is not None:
-            self._child.wait()
+            os.waitpid(self._child, 0)
+            self._child = None
 
     def cancel(self) -> None:
-        """Stops the child (the run will not happen)."""
+        """Stops the child, unless ``finish`` waited for it (the run will not happen)."""
         if self._child is not None:
-            self._child.kill()
-            self._child.wait()
+            os.kill(self._child, signal.SIGKILL)
+            os.waitpid(self._child, 0)
 
 
 def _record(out: pathlib.Path) -> None:
@@ -282,23 +296,15 @@ def _record(out: pathlib.Path) -> None:
 
 
 def main(argv=None) -> int:
-    """``record``: rewrite the manifest (see the module docstring); ``compile KERNELS``:
-    compile the entry kernels KERNELS, a JSON list of ``EntryKernel`` fields (what
-    ``Compilation``'s child runs)."""
+    """``record``: rewrite the manifest (see the module docstring)."""
     argv = sys.argv[1:] if argv is None else argv
-    # This process compiles and exits: collecting garbage (and walking numba's compiler state,
-    # as its teardown would) only costs time, on the cold run's critical path in ``compile``;
-    # ``record`` measures the kernels as the CLI compiles them, without collecting.
+    # ``record`` measures the kernels as the CLI compiles them: without collecting garbage
+    # (numba's compiler makes cycles by the million; collecting them only costs time).
     gc.disable()
     if argv == ["record"]:
         _record(MANIFEST)
         return 0
-    if len(argv) == 2 and argv[0] == "compile":
-        compile_kernels(EntryKernel(**k) for k in json.loads(argv[1]))
-        gc.freeze()
-        return 0
-    print("usage: python -m mrta_drake.stack.kernel_cache record | compile KERNELS",
-          file=sys.stderr)
+    print("usage: python -m mrta_drake.stack.kernel_cache record", file=sys.stderr)
     return 2
 
 
