@@ -116,6 +116,8 @@ class BuildContext:
     def lifts(self) -> tuple:
         """The lifts (``LiftSpec``) robots ride: those of a building run across levels,
         else none."""
+        if self.scenario.world.kind != "rmf_building":  # no building: no import of one
+            return ()
         from mrta_drake.world.rmf_scenario import building_lifts
 
         return building_lifts(self.scenario)
