@@ -7,6 +7,14 @@ Names are imported on first use, so ``import mrta_drake.errors`` stays light.
 """
 
 import importlib
+import os
+
+# numba formats an error message for every overload it tries and rejects while typing a
+# kernel (thousands per kernel), and with highlighting on each one re-initialises colorama
+# around stdout and stderr: ~9 % of compiling the controller's kernels (docs/benchmarks.md,
+# "The first run", ninth round). numba's documented switch turns highlighting off (its
+# messages lose their bold, nothing else) when numba is imported after this package.
+os.environ.setdefault("NUMBA_DISABLE_ERROR_MESSAGE_HIGHLIGHTING", "1")
 
 _PUBLIC = {
     "load_scenario": "mrta_drake.scenario.loading",

@@ -4,6 +4,7 @@ the manifest lists the argument types the quickstart's stack calls its kernels w
 
 import importlib
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -126,3 +127,14 @@ def test_the_manifest_lists_what_the_quickstart_calls():
     for kernel in kernel_cache.ENTRY_KERNELS:
         assert set(called[f"{kernel.module}.{kernel.name}"]) <= set(kernel.signatures), (
             kernel.module, kernel.name)
+
+
+def test_numba_imported_after_the_package_formats_its_messages_without_highlighting():
+    """Highlighting re-initialises colorama for each of the thousands of messages numba
+    formats (and drops) while typing a kernel: the package turns it off."""
+    said = subprocess.run([sys.executable, "-c", "import mrta_drake, numba.core.errors as e; "
+                           "print(type(e.termcolor()).__name__)"], capture_output=True,
+                          text=True, check=True,
+                          env={k: v for k, v in os.environ.items()
+                               if k != "NUMBA_DISABLE_ERROR_MESSAGE_HIGHLIGHTING"})
+    assert said.stdout.strip() == "NOPColorScheme"
