@@ -493,10 +493,7 @@ class WaypointPolicy:
         reads neither the time, nor any robot's state, nor the lifts, and returns ``s``
         itself for any inputs with the same ``plan``, ``queues``, ``disturbances`` and
         ``back_offs`` (the same objects), so the fleet block skips it
-        (``FleetWaypoints``). Always False for a subclass that does not define ``rests``
-        itself: what its robots do at rest is its own."""
-        if type(self) is not WaypointPolicy and type(self).rests is WaypointPolicy.rests:
-            return False
+        (``FleetWaypoints``)."""
         if s.stop is not None or not (s.phase == RobotMode.PARK or (
                 s.phase == RobotMode.IDLE
                 and (s.last_location is None or not self._params.parking))):
@@ -1050,9 +1047,10 @@ class FleetWaypoints(LeafSystem):
     robot order; the robots' states are one abstract state, their tuple in robot order
     (``_FleetState``: Drake copies it at each update, as itself). ``policies`` (one per
     robot, in ``robot_names`` order) are ``WaypointPolicy`` objects (the behaviour is
-    described there) or any objects with the same ``robot``, ``initial_state``, ``update``
-    and ``outputs``, and optionally ``rests`` (a state must be an immutable value and
-    ``update`` must return the very same object when nothing changes).
+    described there) or any objects with the same ``robot``, ``initial_state``, ``update``,
+    ``outputs`` and ``rests`` (a state must be an immutable value and ``update`` must return
+    the very same object when nothing changes; ``rests(state, inputs)`` may always be
+    False).
 
     A robot whose policy said, of the state its last update made, that it rests
     (``WaypointPolicy.rests``) is not updated again while its state and the inputs' ``plan``,
@@ -1113,10 +1111,8 @@ class FleetWaypoints(LeafSystem):
                 lambda context, output, name=name: output.set_value(self._fleet(context, name)),
                 prerequisites_of_calc=tickets)
         self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate_hz, 0.0, self._update)
-        # Per robot: its policy's ``rests`` (None without one), and (state, plan, queues,
-        # disturbances, back_offs) of an update that left it resting, else None (see the
-        # class docstring).
-        self._rests = tuple(getattr(policy, "rests", None) for policy in self._policies)
+        # Per robot: (state, plan, queues, disturbances, back_offs) of an update that left it
+        # resting, else None (see the class docstring).
         self._resting: list[tuple | None] = [None] * len(self._policies)
 
     def _robots(self, context) -> tuple:
@@ -1147,8 +1143,6 @@ class FleetWaypoints(LeafSystem):
                 and resting[4] is inputs.back_offs):
             return s
         s = policy.update(s, inputs)
-        rests = self._rests[k]
         self._resting[k] = ((s, inputs.plan, inputs.queues, inputs.disturbances,
-                             inputs.back_offs) if rests is not None and rests(s, inputs)
-                            else None)
+                             inputs.back_offs) if policy.rests(s, inputs) else None)
         return s

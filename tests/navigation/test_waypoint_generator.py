@@ -480,26 +480,6 @@ def test_a_resting_robot_updates_to_itself_whatever_the_time_and_positions():
     assert not resting(_Drive(phase=RobotMode.QUEUE, stop=Stop("a", B)), RoomQueue(B))[0]
 
 
-def test_a_subclass_rests_only_by_its_own_rests():
-    # What a subclass's robots do at rest is its own: the fleet block skips none of them
-    # unless the subclass says when they rest.
-    class Patrolling(WaypointPolicy):
-        pass
-
-    class Resting(WaypointPolicy):
-        def rests(self, s, inputs):
-            return super().rests(s, inputs)
-
-    generator, context, _ = at_b(RoomQueue(B), _Drive(phase=RobotMode.PARK, last_location=B))
-    generator.GetInputPort("plan").FixValue(context, plan())
-    inputs = WaypointInputs(generator._inputs, context)
-    parked = _Drive(phase=RobotMode.PARK, last_location=B, index=0)
-    roadways = loop_world(parking=True)
-    assert not Patrolling(["r0", "r1"], 0, roadways, A).rests(parked, inputs)
-    assert Resting(["r0", "r1"], 0, roadways, A).rests(parked, inputs)
-    assert WaypointPolicy(["r0", "r1"], 0, roadways, A).rests(parked, inputs)
-
-
 def test_a_robot_parked_at_one_room_gives_back_another_it_holds():
     # r0 parked on B's second spot with nothing to do, still holding A and standing by A's
     # point: it is not parked at A (its spot index is B's), so it gives A back.
