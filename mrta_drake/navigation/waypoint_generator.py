@@ -486,22 +486,6 @@ class WaypointPolicy:
             s = replace(s, began=t)
         return s
 
-    def rests(self, s: _Drive, inputs: WaypointInputs) -> bool:
-        """Whether the robot rests in ``s``, made by ``update`` from ``inputs``: with no
-        stop, idle where it parks nowhere (no last location, or ``parking`` off) or parked,
-        holding no room (per ``inputs.queues``) and under no back-off order. Then ``update``
-        reads neither the time, nor any robot's state, nor the lifts, and returns ``s``
-        itself for any inputs with the same ``plan``, ``queues``, ``disturbances`` and
-        ``back_offs`` (the same objects), so the fleet block skips it
-        (``FleetWaypoints``)."""
-        if s.stop is not None or not (s.phase == RobotMode.PARK or (
-                s.phase == RobotMode.IDLE
-                and (s.last_location is None or not self._params.parking))):
-            return False
-        if inputs.back_offs.of(self._robot) is not None:
-            return False
-        return all(queue.holder != self._robot for queue in inputs.queues.rooms)
-
     def _stops(self, plan: FleetPlan) -> tuple[Stop, ...]:
         plans = plan.plans
         if self._index < len(plans) and plans[self._index].robot == self._robot:
@@ -1047,16 +1031,9 @@ class FleetWaypoints(LeafSystem):
     robot order; the robots' states are one abstract state, their tuple in robot order
     (``_FleetState``: Drake copies it at each update, as itself). ``policies`` (one per
     robot, in ``robot_names`` order) are ``WaypointPolicy`` objects (the behaviour is
-    described there) or any objects with the same ``robot``, ``initial_state``, ``update``,
-    ``outputs`` and ``rests`` (a state must be an immutable value and ``update`` must return
-    the very same object when nothing changes; ``rests(state, inputs)`` may always be
-    False).
-
-    A robot whose policy said, of the state its last update made, that it rests
-    (``WaypointPolicy.rests``) is not updated again while its state and the inputs' ``plan``,
-    ``queues``, ``disturbances`` and ``back_offs`` are those same objects: its update would
-    return that state. That memo (``_resting``, per robot) is a cache, not state: the same
-    results with it or without it.
+    described there) or any objects with the same ``robot``, ``initial_state``, ``update``
+    and ``outputs`` (a state must be an immutable value and ``update`` must return the very
+    same object when nothing changes).
 
     .. pydrake_system::
 
@@ -1111,9 +1088,6 @@ class FleetWaypoints(LeafSystem):
                 lambda context, output, name=name: output.set_value(self._fleet(context, name)),
                 prerequisites_of_calc=tickets)
         self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate_hz, 0.0, self._update)
-        # Per robot: (state, plan, queues, disturbances, back_offs) of an update that left it
-        # resting, else None (see the class docstring).
-        self._resting: list[tuple | None] = [None] * len(self._policies)
 
     def _robots(self, context) -> tuple:
         return context.get_abstract_state(self._state_index).get_value().robots
@@ -1126,23 +1100,10 @@ class FleetWaypoints(LeafSystem):
     def _update(self, context, state) -> EventStatus:
         inputs = WaypointInputs(self._inputs, context)
         old = self._robots(context)
-        new = tuple(self._update_robot(k, policy, s, inputs)
-                    for k, (policy, s) in enumerate(zip(self._policies, old, strict=True)))
+        new = tuple(policy.update(s, inputs)
+                    for policy, s in zip(self._policies, old, strict=True))
         if all(a is b for a, b in zip(new, old, strict=True)):
             return EventStatus.DidNothing()  # Drake applies an instant's updates only if one
             # changed
         state.get_mutable_abstract_state(self._state_index).set_value(_FleetState(new))
         return EventStatus.Succeeded()
-
-    def _update_robot(self, k: int, policy, s, inputs: WaypointInputs):
-        """Robot ``k``'s state after this update: ``s`` itself while it rests on the same
-        inputs (the class docstring), else its policy's update."""
-        resting = self._resting[k]
-        if (resting is not None and resting[0] is s and resting[1] is inputs.plan
-                and resting[2] is inputs.queues and resting[3] is inputs.disturbances
-                and resting[4] is inputs.back_offs):
-            return s
-        s = policy.update(s, inputs)
-        self._resting[k] = ((s, inputs.plan, inputs.queues, inputs.disturbances,
-                             inputs.back_offs) if policy.rests(s, inputs) else None)
-        return s

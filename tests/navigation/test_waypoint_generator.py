@@ -15,7 +15,6 @@ from mrta_drake.navigation.room_queues import RoomQueues
 from mrta_drake.navigation.single_file import NOTHING, Need
 from mrta_drake.navigation.waypoint_generator import (
     WaypointGenerator,
-    WaypointInputs,
     WaypointParams,
     WaypointPolicy,
     _Drive,
@@ -23,8 +22,6 @@ from mrta_drake.navigation.waypoint_generator import (
 from mrta_drake.payloads import (
     NO_BACK_OFFS,
     NO_DISTURBANCES,
-    BackOff,
-    BackOffOrders,
     Breakdown,
     Disturbances,
     FleetPlan,
@@ -440,44 +437,6 @@ def at_b(queue: RoomQueue | QueueState, drive: _Drive, params: WaypointParams | 
         context, queue if isinstance(queue, QueueState) else QueueState((queue,)))
     context.SetAbstractState(0, drive)
     return generator, context, roadways.place(B)
-
-
-def resting(drive: _Drive, queue: RoomQueue, back_offs: BackOffOrders = NO_BACK_OFFS,
-            params: WaypointParams | None = None):
-    """Whether r0 in state ``drive`` (no stops) rests (``WaypointPolicy.rests``), and
-    whether then its updates at other times, with both robots elsewhere, return ``drive``
-    itself."""
-    generator, context, _ = at_b(queue, drive, params)
-    generator.GetInputPort("plan").FixValue(context, plan())
-    generator.GetInputPort("back_offs").FixValue(context, back_offs)
-    policy = generator._policy
-    rests = policy.rests(drive, WaypointInputs(generator._inputs, context))
-    same = []
-    for t, xy in ((3.0, (17.0, 5.0)), (40.0, (0.0, 0.0)), (41.5, (9.0, 2.0))):
-        context.SetTime(t)
-        generator.GetInputPort("robot_state").FixValue(context, [*xy, 0.0, 0.0, 5.0, 5.0, 0.0,
-                                                                 0.4])
-        same.append(policy.update(drive, WaypointInputs(generator._inputs, context)) is drive)
-    return rests, all(same)
-
-
-def test_a_resting_robot_updates_to_itself_whatever_the_time_and_positions():
-    # The fleet block skips a resting robot while the plan, queues, disturbances and
-    # back-offs stay the same objects: its update must not read anything else.
-    parked = _Drive(phase=RobotMode.PARK, last_location=B, index=0)
-    away = _Drive(phase=RobotMode.IDLE, last_location=None)
-    assert resting(parked, RoomQueue(B)) == (True, True)
-    assert resting(away, RoomQueue(B)) == (True, True)
-    no_parking = WaypointParams(parking=False)
-    assert resting(_Drive(phase=RobotMode.IDLE, last_location=B), RoomQueue(B),
-                   params=no_parking) == (True, True)
-    # Not resting: idle at a location where it may park (its position decides), holding a
-    # room, under a back-off order, or with a stop.
-    assert not resting(_Drive(phase=RobotMode.IDLE, last_location=B), RoomQueue(B))[0]
-    assert not resting(parked, RoomQueue(B, holder="r0"))[0]
-    order = BackOff("r0", (9.0, 2.0), 0.0, 60.0, releases=True)
-    assert not resting(away, RoomQueue(B), BackOffOrders((order,), (order,)))[0]
-    assert not resting(_Drive(phase=RobotMode.QUEUE, stop=Stop("a", B)), RoomQueue(B))[0]
 
 
 def test_a_robot_parked_at_one_room_gives_back_another_it_holds():
