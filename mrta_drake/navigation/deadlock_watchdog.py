@@ -116,6 +116,7 @@ class DeadlockWatchdog(LeafSystem):
         input_ports:
         - robot_state
         - target_<robot>
+        - fleet_targets (optional)
         - human_states (optional)
         - disturbances (optional)
         - queue_state (optional)
@@ -127,7 +128,8 @@ class DeadlockWatchdog(LeafSystem):
 
     Inputs: ``robot_state`` (vector, 4N: x, y, theta, v per robot, world frame, m, rad,
     m/s), ``target_<robot>`` (abstract ``WaypointTarget``, each waypoint generator's), one
-    per robot in ``robot_names`` order, and optionally ``human_states`` (``HumanStates``):
+    per robot in ``robot_names`` order (or instead ``fleet_targets``, their tuple in that
+    order: ``stack.fleet_inputs``), and optionally ``human_states`` (``HumanStates``):
     back-off spots keep clear of people, and ``disturbances`` (``Disturbances``): a
     broken-down robot is never asked to yield; ``queue_state`` (``QueueState``) with each
     robot's ``queue_request_<robot>`` (``QueueRequest``, or instead ``fleet_queue_requests``,
@@ -221,9 +223,7 @@ class DeadlockWatchdog(LeafSystem):
             Value[object](_WatchdogState((None,) * n, gridlocked=(None,) * n)))
         self._robot_state = self.DeclareVectorInputPort(
             "robot_state", BasicVector(ROBOT_STATE_SIZE * n))
-        self._targets = [
-            self.DeclareAbstractInputPort(f"target_{robot}", Value[object](WaypointTarget(robot)))
-            for robot in self._robots]
+        self._targets = PerRobotInputs(self, "target", "targets", self._robots, WaypointTarget)
         self._humans = self.DeclareAbstractInputPort("human_states", Value[object](NO_HUMANS))
         self._disturbances = self.DeclareAbstractInputPort(
             "disturbances", Value[object](NO_DISTURBANCES))
@@ -244,7 +244,7 @@ class DeadlockWatchdog(LeafSystem):
         old = context.get_abstract_state(self._state_index).get_value()
         now = context.get_time()
         states = self._robot_state.Eval(context).reshape(-1, ROBOT_STATE_SIZE)
-        targets = [port.Eval(context) for port in self._targets]
+        targets = self._targets.values(context)
         active, missed = self._in_force(old.orders.active, states, now)
         misses = tuple(m for m in old.misses + missed
                        if m.until > now - self._params.retry_window + 1e-9)

@@ -26,10 +26,10 @@ humans      robot_state (4N)                      human_states (HumanStates), pl
 lifts       request_<robot> (LiftRequest),        lift_state (LiftState), relocations,
             robot_state (4N)                      events (only with lifts: a building run
                                                   across levels)
-watchdog    robot_state (4N), target_<robot>,     back_offs (BackOffOrders; not in the
-            human_states, queue_state,            diagram when its ``enabled`` is off)
-            queue_request_<robot> (or
-            fleet_queue_requests), lift_state
+watchdog    robot_state (4N), target_<robot> (or  back_offs (BackOffOrders; not in the
+            fleet_targets), human_states,         diagram when its ``enabled`` is off)
+            queue_state, queue_request_<robot>
+            (or fleet_queue_requests), lift_state
             (optional)
 network     robot_state (4N), leader_commands     views (NetworkViews) (only when the
             (CommandMessages)                     ``communication:`` is not ideal)

@@ -147,8 +147,9 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
         builder.Connect(state, humans.GetInputPort("robot_state"))
         builder.Connect(humans.GetOutputPort("human_states"),
                         controller.GetInputPort("human_states"))
-    watchdog = _add_watchdog(builder, scenario, make, state, waypoints("target"), planner,
-                             humans)
+    watchdog = _add_watchdog(builder, scenario, make, state, planner, humans)
+    if watchdog is not None:
+        per_robot("target", watchdog, "target", "targets")
     if watchdog is not None and watchdog.HasInputPort("queue_state"):
         # Who waits for whom (gridlocks of waits); the waypoints drop a giving-way robot's
         # claims.
@@ -293,17 +294,14 @@ def _add_levels_view(builder: DiagramBuilder, ctx: BuildContext, meshcat: Meshca
 
 
 def _add_watchdog(builder: DiagramBuilder, scenario: Scenario, make, state,
-                  targets: list[OutputPort], planner: LeafSystem,
-                  humans: LeafSystem | None) -> LeafSystem | None:
-    """The deadlock watchdog, between the waypoints block (each robot's ``target`` in
-    ``targets``) and the planner (None when the scenario turns it off)."""
+                  planner: LeafSystem, humans: LeafSystem | None) -> LeafSystem | None:
+    """The deadlock watchdog, before the planner (None when the scenario turns it off); the
+    caller connects the waypoints block's targets to it."""
     _, params = resolve_block(scenario, "watchdog")
     if not getattr(params, "enabled", True):
         return None
     watchdog = builder.AddNamedSystem("watchdog", make("watchdog"))
     builder.Connect(state, watchdog.GetInputPort("robot_state"))
-    for target, robot in zip(targets, scenario.robots, strict=True):
-        builder.Connect(target, watchdog.GetInputPort(f"target_{robot.name}"))
     if humans is not None and watchdog.HasInputPort("human_states"):
         builder.Connect(humans.GetOutputPort("human_states"),
                         watchdog.GetInputPort("human_states"))

@@ -269,6 +269,8 @@ class RunRecorder(LeafSystem):
                 modes[k] = _SERVE
             else:
                 modes[k] = _DRIVE
+        if _QUEUE not in modes:
+            return np.array(modes, dtype=np.int8)  # no wait to test for a gridlock
         moving = (np.abs(states[:, 3]) > ROBOT_STOPPED_SPEED).tolist()
         live = at_lifts.union(name for k, name in enumerate(self.robot_names)
                               if moving[k] or modes[k] == _SERVE)
