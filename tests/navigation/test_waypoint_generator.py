@@ -362,6 +362,23 @@ def test_a_robot_done_at_a_room_whose_parking_spots_are_taken_drives_home():
     assert final.room(B).holder is None
 
 
+def test_a_robot_without_a_home_whose_parking_spots_are_taken_parks_at_a_free_one_elsewhere():
+    # Three robots that started on locations (no home) serve B, which has two parking
+    # spots: the first two park there, the third finds both taken and drives to the
+    # nearest free parking spot on the level, A's first. Before, it parked on B's last
+    # spot beside the robot there (the airport terminal: up to three robots jostling
+    # round one of zone_2's spots for the rest of the run).
+    world = World([A, C, C], fixed([B], [B], [B]), parking=True)
+    world.run(until=150.0)
+    assert all([v.location for v in world.progress(i).visits] == [B] for i in range(3))
+    _, final, positions, targets = world.log[-1]
+    at = [[int(np.linalg.norm(np.subtract(p, spot)) < 1e-6) for p in positions]
+          for spot in (*world.roadways.place(B).parking, world.roadways.place(A).parking[0])]
+    assert [sum(row) for row in at] == [1, 1, 1]
+    assert all(t.active for t in targets)
+    assert final.room(A).holder is None and final.room(B).holder is None
+
+
 def test_a_robot_done_at_a_room_drives_home_on_its_level_though_another_robot_stands_there():
     # r1 (home at 20, 0) stands idle on r0's home (10, 0) as r0 serves B, which has no
     # parking spot: r0 drives back to its own home all the same. Before, it drove to r1's
