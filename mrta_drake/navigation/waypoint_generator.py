@@ -349,7 +349,9 @@ class WaypointPolicy:
     robot's free start spot; only with none free does it park on the last spot, beside the
     robot there (before, every such robot did: the airport terminal's seeds 0-7 each ended
     with two or three robots jostling round one parking spot, 6-18 m driven in the last
-    200 s).
+    200 s). A robot parking, or driving to wait at a spot not its home, that another robot
+    stands nearer chooses again from where it is (``_keep_spot``): two robots that chose
+    one free spot at once would otherwise circle each other round it.
     A parked robot given a stop starts it as if standing on the location's point.
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
@@ -502,7 +504,7 @@ class WaypointPolicy:
                      t: float) -> _Drive:
         if stop is None:
             if s.phase in (RobotMode.PARK, RobotMode.HOME):
-                return s
+                return self._keep_spot(s, robots, lanes)
             place = None if s.last_location is None else self._roadways.place(s.last_location)
             if (not self._params.parking or place is None
                     or _distance(robots.xy, place.point) > self._params.reach_tolerance):
@@ -547,6 +549,35 @@ class WaypointPolicy:
             return _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0, since=None)
         route = _points(lanes.leg_to_spot(place.id, home))
         return replace(s, phase=RobotMode.HOME, stop=None, route=route, index=0, since=None)
+
+    def _keep_spot(self, s: _Drive, robots: _Robots, lanes: Roadways) -> _Drive:
+        """Parking, or driving to wait at a spot that is not its home: where another robot
+        stands nearer that spot (as near and first in robot order), within
+        ``parking_clearance`` of it (it chose the spot too, seeing it free), choose again
+        as when done at the location, from where the robot is: another free parking spot
+        there, else ``_home_spot``'s; with none, keep the spot. Before, the two robots
+        circled each other round the spot to the end (the airport terminal, seed 7:
+        robot4 and robot5 round zone_2's second spot from 225 s)."""
+        spot = (_point(self._roadways.place(s.last_location).parking[s.index])
+                if s.phase == RobotMode.PARK else _point(s.route[-1]))
+        if spot == self._home:
+            return s
+        gaps = np.linalg.norm(robots.states[:, :2] - np.asarray(spot), axis=1)
+        mine = (gaps[self._index], self._index)
+        if not any(gap <= self._params.parking_clearance and (gap, j) < mine
+                   for j, gap in enumerate(gaps) if j != self._index):
+            return s
+        others = np.delete(robots.states[:, :2], self._index, axis=0)
+        place = self._roadways.place(s.last_location)
+        if s.phase == RobotMode.PARK:
+            index = self._free_parking(place, others)
+            if index is not None:
+                return replace(s, index=index)
+        new = self._home_spot(place, lanes, others)
+        if new is None or new == spot:
+            return s
+        return replace(s, phase=RobotMode.HOME, route=_points(lanes.route_to_spot(robots.xy, new)),
+                       index=0, since=None)
 
     def _home_spot(self, place, lanes: Roadways, others: np.ndarray
                    ) -> tuple[float, float] | None:

@@ -379,6 +379,20 @@ def test_a_robot_without_a_home_whose_parking_spots_are_taken_parks_at_a_free_on
     assert final.room(A).holder is None and final.room(B).holder is None
 
 
+def test_robots_that_chose_one_parking_spot_together_share_the_spots_out():
+    # Three robots without a home stand on B's point with nothing to do: each sees B's
+    # first spot free and drives there. The one nearer it (first in robot order when as
+    # near) keeps it; the second takes B's other spot, the third the nearest free spot
+    # on the level, A's first. Before, all three stood on B's first spot to the end (the
+    # airport terminal, seed 7: two robots circling round one of zone_2's spots).
+    world = World([B, B, B], fixed([], [], []), parking=True)
+    world.run(until=60.0)
+    _, _, positions, targets = world.log[-1]
+    spots = [*world.roadways.place(B).parking, world.roadways.place(A).parking[0]]
+    np.testing.assert_allclose(positions, spots, atol=1e-6)
+    assert all(t.active for t in targets)
+
+
 def test_a_robot_done_at_a_room_drives_home_on_its_level_though_another_robot_stands_there():
     # r1 (home at 20, 0) stands idle on r0's home (10, 0) as r0 serves B, which has no
     # parking spot: r0 drives back to its own home all the same. Before, it drove to r1's
