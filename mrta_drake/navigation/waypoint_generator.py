@@ -803,7 +803,13 @@ class WaypointPolicy:
         # them up for an update and then waits for them all (office seed 6: a robot served
         # beside a segment kept it from serving there into its next run, and waited for
         # the rest, held by the robot standing on its way that waited for that segment).
+        # Only for a segment another robot holds: with the rest free it would be granted
+        # the rest at once, give up those for the ones dropped, and so on, every update
+        # (the campus, seed 10: robot1, served 0.58 m off room_3's point, so standing in
+        # no segment, held segments 6 and 5 in turn from 262 s to the end).
         held = self._held(queues)
+        if all(set(queues.segments[k].holders) <= {self._robot} for k, _ in wanted.segments):
+            return wanted
         dropped = {k for k, _ in wanted.segments if k in held}.difference(
             stands_in(self._roadways, robots.xy, self._params.single_file))
         if dropped:

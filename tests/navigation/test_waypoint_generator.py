@@ -693,3 +693,19 @@ def test_a_robot_held_back_gives_up_the_segments_of_its_run_it_does_not_stand_in
     assert again.lanes == Need(((0, False), (1, False)), hold=True)
     inside = policy.update(s, _Inputs(10.0, part, [[15.0, 0.2, 0.0, 0.0]]))
     assert inside.lanes == Need(((0, False), (1, False)), hold=True)
+
+
+def test_a_robot_held_back_whose_missing_segments_are_free_keeps_those_it_holds():
+    # As above, but no other robot holds W-J: r0 asks for the whole run at once, keeping
+    # J-E, and likewise holding W-J but not J-E. Before, it gave J-E up and asked for W-J
+    # alone, was granted it, gave it up for J-E, and so on every update, standing (the
+    # campus, seed 10: robot1, served 0.58 m off room_3's point and so standing in no
+    # segment, held its two segments in turn from 262 s to the end; 10 of 18 tasks).
+    policy = WaypointPolicy(["r0"], 0, spur_world(), None, WaypointParams())
+    route = ((14.0, 1.5), (20.0, 0.0), (10.0, 0.0), (0.0, 0.0))
+    s = _Drive(phase=RobotMode.HOME, route=route, index=1)
+    whole = Need(((0, False), (1, False)), hold=True)
+    for held in (1, 0):
+        queues = QueueState(segments=tuple(SegmentHold(("r0",) if k == held else (), False)
+                                           for k in range(3)))
+        assert policy.update(s, _Inputs(10.0, queues, [[13.5, 1.5, 0.0, 0.0]])).lanes == whole
