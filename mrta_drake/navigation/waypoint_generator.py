@@ -347,11 +347,12 @@ class WaypointPolicy:
     A robot without a home (it started on a location) whose location's spots are all taken
     drives likewise to the nearest free parking spot elsewhere on its level, else another
     robot's free start spot; only with none free does it park on the last spot, beside the
-    robot there (before, every such robot did: the airport terminal's seeds 0-7 each ended
-    with two or three robots jostling round one parking spot, 6-18 m driven in the last
-    200 s). A robot parking, or driving to wait at a spot not its home, that another robot
-    stands nearer chooses again from where it is (``_keep_spot``): two robots that chose
-    one free spot at once would otherwise circle each other round it.
+    robot there (before, every such robot did: on the airport terminal's seeds 0, 1 and
+    3-7 two or three robots circled each other round one parking spot to the end, 9-27 m
+    driven by robots idle for over 60 s, per run). A robot parking, or driving to wait at
+    a spot not its home, that another robot stands nearer chooses again from where it is
+    (``_keep_spot``): two robots that chose one free spot at once would otherwise circle
+    each other round it.
     A parked robot given a stop starts it as if standing on the location's point.
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
