@@ -361,10 +361,18 @@ class Roadways:
         the lanes, without lift rides, to the roadway node nearest ``xy`` it leads to, then
         ``xy`` (a robot's start spot, m)."""
         start = self.place(from_location)
-        reached = self._without_lifts(start.exit_node)
-        nearest = self._nearest(reached, xy)
-        return _without_repeats([*self.way_out(start),
-                                 *(self.node_position(n) for n in reached[nearest]), xy])
+        return _without_repeats([*self.way_out(start), *self._to_spot(start.exit_node, xy)])
+
+    def route_to_spot(self, at, xy) -> np.ndarray:
+        """The polyline (k, 2) from the roadway node nearest ``at`` along the lanes, without
+        lift rides, to the roadway node nearest ``xy`` it leads to, then ``xy`` (m): for a
+        robot away from any location's point that drives to a waiting spot."""
+        return _without_repeats(self._to_spot(self._nearest(self.graph.nodes, at), xy))
+
+    def _to_spot(self, node: str, xy) -> list:
+        reached = self._without_lifts(node)
+        return [*(self.node_position(n) for n in reached[self._nearest(reached, xy)]),
+                np.asarray(xy, dtype=float)]
 
     def spots_reached(self, from_location: int, spots) -> list:
         """Of ``spots`` ((x, y) m each), in their order, those whose nearest roadway node is

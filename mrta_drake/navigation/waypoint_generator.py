@@ -344,6 +344,15 @@ class WaypointPolicy:
     another level, to the nearest free parking spot on its level, else the nearest free one
     of ``spots`` (the other robots' start spots) there (``_home_spot``); elsewhere, or with
     no such spot (it started on a location), the target is inactive and it stands still.
+    A robot without a home (it started on a location) whose location's spots are all taken
+    drives likewise to the nearest free parking spot elsewhere on its level, else another
+    robot's free start spot; only with none free does it park on the last spot, beside the
+    robot there (before, every such robot did: on the airport terminal's seeds 0, 1 and
+    3-7 two or three robots circled each other round one parking spot to the end, 9-27 m
+    driven by robots idle for over 60 s, per run). A robot parking, or driving to wait at
+    a spot not its home, that another robot stands nearer chooses again from where it is
+    (``_keep_spot``): two robots that chose one free spot at once would otherwise circle
+    each other round it.
     A parked robot given a stop starts it as if standing on the location's point.
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
@@ -496,7 +505,7 @@ class WaypointPolicy:
                      t: float) -> _Drive:
         if stop is None:
             if s.phase in (RobotMode.PARK, RobotMode.HOME):
-                return s
+                return self._keep_spot(s, robots, lanes)
             place = None if s.last_location is None else self._roadways.place(s.last_location)
             if (not self._params.parking or place is None
                     or _distance(robots.xy, place.point) > self._params.reach_tolerance):
@@ -504,7 +513,8 @@ class WaypointPolicy:
                                 since=None)
             others = np.delete(robots.states[:, :2], self._index, axis=0)
             spot = self._free_parking(place, others)
-            if spot is None and (self._home is not None or not len(place.parking)):
+            if spot is None and (self._home is not None or not len(place.parking)
+                                 or self._home_spot(place, lanes, others) is not None):
                 return self._go_home(s, place, lanes, others)
             return replace(s, phase=RobotMode.PARK, stop=None, route=(), since=None,
                            index=len(place.parking) - 1 if spot is None else spot)
@@ -540,6 +550,35 @@ class WaypointPolicy:
             return _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0, since=None)
         route = _points(lanes.leg_to_spot(place.id, home))
         return replace(s, phase=RobotMode.HOME, stop=None, route=route, index=0, since=None)
+
+    def _keep_spot(self, s: _Drive, robots: _Robots, lanes: Roadways) -> _Drive:
+        """Parking, or driving to wait at a spot that is not its home: where another robot
+        stands nearer that spot (as near and first in robot order), within
+        ``parking_clearance`` of it (it chose the spot too, seeing it free), choose again
+        as when done at the location, from where the robot is: another free parking spot
+        there, else ``_home_spot``'s; with none, keep the spot. Before, the two robots
+        circled each other round the spot to the end (the airport terminal, seed 7:
+        robot4 and robot5 round zone_2's second spot from 225 s)."""
+        spot = (_point(self._roadways.place(s.last_location).parking[s.index])
+                if s.phase == RobotMode.PARK else _point(s.route[-1]))
+        if spot == self._home:
+            return s
+        gaps = np.linalg.norm(robots.states[:, :2] - np.asarray(spot), axis=1)
+        mine = (gaps[self._index], self._index)
+        if not any(gap <= self._params.parking_clearance and (gap, j) < mine
+                   for j, gap in enumerate(gaps) if j != self._index):
+            return s
+        others = np.delete(robots.states[:, :2], self._index, axis=0)
+        place = self._roadways.place(s.last_location)
+        if s.phase == RobotMode.PARK:
+            index = self._free_parking(place, others)
+            if index is not None:
+                return replace(s, index=index)
+        new = self._home_spot(place, lanes, others)
+        if new is None or new == spot:
+            return s
+        return replace(s, phase=RobotMode.HOME, route=_points(lanes.route_to_spot(robots.xy, new)),
+                       index=0, since=None)
 
     def _home_spot(self, place, lanes: Roadways, others: np.ndarray
                    ) -> tuple[float, float] | None:
@@ -765,7 +804,13 @@ class WaypointPolicy:
         # them up for an update and then waits for them all (office seed 6: a robot served
         # beside a segment kept it from serving there into its next run, and waited for
         # the rest, held by the robot standing on its way that waited for that segment).
+        # Only for a segment another robot holds: with the rest free it would be granted
+        # the rest at once, give up those for the ones dropped, and so on, every update
+        # (the campus, seed 10: robot1, served 0.58 m off room_3's point, so standing in
+        # no segment, held segments 6 and 5 in turn from 262 s to the end).
         held = self._held(queues)
+        if all(set(queues.segments[k].holders) <= {self._robot} for k, _ in wanted.segments):
+            return wanted
         dropped = {k for k, _ in wanted.segments if k in held}.difference(
             stands_in(self._roadways, robots.xy, self._params.single_file))
         if dropped:

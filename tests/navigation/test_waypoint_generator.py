@@ -362,6 +362,37 @@ def test_a_robot_done_at_a_room_whose_parking_spots_are_taken_drives_home():
     assert final.room(B).holder is None
 
 
+def test_a_robot_without_a_home_whose_parking_spots_are_taken_parks_at_a_free_one_elsewhere():
+    # Three robots that started on locations (no home) serve B, which has two parking
+    # spots: the first two park there, the third finds both taken and drives to the
+    # nearest free parking spot on the level, A's first. Before, it parked on B's last
+    # spot beside the robot there (the airport terminal: up to three robots jostling
+    # round one of zone_2's spots for the rest of the run).
+    world = World([A, C, C], fixed([B], [B], [B]), parking=True)
+    world.run(until=150.0)
+    assert all([v.location for v in world.progress(i).visits] == [B] for i in range(3))
+    _, final, positions, targets = world.log[-1]
+    at = [[int(np.linalg.norm(np.subtract(p, spot)) < 1e-6) for p in positions]
+          for spot in (*world.roadways.place(B).parking, world.roadways.place(A).parking[0])]
+    assert [sum(row) for row in at] == [1, 1, 1]
+    assert all(t.active for t in targets)
+    assert final.room(A).holder is None and final.room(B).holder is None
+
+
+def test_robots_that_chose_one_parking_spot_together_share_the_spots_out():
+    # Three robots without a home stand on B's point with nothing to do: each sees B's
+    # first spot free and drives there. The one nearer it (first in robot order when as
+    # near) keeps it; the second takes B's other spot, the third the nearest free spot
+    # on the level, A's first. Before, all three stood on B's first spot to the end (the
+    # airport terminal, seed 7: two robots circling round one of zone_2's spots).
+    world = World([B, B, B], fixed([], [], []), parking=True)
+    world.run(until=60.0)
+    _, _, positions, targets = world.log[-1]
+    spots = [*world.roadways.place(B).parking, world.roadways.place(A).parking[0]]
+    np.testing.assert_allclose(positions, spots, atol=1e-6)
+    assert all(t.active for t in targets)
+
+
 def test_a_robot_done_at_a_room_drives_home_on_its_level_though_another_robot_stands_there():
     # r1 (home at 20, 0) stands idle on r0's home (10, 0) as r0 serves B, which has no
     # parking spot: r0 drives back to its own home all the same. Before, it drove to r1's
@@ -662,3 +693,19 @@ def test_a_robot_held_back_gives_up_the_segments_of_its_run_it_does_not_stand_in
     assert again.lanes == Need(((0, False), (1, False)), hold=True)
     inside = policy.update(s, _Inputs(10.0, part, [[15.0, 0.2, 0.0, 0.0]]))
     assert inside.lanes == Need(((0, False), (1, False)), hold=True)
+
+
+def test_a_robot_held_back_whose_missing_segments_are_free_keeps_those_it_holds():
+    # As above, but no other robot holds W-J: r0 asks for the whole run at once, keeping
+    # J-E, and likewise holding W-J but not J-E. Before, it gave J-E up and asked for W-J
+    # alone, was granted it, gave it up for J-E, and so on every update, standing (the
+    # campus, seed 10: robot1, served 0.58 m off room_3's point and so standing in no
+    # segment, held its two segments in turn from 262 s to the end; 10 of 18 tasks).
+    policy = WaypointPolicy(["r0"], 0, spur_world(), None, WaypointParams())
+    route = ((14.0, 1.5), (20.0, 0.0), (10.0, 0.0), (0.0, 0.0))
+    s = _Drive(phase=RobotMode.HOME, route=route, index=1)
+    whole = Need(((0, False), (1, False)), hold=True)
+    for held in (1, 0):
+        queues = QueueState(segments=tuple(SegmentHold(("r0",) if k == held else (), False)
+                                           for k in range(3)))
+        assert policy.update(s, _Inputs(10.0, queues, [[13.5, 1.5, 0.0, 0.0]])).lanes == whole
