@@ -203,7 +203,8 @@ class ClusterCbfController(LeafSystem):
             lambda context, output: output.set_value(CommandMessages.from_vector(
                 context.get_discrete_state(self._sent_index).value())),
             prerequisites_of_calc={self.discrete_state_ticket(self._sent_index)})
-        self._paths_seen: tuple[FleetPaths | None, PathArrays | None] = (None, None)
+        self._paths_seen: tuple[FleetPaths | None, tuple | None] = (None, None)
+        self._nobody = np.zeros(self._n, dtype=bool)  # read only
 
     @property
     def params(self) -> CbfParams:
@@ -219,18 +220,17 @@ class ClusterCbfController(LeafSystem):
         d = disturbances or NO_DISTURBANCES
         p, n = self._params, self._n
         states = np.ascontiguousarray(states, dtype=float).reshape(n, ROBOT_STATE_SIZE)
-        path_arrays = self._path_arrays(paths)
+        path_arrays, yielding = self._path_arrays(paths)
         distances, active = path_arrays.progress(states, p.coordination.arrival_radius)
-        alone = np.zeros(n, dtype=bool)  # robots in no cluster: broken down or cut off
-        alone[list(d.broken + d.cut_off)] = True
-        slowed = np.zeros(n, dtype=bool)  # cut-off robots get the slow-down nominal
-        slowed[list(d.cut_off)] = True
+        alone = slowed = self._nobody  # in no cluster (broken down or cut off); slowed down
+        if d.broken or d.cut_off:  # (cut off: the slow-down nominal)
+            alone, slowed = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+            alone[list(d.broken + d.cut_off)] = slowed[list(d.cut_off)] = True
         shared = d.seen_by(states)
         keys = np.array(self._rule(self._priorities, distances), dtype=float)
         # A robot the deadlock watchdog sent aside leads its cluster: as a follower in the
         # others' way it would get the slow-down and never make way.
-        keys[[k for k, path in enumerate(robot_paths_of(paths, n))
-               if path is not None and path.yielding]] = -np.inf
+        keys[yielding] = -np.inf
         robots = TickRobots(states, np.ascontiguousarray(shared, dtype=float), keys, active,
                             self._stalled(stall_times), ~alone, slowed)
         hits, mask = self._rays(states)
@@ -242,8 +242,8 @@ class ClusterCbfController(LeafSystem):
         out = TickArrays.empty(n)
         # As plain tuples: numba types those in C, named ones in Python (~0.4 us a field).
         plan_tick(tuple(robots), tuple(world), tuple(path_arrays), self._settings, tuple(out))
-        clusters = clusters_of(out.order, out.labels)
-        starts = out.starts[:len(clusters) + 1]
+        starts = out.starts[:out.labels.max(initial=-1) + 2]  # clusters are numbered 0, 1, ...
+        clusters = clusters_of(out.order, starts)
         groups, members, group_start = self._groups(clusters, out.order, starts, d, alone)
         qps = qp_problems(groups, states, hits, mask, world.human_positions,
                           world.human_velocities, self._movers(groups, states, shared, d),
@@ -288,11 +288,14 @@ class ClusterCbfController(LeafSystem):
             return np.zeros(self._n, dtype=bool)
         return np.asarray(stall_times) >= c.stall_time
 
-    def _path_arrays(self, paths: FleetPaths) -> PathArrays:
+    def _path_arrays(self, paths: FleetPaths) -> tuple[PathArrays, list[int]]:
+        """The arrays of ``paths`` and the robots whose path is ``yielding``."""
         # Paths change at the planner's rate, not every tick; payloads are immutable, so the
         # arrays of the last FleetPaths seen are reused while it is the same object.
         if paths is not self._paths_seen[0]:
-            self._paths_seen = (paths, PathArrays.of(robot_paths_of(paths, self._n)))
+            robot_paths = robot_paths_of(paths, self._n)
+            self._paths_seen = (paths, (PathArrays.of(robot_paths), [
+                k for k, path in enumerate(robot_paths) if path is not None and path.yielding]))
         return self._paths_seen[1]
 
     def control(self, time: float, states, paths: FleetPaths,
