@@ -83,17 +83,23 @@ class NetworkedTick:
 def _telemetry(time: float, plans_solved, clusters) -> ControllerTelemetry:
     """The telemetry of a tick that solved ``plans_solved`` ((TickPlan, SolvedQps) pairs)
     and formed ``clusters``."""
-    barriers = np.array([plan.min_barriers for plan, _ in plans_solved] or
-                        [(np.inf,) * 3]).min(axis=0).tolist()
-    deviation = max((float(np.sqrt(((solved.u - plan.u_nominal) ** 2).sum(axis=1).max(
-        initial=0.0))) for plan, solved in plans_solved), default=0.0)
-    calls = tuple(call for _, solved in plans_solved for call in solved.calls)
+    if len(plans_solved) == 1:  # one plan (no network): its minima as they are
+        barriers = plans_solved[0][0].min_barriers
+    else:
+        barriers = np.array([plan.min_barriers for plan, _ in plans_solved] or
+                            [(np.inf,) * 3]).min(axis=0).tolist()
+    deviations, slacks, failures, calls = [], [], 0, []
+    for plan, solved in plans_solved:
+        deviations.append(float(np.sqrt(((solved.u - plan.u_nominal) ** 2).sum(axis=1).max(
+            initial=0.0))))
+        slacks.append(solved.max_slack)
+        failures += solved.failures
+        calls.extend(solved.calls)
     return ControllerTelemetry(
         time=float(time), min_barrier_wall=barriers[0], min_barrier_human=barriers[1],
-        min_barrier_robot=barriers[2],
-        max_slack=max((solved.max_slack for _, solved in plans_solved), default=0.0),
-        control_deviation=deviation, clusters=clusters, solve_time=sum(t for _, t in calls),
-        failures=sum(solved.failures for _, solved in plans_solved), qp_calls=calls)
+        min_barrier_robot=barriers[2], max_slack=max(slacks, default=0.0),
+        control_deviation=max(deviations, default=0.0), clusters=clusters,
+        solve_time=sum(t for _, t in calls), failures=failures, qp_calls=tuple(calls))
 
 
 class ClusterCbfController(LeafSystem):
@@ -205,6 +211,7 @@ class ClusterCbfController(LeafSystem):
             prerequisites_of_calc={self.discrete_state_ticket(self._sent_index)})
         self._paths_seen: tuple[FleetPaths | None, tuple | None] = (None, None)
         self._nobody = np.zeros(self._n, dtype=bool)  # read only
+        self._squared_distances = params.row_params[[0, 3, 6]] ** 2  # wall, human, robot; m^2
 
     @property
     def params(self) -> CbfParams:
@@ -248,7 +255,7 @@ class ClusterCbfController(LeafSystem):
         qps = qp_problems(groups, states, hits, mask, world.human_positions,
                           world.human_velocities, self._movers(groups, states, shared, d),
                           out.u_nominal, out.lower, out.upper, p, members, group_start)
-        wall, human, robot = (out.minima - p.row_params[[0, 3, 6]] ** 2).tolist()
+        wall, human, robot = (out.minima - self._squared_distances).tolist()
         return TickPlan(clusters, active, out.u_nominal, qps, (wall, human, robot), out.order,
                         starts)
 
