@@ -2,7 +2,6 @@
 its blocked robots, and whether its clipped nominal already meets its rows (then no solver
 runs), so that only the QPs that need a solver reach Python objects and the solver."""
 
-import math
 from dataclasses import dataclass
 
 import numba
@@ -11,6 +10,7 @@ import numpy as np
 from mrta_drake.control.cbf_params import CbfParams
 from mrta_drake.control.qp_solver import (
     LoadedQp,
+    check_nominal,
     kept_rows,
     load_qp,
     padded_rows,
@@ -193,8 +193,7 @@ def _group_rows(states, hits, humans, human_velocities, mask, members, group_sta
         _scatter_rows(u_nominal, index, u)
         flat = u.ravel()
         clipped = np.minimum(np.maximum(flat, lower[index].ravel()), upper[index].ravel())
-        finite[g], optimal = _check_rows(G_g, b[r0:r1], member[r0:r1], other[r0:r1], flat,
-                                         clipped)
+        finite[g], optimal = check_nominal(G_g, b[r0:r1], flat, clipped)
         needs_qp[g] = not (finite[g] and optimal)
         if not needs_qp[g]:
             _scatter_rows(settled, index, clipped.reshape((k, 2)))
@@ -234,34 +233,6 @@ def _load_groups(G, G_start, b, row_start, members, group_start, u_nominal, lowe
                     lower[index].ravel(), upper[index].ravel(), sizes[g],
                     data[data_start[g]:data_start[g + 1]])
     return finite, kept, kept_count, sizes, data, data_start
-
-
-@compiled_helper
-def _check_rows(G, b, member, other, u_nominal, clipped):
-    """``check_nominal`` for safety rows (``fill_rows``), whose ``G`` is zero but in the
-    columns of the row's ``member`` and ``other`` robot (-1: none; member < other): the same
-    answers from those columns alone (a zero column is finite and adds an exact zero, which
-    changes no sum but the sign of a zero sum, and no comparison)."""
-    finite = True
-    for row in range(len(b)):
-        finite = finite and math.isfinite(b[row])
-        for robot in (member[row], other[row]):
-            if robot >= 0:
-                finite = (finite and math.isfinite(G[row, 2 * robot])
-                          and math.isfinite(G[row, 2 * robot + 1]))
-    for column in range(len(u_nominal)):
-        finite = finite and math.isfinite(u_nominal[column])
-    if not finite:
-        return False, False
-    for row in range(len(b)):
-        value = 0.0
-        for robot in (member[row], other[row]):
-            if robot >= 0:
-                value += G[row, 2 * robot] * clipped[2 * robot]
-                value += G[row, 2 * robot + 1] * clipped[2 * robot + 1]
-        if not value >= b[row]:
-            return True, False
-    return True, True
 
 
 @compiled_helper
