@@ -131,17 +131,19 @@ def _telemetry_vector(telemetry: ControllerTelemetry, n: int) -> np.ndarray:
     """Telemetry as numbers: the scalar fields, then the clusters' members one cluster after
     the other, then where each cluster ends in that list, then the QP calls' robot counts
     and their times (each padded with -1 to n: a tick has at most n QPs)."""
+    k = len(_TELEMETRY_FIELDS)
+    vector = np.full(k + 4 * n, -1.0)
+    vector[:k] = [getattr(telemetry, name) for name in _TELEMETRY_FIELDS]
     members, ends = [], []
     for cluster in telemetry.clusters:
         members.extend(cluster)
         ends.append(len(members))
-    sizes = [size for size, _ in telemetry.qp_calls]
-    seconds = [seconds for _, seconds in telemetry.qp_calls]
-    values = [getattr(telemetry, name) for name in _TELEMETRY_FIELDS]
-    for part in (members, ends, sizes, seconds):
-        values += part
-        values += [-1] * (n - len(part))
-    return np.array(values, dtype=float)
+    vector[k:k + len(members)] = members
+    vector[k + n:k + n + len(ends)] = ends
+    calls = len(telemetry.qp_calls)
+    vector[k + 2 * n:k + 2 * n + calls] = [size for size, _ in telemetry.qp_calls]
+    vector[k + 3 * n:k + 3 * n + calls] = [seconds for _, seconds in telemetry.qp_calls]
+    return vector
 
 
 def _telemetry_from_vector(vector, n: int) -> ControllerTelemetry:
