@@ -83,17 +83,23 @@ class NetworkedTick:
 def _telemetry(time: float, plans_solved, clusters) -> ControllerTelemetry:
     """The telemetry of a tick that solved ``plans_solved`` ((TickPlan, SolvedQps) pairs)
     and formed ``clusters``."""
-    barriers = np.array([plan.min_barriers for plan, _ in plans_solved] or
-                        [(np.inf,) * 3]).min(axis=0).tolist()
-    deviation = max((float(np.sqrt(((solved.u - plan.u_nominal) ** 2).sum(axis=1).max(
-        initial=0.0))) for plan, solved in plans_solved), default=0.0)
-    calls = tuple(call for _, solved in plans_solved for call in solved.calls)
+    if len(plans_solved) == 1:  # one plan (no network): its minima as they are
+        barriers = plans_solved[0][0].min_barriers
+    else:
+        barriers = np.array([plan.min_barriers for plan, _ in plans_solved] or
+                            [(np.inf,) * 3]).min(axis=0).tolist()
+    deviations, slacks, failures, calls = [], [], 0, []
+    for plan, solved in plans_solved:
+        deviations.append(float(np.sqrt(((solved.u - plan.u_nominal) ** 2).sum(axis=1).max(
+            initial=0.0))))
+        slacks.append(solved.max_slack)
+        failures += solved.failures
+        calls.extend(solved.calls)
     return ControllerTelemetry(
         time=float(time), min_barrier_wall=barriers[0], min_barrier_human=barriers[1],
-        min_barrier_robot=barriers[2],
-        max_slack=max((solved.max_slack for _, solved in plans_solved), default=0.0),
-        control_deviation=deviation, clusters=clusters, solve_time=sum(t for _, t in calls),
-        failures=sum(solved.failures for _, solved in plans_solved), qp_calls=calls)
+        min_barrier_robot=barriers[2], max_slack=max(slacks, default=0.0),
+        control_deviation=max(deviations, default=0.0), clusters=clusters,
+        solve_time=sum(t for _, t in calls), failures=failures, qp_calls=tuple(calls))
 
 
 class ClusterCbfController(LeafSystem):
@@ -203,7 +209,9 @@ class ClusterCbfController(LeafSystem):
             lambda context, output: output.set_value(CommandMessages.from_vector(
                 context.get_discrete_state(self._sent_index).value())),
             prerequisites_of_calc={self.discrete_state_ticket(self._sent_index)})
-        self._paths_seen: tuple[FleetPaths | None, PathArrays | None] = (None, None)
+        self._paths_seen: tuple[FleetPaths | None, tuple | None] = (None, None)
+        self._nobody = np.zeros(self._n, dtype=bool)  # read only
+        self._squared_distances = params.row_params[[0, 3, 6]] ** 2  # wall, human, robot; m^2
 
     @property
     def params(self) -> CbfParams:
@@ -219,18 +227,17 @@ class ClusterCbfController(LeafSystem):
         d = disturbances or NO_DISTURBANCES
         p, n = self._params, self._n
         states = np.ascontiguousarray(states, dtype=float).reshape(n, ROBOT_STATE_SIZE)
-        path_arrays = self._path_arrays(paths)
+        path_arrays, yielding = self._path_arrays(paths)
         distances, active = path_arrays.progress(states, p.coordination.arrival_radius)
-        alone = np.zeros(n, dtype=bool)  # robots in no cluster: broken down or cut off
-        alone[list(d.broken + d.cut_off)] = True
-        slowed = np.zeros(n, dtype=bool)  # cut-off robots get the slow-down nominal
-        slowed[list(d.cut_off)] = True
+        alone = slowed = self._nobody  # in no cluster (broken down or cut off); slowed down
+        if d.broken or d.cut_off:  # (cut off: the slow-down nominal)
+            alone, slowed = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+            alone[list(d.broken + d.cut_off)] = slowed[list(d.cut_off)] = True
         shared = d.seen_by(states)
         keys = np.array(self._rule(self._priorities, distances), dtype=float)
         # A robot the deadlock watchdog sent aside leads its cluster: as a follower in the
         # others' way it would get the slow-down and never make way.
-        keys[[k for k, path in enumerate(robot_paths_of(paths, n))
-               if path is not None and path.yielding]] = -np.inf
+        keys[yielding] = -np.inf
         robots = TickRobots(states, np.ascontiguousarray(shared, dtype=float), keys, active,
                             self._stalled(stall_times), ~alone, slowed)
         hits, mask = self._rays(states)
@@ -242,13 +249,13 @@ class ClusterCbfController(LeafSystem):
         out = TickArrays.empty(n)
         # As plain tuples: numba types those in C, named ones in Python (~0.4 us a field).
         plan_tick(tuple(robots), tuple(world), tuple(path_arrays), self._settings, tuple(out))
-        clusters = clusters_of(out.order, out.labels)
-        starts = out.starts[:len(clusters) + 1]
+        starts = out.starts[:out.labels.max(initial=-1) + 2]  # clusters are numbered 0, 1, ...
+        clusters = clusters_of(out.order, starts)
         groups, members, group_start = self._groups(clusters, out.order, starts, d, alone)
         qps = qp_problems(groups, states, hits, mask, world.human_positions,
                           world.human_velocities, self._movers(groups, states, shared, d),
                           out.u_nominal, out.lower, out.upper, p, members, group_start)
-        wall, human, robot = (out.minima - p.row_params[[0, 3, 6]] ** 2).tolist()
+        wall, human, robot = (out.minima - self._squared_distances).tolist()
         return TickPlan(clusters, active, out.u_nominal, qps, (wall, human, robot), out.order,
                         starts)
 
@@ -288,11 +295,14 @@ class ClusterCbfController(LeafSystem):
             return np.zeros(self._n, dtype=bool)
         return np.asarray(stall_times) >= c.stall_time
 
-    def _path_arrays(self, paths: FleetPaths) -> PathArrays:
+    def _path_arrays(self, paths: FleetPaths) -> tuple[PathArrays, list[int]]:
+        """The arrays of ``paths`` and the robots whose path is ``yielding``."""
         # Paths change at the planner's rate, not every tick; payloads are immutable, so the
         # arrays of the last FleetPaths seen are reused while it is the same object.
         if paths is not self._paths_seen[0]:
-            self._paths_seen = (paths, PathArrays.of(robot_paths_of(paths, self._n)))
+            robot_paths = robot_paths_of(paths, self._n)
+            self._paths_seen = (paths, (PathArrays.of(robot_paths), [
+                k for k, path in enumerate(robot_paths) if path is not None and path.yielding]))
         return self._paths_seen[1]
 
     def control(self, time: float, states, paths: FleetPaths,

@@ -97,19 +97,15 @@ def form_clusters(positions, radius: float, priorities, distances_to_goal, activ
         else np.ascontiguousarray(reachable, dtype=bool), np.ascontiguousarray(active, dtype=bool),
         np.zeros(n, dtype=bool) if stalled is None
         else np.ascontiguousarray(stalled, dtype=bool), keys, priorities)
-    return clusters_of(order, labels)
+    return clusters_of(order, np.concatenate([[0], np.cumsum(np.bincount(labels))]))
 
 
-def clusters_of(order, labels) -> tuple[tuple[int, ...], ...]:
-    """The clusters of robots ``order`` (N,) (sorted by cluster, as ``order_by_cluster``
-    sorts them) with cluster ``labels`` (N,) per robot."""
-    clusters, members, label = [], order.tolist(), labels[order].tolist()
-    first = 0
-    for k in range(1, len(members) + 1):
-        if k == len(members) or label[k] != label[first]:
-            clusters.append(tuple(members[first:k]))
-            first = k
-    return tuple(clusters)
+def clusters_of(order, starts) -> tuple[tuple[int, ...], ...]:
+    """The clusters ``order[starts[c]:starts[c + 1]]`` (``order`` (N,) robots sorted by
+    cluster, as ``order_by_cluster`` sorts them; ``starts`` one more than there are
+    clusters) as tuples of robot indices."""
+    members, bounds = order.tolist(), starts.tolist()
+    return tuple(tuple(members[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True))
 
 
 @numba.njit(cache=True)

@@ -42,14 +42,17 @@ def steer(u, states, G, b, member, other, normal, stall_speed, k_v, k_theta):
     """``steer_blocked`` in place on ``u`` (k, 2), compiled: rows ``G``, ``b``, ``member``,
     ``other``, ``normal`` as in ``SafetyRows``."""
     violation = np.empty(len(b))
-    for row in range(len(b)):
-        value = 0.0
-        for column in range(G.shape[1]):
-            value += G[row, column] * u[column // 2, column % 2]
-        violation[row] = value - b[row]
+    measured = False  # the rows' violations by the nominal as it came in, once needed
     for j in range(len(u)):
         if not (abs(states[j, 3]) < stall_speed and states[j, 3] + u[j, 0] / k_v > stall_speed):
             continue
+        if not measured:  # no input has changed yet: u is the nominal as it came in
+            measured = True
+            for row in range(len(b)):
+                value = 0.0
+                for column in range(G.shape[1]):
+                    value += G[row, column] * u[column // 2, column % 2]
+                violation[row] = value - b[row]
         row, worst = -1, math.inf
         for r in range(len(b)):
             if ((member[r] == j or other[r] == j) and G[r, 2 * j] < 0.0

@@ -126,7 +126,7 @@ def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocitie
     (``CbfQp.solve`` would return it): ``settled`` holds it, and zero for robots in no
     group. ``members`` and ``group_start``: the groups as arrays (group g is
     ``members[group_start[g]:group_start[g + 1]]``), if the caller has them."""
-    groups = tuple(tuple(group) for group in groups)
+    groups = tuple(map(tuple, groups))
     if members is None:
         members = np.array([i for group in groups for i in group], dtype=np.int64)
         group_start = np.cumsum([0] + [len(group) for group in groups], dtype=np.int64)
@@ -136,18 +136,19 @@ def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocitie
         mover_start = np.array([0] + [len(m) for m in movers], dtype=np.int64).cumsum()
         movers = np.concatenate([np.zeros((0, 4)), *movers]).reshape(-1, 4)
     n = len(states)
-    lower, upper = (np.ascontiguousarray(a, dtype=float) for a in (lower, upper))
+    states = np.ascontiguousarray(states, dtype=float).reshape(n, 4)
+    lower, upper = np.ascontiguousarray(lower, dtype=float), np.ascontiguousarray(upper,
+                                                                                 dtype=float)
     settled = np.zeros((n, 2))
     G, G_start, *rows, row_start, needs_solver, loads = _group_rows(
-        *(np.ascontiguousarray(a, dtype=float).reshape(shape) for a, shape in (
-            (states, (n, 4)), (hits, (n, -1, 2)), (human_positions, (-1, 2)),
-            (human_velocities, (-1, 2)))),
+        states, np.ascontiguousarray(hits, dtype=float).reshape(n, -1, 2),
+        np.ascontiguousarray(human_positions, dtype=float).reshape(-1, 2),
+        np.ascontiguousarray(human_velocities, dtype=float).reshape(-1, 2),
         np.ascontiguousarray(hit_mask, dtype=bool).reshape(n, -1), members, group_start,
         movers, mover_start, params.row_params, params.coordination.stall_speed,
         params.nominal.k_v, params.nominal.k_theta, params.nominal.corner_steering, u_nominal,
         lower, upper, settled)
-    standing = np.abs(np.asarray(states, dtype=float).reshape(n, 4)[:, 3]) < (
-        params.coordination.stall_speed)
+    standing = np.abs(states[:, 3]) < params.coordination.stall_speed
     return TickQps(groups, u_nominal, lower, upper, G, G_start, tuple(rows), row_start,
                    needs_solver, settled, standing, *loads)
 
