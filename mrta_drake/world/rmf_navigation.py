@@ -32,6 +32,7 @@ locations with their queues, entries and parking spots.
 Metres, world frame (x east, y north).
 """
 
+import dataclasses
 import math
 from collections import Counter
 from dataclasses import dataclass, field
@@ -104,9 +105,10 @@ class CentreLines:
 
 @dataclass(frozen=True)
 class BuildingNavigation:
-    """What robots of one graph drive on at one level: ``roadways``, ``locations`` (ids
-    0..n-1), the ``centre_lines`` they came from, the ``single_file`` segments (for one
-    robot at a time), and ``notes`` on what was left out."""
+    """What robots of one graph drive on at one level: ``roadways`` (their
+    ``single_file`` the segments' nodes), ``locations`` (ids 0..n-1), the ``centre_lines``
+    they came from, the ``single_file`` segments (for one robot at a time), and ``notes``
+    on what was left out."""
 
     roadways: RoadwaysConfig
     locations: list[LocationConfig]
@@ -125,7 +127,7 @@ class BuildingNavigation:
                 for loc in self.locations],
             "roadways": {"nodes": dict(self.roadways.nodes),
                          "edges": [list(e) for e in self.roadways.edges],
-                         "single_file": [list(seg.nodes) for seg in self.single_file]},
+                         "single_file": [list(nodes) for nodes in self.roadways.single_file]},
         }
 
 
@@ -217,7 +219,8 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
     degree = Counter(v for a, b, _ in lines.edges for v in (a, b))
     lanes = one_way_lanes(lines, floor_plan, {lines.vertex_node[i] for i in candidates
                                               if degree[lines.vertex_node[i]] > 1})
-    roadways = lanes.roadways
+    roadways = dataclasses.replace(lanes.roadways, single_file=[
+        list(segment.nodes) for segment in lanes.single_file])
     graph = nx.DiGraph()
     for name, xy in roadways.nodes.items():
         graph.add_node(name, pos=np.asarray(xy, dtype=float))

@@ -7,8 +7,10 @@ from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.single_file import (
     Need,
     SingleFileParams,
+    held_length,
     need,
     route_runs,
+    single_file_times,
     standing,
     stop_segments,
 )
@@ -34,12 +36,16 @@ def corridor():
     """Nodes every 10 m along y = 0 (A0 .. A50): two-way lanes between each pair; the
     stretches A10-A20 and A20-A30 are two single-file segments meeting at A20, A40-A50 a
     third, 10 m of ordinary lane (A30-A40) between."""
-    locations = [LocationConfig(id=i, name=f"L{i}", point=[x, 3.0], queue=[[x, 1.0]],
-                                exit_node=f"A{x}", approach_node=f"A{x}")
-                 for i, x in enumerate((0, 50))]
     config = RoadwaysConfig(nodes=roadways_nodes(), edges=roadways_edges(),
                             single_file=[["A10", "A20"], ["A30", "A20"], ["A40", "A50"]])
-    return Roadways(config, locations)
+    return Roadways(config, corridor_locations())
+
+
+def corridor_locations():
+    """Two locations, at each end of the corridor (A0 and A50), 3 m off its lanes."""
+    return [LocationConfig(id=i, name=f"L{i}", point=[x, 3.0], queue=[[x, 1.0]],
+                           exit_node=f"A{x}", approach_node=f"A{x}")
+            for i, x in enumerate((0, 50))]
 
 
 EAST = tuple((float(x), 0.0) for x in range(0, 60, 10))
@@ -57,6 +63,19 @@ def test_runs_join_segments_that_meet_and_keep_the_way_driven():
     # A gap shorter than chain_gap joins the runs: no waiting on 10 m of lane.
     joined = route_runs(roadways, EAST, 12.0)
     assert [(r.first, r.last) for r in joined] == [(1, 4)]
+
+
+def test_the_length_and_time_a_leg_drives_in_runs():
+    roadways = corridor()
+    assert held_length(roadways, EAST, PARAMS.chain_gap) == pytest.approx(30.0)
+    assert held_length(roadways, EAST, 12.0) == pytest.approx(40.0)  # 10 m gap joined
+    # The legs between the two locations: the three segments, 30 m at 0.6 m/s; the leg
+    # west also hops from L1's point, 3 m off, onto segment 2's lane (it enters it there).
+    times = single_file_times(roadways, 0.6, PARAMS)
+    assert times.tolist() == [[0, 50], [55, 0]]
+    plain = Roadways(RoadwaysConfig(nodes=roadways_nodes(), edges=roadways_edges()),
+                     corridor_locations())
+    assert not single_file_times(plain, 0.6).any()  # no single-file segment: no wait
 
 
 @pytest.mark.parametrize("x, index, expected", [
