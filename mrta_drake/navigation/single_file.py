@@ -24,8 +24,6 @@ import functools
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
 from mrta_drake.errors import InputError, require_positive
 from mrta_drake.navigation.roadways import Roadways
 
@@ -133,32 +131,6 @@ def route_runs(roadways: Roadways, route: tuple[tuple[float, float], ...],
                 runs.pop()
             runs.append(Run(ending.first, last, ending.segments + extra))
     return tuple(runs)
-
-
-def held_length(roadways: Roadways, route, chain_gap: float) -> float:
-    """Length (m) of ``route`` (k, 2) driven in its runs: the stretches a robot holds
-    single-file segments for, lanes between them shorter than ``chain_gap`` counted in."""
-    points = tuple((float(x), float(y)) for x, y in route)
-    return sum(math.dist(points[j], points[j + 1])
-               for run in route_runs(roadways, points, chain_gap)
-               for j in range(run.first, run.last + 1))
-
-
-def single_file_times(roadways: Roadways, speed: float,
-                      params: SingleFileParams = SingleFileParams()) -> np.ndarray:
-    """Integer times (s) each leg between two locations spends in runs (``held_length`` at
-    ``speed``, m/s, rounded up), as ``Roadways.travel_time_estimate`` (rows and columns in
-    ``location_ids`` order, 0 on the diagonal and where no leg exists)."""
-    ids = roadways.location_ids
-    times = np.zeros((len(ids), len(ids)), dtype=int)
-    if roadways.segment_count == 0:
-        return times
-    for i, a in enumerate(ids):
-        for j, b in enumerate(ids):
-            leg = None if a == b else roadways.leg(a, b)
-            if leg is not None and len(leg) > 1:
-                times[i, j] = math.ceil(held_length(roadways, leg, params.chain_gap) / speed)
-    return times
 
 
 @dataclass(frozen=True)

@@ -19,11 +19,9 @@ s), the number of robots and the run's duration (s):
    for a robot to finish the task in hand (on average) and then this one (at worst).
 3. **How many**: batches (``BATCH_SIZE``, 1.5 tasks on average) come as many as keep the
    fleet busy ``UTILISATION`` (half) of the run but its last longest task time, leaving
-   the rest for queues, lifts and robots passing each other; at least one. A task's
-   time here counts the waits its legs expect too (``waits``: the building's single-file
-   stretches, where robots take turns: ``tools.building_import.servable_stream``). They
-   arrive evenly spaced from 0 s to the last arrival (no bursts beyond what the fleet was
-   sized for).
+   the rest for queues, lifts, single-file stretches and robots passing each other; at
+   least one. They arrive evenly spaced from 0 s to the last arrival (no bursts beyond
+   what the fleet was sized for).
 
 The tasks themselves stay a seeded draw (``tasks.generate`` with the scenario's seed).
 """
@@ -58,15 +56,13 @@ class StreamSize:
 
 
 def size_stream(times: np.ndarray, robots: int, duration: float, service_time: float,
-                source: str | None = None, levels: Sequence[str] | None = None,
-                waits: np.ndarray | None = None) -> StreamSize:
+                source: str | None = None, levels: Sequence[str] | None = None
+                ) -> StreamSize:
     """The stream for ``robots`` robots over ``duration`` s given the travel times
     ``times`` (n, n) s between task locations (module docstring); ``levels``: each
-    location's level, when the building has several; ``waits`` (n, n) s: the time each
-    leg's robot expects to wait on its way (none if not given), counted in how many
-    tasks the fleet serves (3.); ``source`` names the building in errors."""
+    location's level, when the building has several; ``source`` names the building in
+    errors."""
     times = np.asarray(times, dtype=float)
-    waits = np.zeros_like(times) if waits is None else np.asarray(waits, dtype=float)
     limit = LEG_SHARE * duration
     levels = levels or [""] * len(times)
     chosen = _largest_neighbourhood(times, limit, levels)
@@ -82,10 +78,8 @@ def size_stream(times: np.ndarray, robots: int, duration: float, service_time: f
         raise InputError(source, "--duration", f"{duration:g} s is too short for tasks in "
                          f"this building: a task may take {longest_task:g} s, and the last "
                          f"needs that and a mean task ({mean_task:g} s) before the end")
-    waited = waits[np.ix_(chosen, chosen)][~np.eye(len(chosen), dtype=bool)]
     batches = max(1, math.floor(UTILISATION * robots * (duration - longest_task)
-                                / ((mean_task + 2.0 * waited.mean())
-                                   * 0.5 * sum(BATCH_SIZE))))
+                                / (mean_task * 0.5 * sum(BATCH_SIZE))))
     times = tuple(float(math.floor(end * k / max(1, batches - 1))) for k in range(batches))
     used = [levels[i] for i in chosen]
     weights = tuple(round(1.0 / used.count(level), 6) for level in used)

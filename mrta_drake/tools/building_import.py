@@ -33,7 +33,6 @@ import yaml
 from mrta_drake.control.barriers import SafetyDistances
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.roadways import Roadways
-from mrta_drake.navigation.single_file import single_file_times
 from mrta_drake.navigation.standstills import distance_to_polyline
 from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig, TasksConfig
 from mrta_drake.scenario.stream_sizing import BATCH_SIZE, LEG_SHARE, StreamSize, size_stream
@@ -249,15 +248,13 @@ def servable_stream(roadways: RoadwaysConfig, locations: list[LocationConfig],
     """The task stream ``robots`` robots can serve in ``options.duration`` between
     ``locations`` (on ``levels``, one per location, when several) on ``roadways``
     (``scenario.stream_sizing``), from the allocator's default estimate of the travel
-    times (lift rides included); each leg waits as long as it drives through single-file
-    segments (``single_file.single_file_times``), where one robot at a time drives (the
-    office's robots waited 0.85 s per s driven, docs/worlds.md, "Sizing by the
-    single-file stretches")."""
+    times (lift rides included), along the legs robots drive (``roadways`` with their
+    single-file segments: ``Roadways.leg`` out of a location keeps off the single-file
+    lane where that location's own queue waits)."""
     tasks = TasksConfig()
-    network = Roadways(roadways, locations, source)
-    stream = size_stream(network.travel_time_estimate(tasks.estimate_speed), robots,
-                         options.duration, tasks.service_time, source, levels,
-                         waits=single_file_times(network, tasks.estimate_speed))
+    estimate = Roadways(roadways, locations, source).travel_time_estimate(tasks.estimate_speed)
+    stream = size_stream(estimate, robots, options.duration, tasks.service_time, source,
+                         levels)
     if len(stream.locations) == len(locations) and len(set(stream.weights)) == 1:
         return stream
     return dataclasses.replace(stream, names=tuple(locations[i].name

@@ -7,10 +7,8 @@ from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.single_file import (
     Need,
     SingleFileParams,
-    held_length,
     need,
     route_runs,
-    single_file_times,
     standing,
     stop_segments,
 )
@@ -63,19 +61,6 @@ def test_runs_join_segments_that_meet_and_keep_the_way_driven():
     # A gap shorter than chain_gap joins the runs: no waiting on 10 m of lane.
     joined = route_runs(roadways, EAST, 12.0)
     assert [(r.first, r.last) for r in joined] == [(1, 4)]
-
-
-def test_the_length_and_time_a_leg_drives_in_runs():
-    roadways = corridor()
-    assert held_length(roadways, EAST, PARAMS.chain_gap) == pytest.approx(30.0)
-    assert held_length(roadways, EAST, 12.0) == pytest.approx(40.0)  # 10 m gap joined
-    # The legs between the two locations: the three segments, 30 m at 0.6 m/s; the leg
-    # west also hops from L1's point, 3 m off, onto segment 2's lane (it enters it there).
-    times = single_file_times(roadways, 0.6, PARAMS)
-    assert times.tolist() == [[0, 50], [55, 0]]
-    plain = Roadways(RoadwaysConfig(nodes=roadways_nodes(), edges=roadways_edges()),
-                     corridor_locations())
-    assert not single_file_times(plain, 0.6).any()  # no single-file segment: no wait
 
 
 @pytest.mark.parametrize("x, index, expected", [

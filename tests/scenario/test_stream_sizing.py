@@ -1,7 +1,5 @@
 """The servable task stream of an imported building: where, when and how many."""
 
-import math
-
 import numpy as np
 import pytest
 
@@ -26,19 +24,6 @@ def test_stream_fits_the_fleet_and_ends_in_time():
     # Half the robots: about half the batches.
     fewer = size_stream(times, robots=3, duration=600.0, service_time=1.0)
     assert len(fewer.times) == len(stream.times) // 2
-
-
-def test_expected_waits_count_in_how_many_tasks_not_when():
-    # 20 s legs that wait 20 s each on the way serve as many tasks as 40 s legs would,
-    # but the last batch still arrives in time for 20 s legs.
-    waited = size_stream(uniform(5, 20.0), robots=6, duration=600.0, service_time=1.0,
-                         waits=uniform(5, 20.0))
-    plain = size_stream(uniform(5, 20.0), robots=6, duration=600.0, service_time=1.0)
-    task, slow = 2 * 20.0 + 2 * 1.0, 2 * 40.0 + 2 * 1.0
-    assert waited.end == plain.end == 600.0 - 2 * task
-    assert len(waited.times) == math.floor(UTILISATION * 6 * (600.0 - task)
-                                           / (slow * np.mean(BATCH_SIZE)))
-    assert len(waited.times) < len(plain.times)
 
 
 def test_far_apart_locations_use_the_largest_neighbourhood():

@@ -9,9 +9,7 @@ import pytest
 import yaml
 
 from mrta_drake.errors import InputError
-from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.scenario.loading import load_scenario
-from mrta_drake.scenario.stream_sizing import size_stream
 from mrta_drake.tools.building_import import ImportOptions, import_building, robot_starts
 from mrta_drake.tools.cli import main
 from mrta_drake.world.plant import load_floor_plan_of
@@ -185,25 +183,3 @@ def test_cli_broken_building_has_no_traceback(tmp_path):
     assert result.returncode == 2
     assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
     assert "levels.L1.measurements: none on the reference level" in result.stderr
-
-
-def test_a_stream_through_single_file_stretches_counts_their_turns(tmp_path):
-    # The two rooms joined by the 1.6 m corridor (single file) get fewer tasks than their
-    # travel times alone would give, since robots take turns in it; joined by a 4.4 m
-    # corridor (two lanes), exactly those.
-    narrow = BUILDINGS / "narrow_corridor.building.yaml"
-    wide = tmp_path / "wide_corridor.building.yaml"
-    wide.write_text(narrow.read_text().replace("[6, 2.2, 0", "[6, 0.8, 0")
-                    .replace("[16, 2.2, 0", "[16, 0.8, 0").replace("[16, 3.8, 0", "[16, 5.2, 0")
-                    .replace("[6, 3.8, 0", "[6, 5.2, 0"))
-    batches = {}
-    for name, building in (("narrow", narrow), ("wide", wide)):
-        out = tmp_path / name
-        import_building(str(building), str(out), ImportOptions(robots=4))
-        scenario = load_scenario(out / "scenario.yaml")
-        roadways = Roadways(scenario.roadways, scenario.locations)
-        plain = size_stream(roadways.travel_time_estimate(0.6), 4, 600.0, 1.0)
-        written = scenario.tasks.generate.times
-        batches[name] = (roadways.segment_count, len(written), len(plain.times))
-    assert batches["narrow"][0] > 0 and batches["narrow"][1] < batches["narrow"][2]
-    assert batches["wide"][0] == 0 and batches["wide"][1] == batches["wide"][2]
