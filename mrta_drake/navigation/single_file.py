@@ -162,10 +162,9 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
         return NOTHING
     wanted: dict[int, bool] = {}
     hold = False
-    stops: tuple[int, ...] = ()
-    for run in route_runs(roadways, route, params.chain_gap, params.stand_distance):
-        if run.last == len(route) - 2:  # the run where the route ends: it stands there
-            stops = _near(roadways, route[-1], params.stand_distance)
+    runs = route_runs(roadways, route, params.chain_gap, params.stand_distance)
+    stops = _stops(roadways, route, runs[-1], params) if runs else ()
+    for run in runs:
         if index <= run.first:  # ahead: how far along the route to its entry?
             ahead = math.dist(xy, route[index]) + sum(
                 math.dist(route[j], route[j + 1]) for j in range(index, run.first))
@@ -182,6 +181,18 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
     if not wanted:
         return NOTHING
     return Need(tuple(sorted(wanted.items())), hold, tuple(k for k in stops if k in wanted))
+
+
+def _stops(roadways: Roadways, route, run: Run, params: SingleFileParams) -> tuple[int, ...]:
+    """The segments a robot driving ``route`` stands in, or may turn back in, at its end:
+    those within ``stand_distance`` of the end, and every segment of the route's last
+    ``run`` when the route ends less than ``chain_gap`` past it (it stops by the run's
+    exit, e.g. at a slot or spot at a dead end, and may leave the way it came)."""
+    near = _near(roadways, route[-1], params.stand_distance)
+    after = sum(math.dist(route[j], route[j + 1]) for j in range(run.last + 1, len(route) - 1))
+    if after >= params.chain_gap:
+        return near
+    return tuple(sorted(set(near) | {k for k, _ in run.segments}))
 
 
 @functools.lru_cache(maxsize=64)

@@ -76,6 +76,17 @@ def test_need_along_the_route(x, index, expected):
     assert need(corridor(), EAST, index, (x, 0.0), PARAMS) == expected
 
 
+def test_a_route_ending_just_past_a_run_stops_in_its_segments():
+    # Ending 3 m past segments 0 and 1 (less than chain_gap), the robot stops by their
+    # exit and may leave the way it came (a dead end): it holds them as one that stops
+    # there, not as one driving through; ending 10 m past, it drives through them.
+    near = ((0.0, 0.0), (10.0, 0.0), (20.0, 0.0), (30.0, 0.0), (33.0, 0.0))
+    assert need(corridor(), near, 1, (9.0, 0.0), PARAMS) == Need(
+        ((0, True), (1, False)), True, (0, 1))
+    assert need(corridor(), EAST[:5], 1, (9.0, 0.0), PARAMS) == Need(
+        ((0, True), (1, False)), True)
+
+
 def test_a_hop_from_beside_the_lanes_onto_a_segment_enters_it():
     # From a queue slot beside the lanes to A20, then along segment 1 (listed A30 -> A20):
     # the robot is in segment 1 from the moment it leaves the slot.
