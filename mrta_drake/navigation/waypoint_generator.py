@@ -310,9 +310,8 @@ class WaypointPolicy:
       for the rest; it gives them up ``single_file.clear_distance`` past the stretch.
       Queueing or serving, it
       holds the segments it stands in or at its slot or point (``single_file.standing``)
-      and no others, standing still until it holds those at its slot or point; while it
-      waits at a point for a room another robot holds, only those it stands in (before,
-      none: on the office, seed 1, the next robot granted the segment drove in head-on).
+      and no others, standing still until it holds those at its slot or point; but not
+      while it waits at a point for a room another robot holds (that robot must come in).
     - enter: once holding the room, drive through the remaining slots and the entry path;
       but while the doorway is taken, wait at the slot (until past the first slot, so also
       a robot granted the room on its way there: at the slot ahead of it, or where it
@@ -743,8 +742,8 @@ class WaypointPolicy:
         keeps no segment of the way it came by from the robots that need it."""
         if not self._roadways.segment_count:
             return NOTHING
-        if s.phase == RobotMode.SERVE and s.waiting:  # on the point without its room: it
-            return self._standing_in(robots, queues)  # keeps only what it stands in
+        if s.phase == RobotMode.SERVE and s.waiting:
+            return NOTHING  # on the point without its room: the holder comes (docstring)
         spot = None
         if s.phase in (RobotMode.QUEUE, RobotMode.SERVE):
             place = self._roadways.place(s.stop.location)

@@ -663,17 +663,3 @@ def test_a_robot_held_back_gives_up_the_segments_of_its_run_it_does_not_stand_in
     inside = policy.update(s, _Inputs(10.0, part, [[15.0, 0.2, 0.0, 0.0]]))
     assert inside.lanes == Need(((0, False), (1, False)), hold=True, stops=(0, 1))
 
-
-def test_a_robot_at_its_next_point_without_the_room_keeps_the_segment_it_stands_in():
-    # r0, standing on J-E 1 m from A's point, gets a stop at A while x holds A: it waits
-    # there, keeping J-E (office seed 1: a robot leaving supplies, within reach of
-    # presupplies' point, gave up the segment it stood in and the next robot granted it
-    # drove in head-on).
-    policy = WaypointPolicy(["r0"], 0, spur_world(), None, WaypointParams())
-    queues = QueueState(rooms=(RoomQueue(0, "x"),),
-                        segments=(SegmentHold(), SegmentHold(("r0",), True), SegmentHold()))
-    inputs = _Inputs(10.0, queues, [[14.0, 0.5, 0.0, 0.0]])
-    inputs.plan = plan(("a", 0))
-    s = policy.update(policy.initial_state(), inputs)
-    assert s.phase == RobotMode.SERVE and s.waiting
-    assert s.lanes == Need(((1, True),), True, (1,))
