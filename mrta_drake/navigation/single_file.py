@@ -162,9 +162,10 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
         return NOTHING
     wanted: dict[int, bool] = {}
     hold = False
-    runs = route_runs(roadways, route, params.chain_gap, params.stand_distance)
-    stops = _stops(roadways, route, runs[-1], params) if runs else ()
-    for run in runs:
+    stops: tuple[int, ...] = ()
+    for run in route_runs(roadways, route, params.chain_gap, params.stand_distance):
+        if run.last == len(route) - 2:  # the run where the route ends: it stands there
+            stops = _near(roadways, route[-1], params.stand_distance)
         if index <= run.first:  # ahead: how far along the route to its entry?
             ahead = math.dist(xy, route[index]) + sum(
                 math.dist(route[j], route[j + 1]) for j in range(index, run.first))
@@ -181,34 +182,6 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
     if not wanted:
         return NOTHING
     return Need(tuple(sorted(wanted.items())), hold, tuple(k for k in stops if k in wanted))
-
-
-def _stops(roadways: Roadways, route, run: Run, params: SingleFileParams) -> tuple[int, ...]:
-    """The segments a robot driving ``route`` stands in, or turns back in, at its end:
-    those within ``stand_distance`` of the end, and the segments of the route's last
-    ``run`` that lead to a dead end when the route ends less than ``chain_gap`` past it
-    (it stops by the dead end and must leave the way it came)."""
-    near = _near(roadways, route[-1], params.stand_distance)
-    after = sum(math.dist(route[j], route[j + 1]) for j in range(run.last + 1, len(route) - 1))
-    if after >= params.chain_gap:
-        return near
-    dead = _dead_end_segments(roadways)
-    return tuple(sorted(set(near) | {k for k, _ in run.segments if k in dead}))
-
-
-@functools.lru_cache(maxsize=64)
-def _dead_end_segments(roadways: Roadways) -> frozenset[int]:
-    """The segments with a lane to a dead end: a node whose only neighbour along the
-    lanes is that lane's other end."""
-    graph = roadways.graph
-    dead = set()
-    for k, a, b in _segment_lanes(roadways):
-        for xy in (a, b):
-            node = roadways.node_at(xy)
-            if node is not None and len(set(graph.successors(node))
-                                        | set(graph.predecessors(node))) == 1:
-                dead.add(k)
-    return frozenset(dead)
 
 
 @functools.lru_cache(maxsize=64)

@@ -76,19 +76,6 @@ def test_need_along_the_route(x, index, expected):
     assert need(corridor(), EAST, index, (x, 0.0), PARAMS) == expected
 
 
-def test_a_route_ending_just_past_a_run_into_a_dead_end_stops_in_it():
-    # Segment 2 leads to the dead end A50: a robot ending 1 m beside it (less than
-    # chain_gap past the run) must leave the way it came, so it holds segment 2 as one
-    # that stops there (office seed 3: two robots followed each other into the dead end
-    # to tinyRobot2_charger). Ending 3 m past segments 0 and 1, which lead on, it only
-    # drives through them.
-    dead_end = ((30.0, 0.0), (40.0, 0.0), (50.0, 0.0), (50.0, 1.0))
-    assert need(corridor(), dead_end, 1, (39.0, 0.0), PARAMS) == Need(((2, True),), True, (2,))
-    through = ((0.0, 0.0), (10.0, 0.0), (20.0, 0.0), (30.0, 0.0), (33.0, 0.0))
-    assert need(corridor(), through, 1, (9.0, 0.0), PARAMS) == Need(
-        ((0, True), (1, False)), True)
-
-
 def test_a_hop_from_beside_the_lanes_onto_a_segment_enters_it():
     # From a queue slot beside the lanes to A20, then along segment 1 (listed A30 -> A20):
     # the robot is in segment 1 from the moment it leaves the slot.

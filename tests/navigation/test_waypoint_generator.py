@@ -649,7 +649,7 @@ def test_a_robot_held_back_gives_up_the_segments_of_its_run_it_does_not_stand_in
     # run, J-E and W-J. Holding J-E (kept from serving at A) but not W-J (x holds it), it
     # stands 1.5 m off the lanes: it gives J-E up, then waits for both (office seed 6:
     # keeping it, it held back the robot that stood in W-J's place and waited for J-E).
-    # Standing in J-E, it keeps it. Its route ends at W, in the run: it stops in both.
+    # Standing in J-E, it keeps it. Its route ends at W: it stops in W-J.
     policy = WaypointPolicy(["r0"], 0, spur_world(), None, WaypointParams())
     route = ((14.0, 1.5), (20.0, 0.0), (10.0, 0.0), (0.0, 0.0))
     s = _Drive(phase=RobotMode.HOME, route=route, index=1)
@@ -659,7 +659,7 @@ def test_a_robot_held_back_gives_up_the_segments_of_its_run_it_does_not_stand_in
     assert beside.lanes == Need(((0, False),), hold=True, stops=(0,))
     none = QueueState(segments=(SegmentHold(("x",), True), SegmentHold(), SegmentHold()))
     again = policy.update(beside, _Inputs(10.1, none, [[13.5, 1.5, 0.0, 0.0]]))
-    assert again.lanes == Need(((0, False), (1, False)), hold=True, stops=(0, 1))
+    assert again.lanes == Need(((0, False), (1, False)), hold=True, stops=(0,))
     inside = policy.update(s, _Inputs(10.0, part, [[15.0, 0.2, 0.0, 0.0]]))
-    assert inside.lanes == Need(((0, False), (1, False)), hold=True, stops=(0, 1))
+    assert inside.lanes == Need(((0, False), (1, False)), hold=True, stops=(0,))
 
