@@ -167,13 +167,15 @@ class QueueRequest:
     A robot that stops naming a room it is queued for (but does not hold) leaves that queue.
     ``segments``: the single-file segments the robot wants to hold now, all together, each
     with the way it drives through it (``Roadways.segment_of``: (index, forward)); it gives
-    up each one as soon as it stops naming it.
+    up each one as soon as it stops naming it. ``stops``: the indices of those it will
+    stand in (its route ends there, or it stands), not only drive through.
     """
 
     robot: str
     room: int | None = None
     release: int | None = None
     segments: tuple[tuple[int, bool], ...] = ()
+    stops: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -60,7 +60,9 @@ class RoomQueues(LeafSystem):
     3. Grant: robots that hold some of the segments they name (they stand in them) first,
        then the others, each in waiting order: a robot gets all the segments it names at
        once when each is free or held by robots driving it the same way (only by itself
-       for the ``exclusive`` segments, where robots stop), and, unless it holds some
+       for the ``exclusive`` segments, where robots stop, when it or a holder names the
+       segment in ``stops``: it will stand there; robots that only drive through follow
+       each other in), and, unless it holds some
        already, none is named by a robot before it still waiting; else it gets none. (A
        robot standing in a segment goes as soon as its way is free: one waiting before it
        may wait for the very segment it stands in.) A robot waiting before it keeps its
@@ -73,7 +75,7 @@ class RoomQueues(LeafSystem):
     All or nothing, so a robot that asks for every segment of a single-file stretch at its
     start never holds one part of it while waiting for another part; robots driving one way
     may follow each other in, never meet one driving the other way, and never follow one
-    into a segment where it may stop and turn.
+    into a segment where it stops and may turn.
     """
 
     def __init__(
@@ -126,6 +128,8 @@ class RoomQueues(LeafSystem):
         ``rooms``: the rooms' queues after this update's room rules."""
         wanted = {robot: dict(request.segments)
                   for robot, request in zip(self._robots, requests, strict=True)}
+        stops = {robot: set(request.stops).intersection(self._exclusive)
+                 for robot, request in zip(self._robots, requests, strict=True)}
         holds = []
         for k, hold in enumerate(old.segments):
             holders = tuple(r for r in hold.holders if k in wanted[r])
@@ -135,11 +139,15 @@ class RoomQueues(LeafSystem):
         def needs(robot):
             return any(robot not in holds[k].holders for k in wanted[robot])
 
+        def alone(robot, k):
+            """Whether ``robot`` or a holder of segment ``k`` stops in it (class docstring)."""
+            return k in stops[robot] or any(k in stops[r] for r in holds[k].holders)
+
         def blocked(robot):
             """The other robots holding segments ``robot`` names and cannot have now."""
             return {r for k, way in wanted[robot].items() if not (
                 set(holds[k].holders) <= {robot}
-                or (k not in self._exclusive and holds[k].forward == way))
+                or (not alone(robot, k) and holds[k].forward == way))
                 for r in holds[k].holders if r != robot}
 
         order = [r for r in old.segment_waiting if needs(r)]

@@ -136,10 +136,18 @@ def route_runs(roadways: Roadways, route: tuple[tuple[float, float], ...],
 @dataclass(frozen=True)
 class Need:
     """What a robot on a route needs now: ``segments`` to hold ((index, forward), sorted),
-    and ``hold``: whether it must stand still until it holds them all."""
+    ``hold``: whether it must stand still until it holds them all, and ``stops``: those of
+    them it will stand in (sorted indices: its route ends there, or it stands), which it
+    holds alone where robots stop (``stop_segments``); it only drives through the others."""
 
     segments: tuple[tuple[int, bool], ...] = ()
     hold: bool = False
+    stops: tuple[int, ...] = ()
+
+    def without(self, dropped) -> "Need":
+        """The same need, holding back, less the segments ``dropped`` (indices)."""
+        return Need(tuple(seg for seg in self.segments if seg[0] not in dropped), True,
+                    tuple(k for k in self.stops if k not in dropped))
 
 
 NOTHING = Need()
@@ -154,7 +162,10 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
         return NOTHING
     wanted: dict[int, bool] = {}
     hold = False
+    stops: tuple[int, ...] = ()
     for run in route_runs(roadways, route, params.chain_gap, params.stand_distance):
+        if run.last == len(route) - 2:  # the run where the route ends: it stands there
+            stops = _near(roadways, route[-1], params.stand_distance)
         if index <= run.first:  # ahead: how far along the route to its entry?
             ahead = math.dist(xy, route[index]) + sum(
                 math.dist(route[j], route[j + 1]) for j in range(index, run.first))
@@ -168,7 +179,9 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
         elif index == run.last + 2 and math.dist(xy, route[run.last + 1]) \
                 < params.clear_distance:  # just out
             wanted.update(dict(run.segments))
-    return Need(tuple(sorted(wanted.items())), hold) if wanted else NOTHING
+    if not wanted:
+        return NOTHING
+    return Need(tuple(sorted(wanted.items())), hold, tuple(k for k in stops if k in wanted))
 
 
 @functools.lru_cache(maxsize=64)
@@ -224,7 +237,7 @@ def standing(roadways: Roadways, xy, spot, held, params: SingleFileParams) -> Ne
     if not wanted:
         return NOTHING
     return Need(tuple((k, held.get(k, True)) for k in wanted),
-                hold=not set(there) <= set(held) | set(here))
+                hold=not set(there) <= set(held) | set(here), stops=tuple(wanted))
 
 
 @functools.lru_cache(maxsize=64)

@@ -424,7 +424,8 @@ class WaypointPolicy:
             outputs = self._last_outputs = _Outputs(
                 s, self._target(s),
                 QueueRequest(self._robot, s.stop.location if s.phase in _ASKING_PHASES
-                             and not s.giving_way else None, s.release, s.lanes.segments),
+                             and not s.giving_way else None, s.release, s.lanes.segments,
+                             s.lanes.stops),
                 RobotProgress(self._robot, s.visits, s.last_location, s.stop, s.detours),
                 self._lift_request(s))
         return outputs
@@ -799,7 +800,7 @@ class WaypointPolicy:
         if not wanted.hold:
             return wanted
         if queues.holds_segments(self._robot, wanted.segments):
-            return Need(wanted.segments)
+            return Need(wanted.segments, stops=wanted.stops)
         # Held back, it holds none of the run's segments it does not stand in: it gives
         # them up for an update and then waits for them all (office seed 6: a robot served
         # beside a segment kept it from serving there into its next run, and waited for
@@ -814,7 +815,7 @@ class WaypointPolicy:
         dropped = {k for k, _ in wanted.segments if k in held}.difference(
             stands_in(self._roadways, robots.xy, self._params.single_file))
         if dropped:
-            return Need(tuple(seg for seg in wanted.segments if seg[0] not in dropped), True)
+            return wanted.without(dropped)
         return wanted
 
     def _standing_in(self, robots: _Robots, queues: QueueState) -> Need:
@@ -823,7 +824,7 @@ class WaypointPolicy:
         to its spot)."""
         here = standing(self._roadways, robots.xy, robots.xy, self._held(queues),
                         self._params.single_file)
-        return Need(here.segments, hold=True)
+        return Need(here.segments, True, here.stops)
 
     def _held(self, queues: QueueState) -> dict[int, bool]:
         """The single-file segments the robot holds, each with the way it holds it

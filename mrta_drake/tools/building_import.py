@@ -248,7 +248,9 @@ def servable_stream(roadways: RoadwaysConfig, locations: list[LocationConfig],
     """The task stream ``robots`` robots can serve in ``options.duration`` between
     ``locations`` (on ``levels``, one per location, when several) on ``roadways``
     (``scenario.stream_sizing``), from the allocator's default estimate of the travel
-    times (lift rides included)."""
+    times (lift rides included), along the legs robots drive (``roadways`` with their
+    single-file segments: ``Roadways.leg`` out of a location keeps off the single-file
+    lane where that location's own queue waits)."""
     tasks = TasksConfig()
     estimate = Roadways(roadways, locations, source).travel_time_estimate(tasks.estimate_speed)
     stream = size_stream(estimate, robots, options.duration, tasks.service_time, source,

@@ -26,12 +26,14 @@ locations with their queues, entries and parking spots.
   node, the nodes between the head slot and the point the entry. On offset lanes the queue
   lies along the lane arriving, robots leave by the other.
 - **Parking**: up to ``parking_spots`` spots ``parking_distance`` m from the point, clear of
-  walls by ``slot_clearance``, at least ``parking_lane_gap`` m from every lane and in line
-  of sight of the point.
+  walls by ``slot_clearance``, at least ``parking_lane_gap`` m from every lane,
+  ``slot_spacing`` from the points, slots and spots placed before, and in line of sight of
+  the point.
 
 Metres, world frame (x east, y north).
 """
 
+import dataclasses
 import math
 from collections import Counter
 from dataclasses import dataclass, field
@@ -104,9 +106,10 @@ class CentreLines:
 
 @dataclass(frozen=True)
 class BuildingNavigation:
-    """What robots of one graph drive on at one level: ``roadways``, ``locations`` (ids
-    0..n-1), the ``centre_lines`` they came from, the ``single_file`` segments (for one
-    robot at a time), and ``notes`` on what was left out."""
+    """What robots of one graph drive on at one level: ``roadways`` (their
+    ``single_file`` the segments' nodes), ``locations`` (ids 0..n-1), the ``centre_lines``
+    they came from, the ``single_file`` segments (for one robot at a time), and ``notes``
+    on what was left out."""
 
     roadways: RoadwaysConfig
     locations: list[LocationConfig]
@@ -125,7 +128,7 @@ class BuildingNavigation:
                 for loc in self.locations],
             "roadways": {"nodes": dict(self.roadways.nodes),
                          "edges": [list(e) for e in self.roadways.edges],
-                         "single_file": [list(seg.nodes) for seg in self.single_file]},
+                         "single_file": [list(nodes) for nodes in self.roadways.single_file]},
         }
 
 
@@ -217,7 +220,8 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
     degree = Counter(v for a, b, _ in lines.edges for v in (a, b))
     lanes = one_way_lanes(lines, floor_plan, {lines.vertex_node[i] for i in candidates
                                               if degree[lines.vertex_node[i]] > 1})
-    roadways = lanes.roadways
+    roadways = dataclasses.replace(lanes.roadways, single_file=[
+        list(segment.nodes) for segment in lanes.single_file])
     graph = nx.DiGraph()
     for name, xy in roadways.nodes.items():
         graph.add_node(name, pos=np.asarray(xy, dtype=float))
@@ -265,7 +269,8 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
         if len(entry) and not zone and _off_lanes(np.array(queue[:1]), segments)[0] \
                 >= params.slot_lane_gap - 0.01:
             entry = []  # from a head slot beside the lanes straight to the point
-        parking = [] if zone else _parking(point, segments, floor_plan, params)
+        parking = [] if zone else _parking(point, segments, floor_plan, taken + queue,
+                                           params)
         taken += queue + parking
         locations.append(LocationConfig(
             id=location_id, name=node, point=_listed(point), queue=queue, entry=entry,
@@ -534,10 +539,12 @@ def _at(positions, along, distance) -> np.ndarray:
     return positions[k] + t * (positions[k + 1] - positions[k])
 
 
-def _parking(point: np.ndarray, lanes: np.ndarray, floor_plan: FloorPlan,
+def _parking(point: np.ndarray, lanes: np.ndarray, floor_plan: FloorPlan, taken: list,
              params: BuildingNavigationParams) -> list[list[float]]:
     """Spots around ``point`` off the lanes and clear of walls (see the module
-    docstring), nearest the point's free side first."""
+    docstring), ``slot_spacing`` from the points, slots and spots ``taken`` (m) before
+    (a robot parked nearer would stand in the way of one waiting there: office, patrol_A2's
+    spot 0.39 m from patrol_D1's second slot), nearest the point's free side first."""
     if params.parking_spots == 0:
         return []
     angles = np.arange(16) * (2 * math.pi / 16)
@@ -545,6 +552,9 @@ def _parking(point: np.ndarray, lanes: np.ndarray, floor_plan: FloorPlan,
                                                                np.sin(angles)])
     obstacles = floor_plan.obstacles
     clear = obstacles.signed_distance(spots) >= params.slot_clearance
+    if taken:
+        gaps = np.linalg.norm(spots[:, None, :] - np.asarray(taken, dtype=float)[None], axis=2)
+        clear &= gaps.min(axis=1) >= params.slot_spacing - 1e-9
     off_lanes = _off_lanes(spots, lanes)
     chosen = []
     for k in np.argsort(-off_lanes, kind="stable"):

@@ -15,7 +15,7 @@ import os
 
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.lift_bank import LiftParams, LiftSpec
-from mrta_drake.scenario.schema import RoadwaysConfig, Scenario
+from mrta_drake.scenario.schema import Scenario
 from mrta_drake.scenario.typed_yaml import load_typed
 from mrta_drake.world.floor_plan import FloorPlan
 from mrta_drake.world.rmf_building import Building, load_building
@@ -117,9 +117,10 @@ def with_building_navigation(scenario: Scenario) -> Scenario:
         scenario,
         locations=scenario.locations or [dataclasses.replace(loc) for loc in
                                          navigation.locations],
-        roadways=scenario.roadways if scenario.roadways.nodes else RoadwaysConfig(
-            nodes=dict(navigation.roadways.nodes), edges=list(navigation.roadways.edges),
-            single_file=[list(segment.nodes) for segment in navigation.single_file]))
+        roadways=scenario.roadways if scenario.roadways.nodes else dataclasses.replace(
+            navigation.roadways, nodes=dict(navigation.roadways.nodes),
+            edges=list(navigation.roadways.edges),
+            single_file=[list(nodes) for nodes in navigation.roadways.single_file]))
 
 
 def _version(path: str) -> tuple[float, int]:

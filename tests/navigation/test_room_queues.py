@@ -152,10 +152,10 @@ class SegmentBench(Bench):
             self.want(robot)
         self.simulator.AdvanceTo(0.05)
 
-    def want(self, robot, *segments, room=None):
+    def want(self, robot, *segments, room=None, stops=()):
         port = self.queues.get_request_input_port(robot)
-        port.FixValue(self.context, Value[object](QueueRequest(robot, room,
-                                                               segments=segments)))
+        port.FixValue(self.context, Value[object](QueueRequest(
+            robot, room, segments=segments, stops=stops)))
 
     def state(self):
         return self.queues.GetOutputPort("queue_state").Eval(self.context)
@@ -200,13 +200,13 @@ def test_a_robot_waiting_first_keeps_its_turn():
 
 def test_a_segment_where_robots_stop_is_held_by_one_robot_at_a_time():
     bench = SegmentBench(["a", "b"], exclusive=frozenset({0}))
-    bench.want("a", (0, True))
+    bench.want("a", (0, True), stops=(0,))
     bench.step()
-    bench.want("b", (0, True))  # the same way, but a may stop in 0 and turn: b waits
+    bench.want("b", (0, True))  # the same way, but a stops in 0 and may turn: b waits
     bench.step()
     state = bench.state()
     assert state.segments[0].holders == ("a",) and state.segment_waiting == ("b",)
-    bench.want("a", (0, False))  # a, alone in it, turns
+    bench.want("a", (0, False), stops=(0,))  # a, alone in it, turns
     bench.step()
     state = bench.state()
     assert state.segments[0] == SegmentHold(("a",), False) and state.segment_waiting == ("b",)
@@ -215,11 +215,29 @@ def test_a_segment_where_robots_stop_is_held_by_one_robot_at_a_time():
     assert bench.state().segments[0].holders == ("b",)
 
 
+def test_robots_driving_through_a_segment_where_robots_stop_follow_each_other_in():
+    bench = SegmentBench(["a", "b", "c"], exclusive=frozenset({0}))
+    bench.want("a", (0, True))  # a and b only drive through 0, the same way
+    bench.step()
+    bench.want("b", (0, True))
+    bench.want("c", (0, True), stops=(0,))  # c will stop in it: it waits for them both
+    bench.step()
+    state = bench.state()
+    assert state.segments[0].holders == ("a", "b") and state.segment_waiting == ("c",)
+    bench.want("a")
+    bench.want("b")
+    bench.step()
+    assert bench.state().segments[0].holders == ("c",)
+    bench.want("a", (0, True))  # c stops in it: a, driving through, waits
+    bench.step()
+    assert bench.state().segment_waiting == ("a",)
+
+
 def test_a_robot_standing_in_a_segment_gets_the_next_before_robots_outside():
     # a stands in 0 and needs 1 (a segment where robots stop) to drive on; b, outside,
     # asked for 1 first. Granting b first would leave a holding 0 while waiting for 1.
     bench = SegmentBench(["a", "b", "c"], exclusive=frozenset({1}))
-    bench.want("c", (1, True))
+    bench.want("c", (1, True), stops=(1,))  # c stands in 1
     bench.want("a", (0, True))
     bench.step()
     bench.want("b", (1, False))
@@ -239,12 +257,12 @@ def test_a_robot_standing_in_a_segment_passes_one_waiting_for_that_segment():
     # (letting a's turn hold b back would wait for ever).
     bench = SegmentBench(["a", "b", "c"], exclusive=frozenset({1, 2}))
     bench.want("c", (0, True))
-    bench.want("b", (1, True))
-    bench.want("a", (2, True))
+    bench.want("b", (1, True), stops=(1,))
+    bench.want("a", (2, True), stops=(2,))
     bench.step()
-    bench.want("a", (2, True), (0, True), (1, True))
+    bench.want("a", (2, True), (0, True), (1, True), stops=(2,))
     bench.step()
-    bench.want("b", (0, True), (1, True))
+    bench.want("b", (0, True), (1, True), stops=(1,))
     bench.want("c")
     bench.step()
     state = bench.state()
@@ -259,9 +277,9 @@ def test_a_robot_keeps_no_turn_that_waits_for_the_robot_behind_it():
     # does not wait, still waits its turn behind w.
     bench = SegmentBench(["h", "q", "w", "x"], exclusive=frozenset({0}))
     bench.want("h", room=ROOM)
-    bench.want("q", (0, True))
+    bench.want("q", (0, True), stops=(0,))
     bench.step()
-    bench.want("q", (0, True), room=ROOM)
+    bench.want("q", (0, True), room=ROOM, stops=(0,))
     bench.want("w", (0, True), (1, True))
     bench.step()
     assert bench.state().segment_waiting == ("w",)

@@ -34,12 +34,16 @@ def corridor():
     """Nodes every 10 m along y = 0 (A0 .. A50): two-way lanes between each pair; the
     stretches A10-A20 and A20-A30 are two single-file segments meeting at A20, A40-A50 a
     third, 10 m of ordinary lane (A30-A40) between."""
-    locations = [LocationConfig(id=i, name=f"L{i}", point=[x, 3.0], queue=[[x, 1.0]],
-                                exit_node=f"A{x}", approach_node=f"A{x}")
-                 for i, x in enumerate((0, 50))]
     config = RoadwaysConfig(nodes=roadways_nodes(), edges=roadways_edges(),
                             single_file=[["A10", "A20"], ["A30", "A20"], ["A40", "A50"]])
-    return Roadways(config, locations)
+    return Roadways(config, corridor_locations())
+
+
+def corridor_locations():
+    """Two locations, at each end of the corridor (A0 and A50), 3 m off its lanes."""
+    return [LocationConfig(id=i, name=f"L{i}", point=[x, 3.0], queue=[[x, 1.0]],
+                           exit_node=f"A{x}", approach_node=f"A{x}")
+            for i, x in enumerate((0, 50))]
 
 
 EAST = tuple((float(x), 0.0) for x in range(0, 60, 10))
@@ -66,7 +70,7 @@ def test_runs_join_segments_that_meet_and_keep_the_way_driven():
     (15.0, 2, Need(((0, True), (1, False)), True)),  # in it
     (30.5, 4, Need(((0, True), (1, False)), False)),  # 0.5 m past its end: keep it
     (32.0, 4, Need()),  # 2 m past: give it up
-    (37.0, 4, Need(((2, True),), False)),  # the next stretch
+    (37.0, 4, Need(((2, True),), False, (2,))),  # the next stretch, where the route ends
 ])
 def test_need_along_the_route(x, index, expected):
     assert need(corridor(), EAST, index, (x, 0.0), PARAMS) == expected
@@ -87,10 +91,10 @@ def test_a_hop_from_beside_the_lanes_onto_a_segment_enters_it():
 
 
 @pytest.mark.parametrize("xy, spot, expected", [
-    ((25.0, 0.3), (25.0, 0.0), Need(((1, True),), False)),  # in 1 already: asks, drives
-    ((25.0, 3.0), (25.0, 0.4), Need(((1, True),), True)),  # driving up to a slot in 1
+    ((25.0, 0.3), (25.0, 0.0), Need(((1, True),), False, (1,))),  # in 1 already: asks, drives
+    ((25.0, 3.0), (25.0, 0.4), Need(((1, True),), True, (1,))),  # driving up to a slot in 1
     ((25.0, 3.0), (25.0, 2.0), Need()),  # beside the lanes
-    ((20.0, 0.0), (21.0, 3.0), Need(((0, False), (1, True)), False)),  # holds 0 one way
+    ((20.0, 0.0), (21.0, 3.0), Need(((0, False), (1, True)), False, (0, 1))),  # holds 0 one way
 ])
 def test_a_robot_standing_in_a_segment_or_going_to_a_spot_in_one_needs_it(xy, spot, expected):
     held = {0: False} if expected.segments[:1] == ((0, False),) else {}
@@ -124,6 +128,7 @@ def test_a_route_ending_where_segments_meet_asks_for_them_all_before_it_drives_i
     route = ((40.0, 0.0), (30.0, 0.0), (20.0, 0.0))
     runs = route_runs(corridor(), route, PARAMS.chain_gap, PARAMS.stand_distance)
     assert [(r.first, r.last, r.segments) for r in runs] == [(1, 1, ((1, True), (0, True)))]
-    assert need(corridor(), route, 1, (31.0, 0.0), PARAMS) == Need(((0, True), (1, True)), True)
+    assert need(corridor(), route, 1, (31.0, 0.0), PARAMS) == Need(((0, True), (1, True)), True,
+                                                               (0, 1))  # it stops in both
     # Without the stand distance, only the segment driven.
     assert route_runs(corridor(), route, PARAMS.chain_gap)[0].segments == ((1, True),)

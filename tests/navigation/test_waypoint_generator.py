@@ -672,7 +672,7 @@ def test_a_robot_back_home_holds_only_the_segment_it_stands_in():
     driving = policy.update(s, _Inputs(10.0, held, [[10.0, 3.0, 0.0, 0.5]]))
     assert [k for k, _ in driving.lanes.segments] == [0, 2]
     home = policy.update(s, _Inputs(10.0, held, [[10.0, 4.9, 0.0, 0.0]]))
-    assert home.lanes == Need(((2, True),))
+    assert home.lanes == Need(((2, True),), stops=(2,))  # it stands in it
 
 
 def test_a_robot_held_back_gives_up_the_segments_of_its_run_it_does_not_stand_in():
@@ -680,19 +680,19 @@ def test_a_robot_held_back_gives_up_the_segments_of_its_run_it_does_not_stand_in
     # run, J-E and W-J. Holding J-E (kept from serving at A) but not W-J (x holds it), it
     # stands 1.5 m off the lanes: it gives J-E up, then waits for both (office seed 6:
     # keeping it, it held back the robot that stood in W-J's place and waited for J-E).
-    # Standing in J-E, it keeps it.
+    # Standing in J-E, it keeps it. Its route ends at W: it stops in W-J.
     policy = WaypointPolicy(["r0"], 0, spur_world(), None, WaypointParams())
     route = ((14.0, 1.5), (20.0, 0.0), (10.0, 0.0), (0.0, 0.0))
     s = _Drive(phase=RobotMode.HOME, route=route, index=1)
     part = QueueState(segments=(SegmentHold(("x",), True), SegmentHold(("r0",), False),
                                 SegmentHold()))
     beside = policy.update(s, _Inputs(10.0, part, [[13.5, 1.5, 0.0, 0.0]]))
-    assert beside.lanes == Need(((0, False),), hold=True)
+    assert beside.lanes == Need(((0, False),), hold=True, stops=(0,))
     none = QueueState(segments=(SegmentHold(("x",), True), SegmentHold(), SegmentHold()))
     again = policy.update(beside, _Inputs(10.1, none, [[13.5, 1.5, 0.0, 0.0]]))
-    assert again.lanes == Need(((0, False), (1, False)), hold=True)
+    assert again.lanes == Need(((0, False), (1, False)), hold=True, stops=(0,))
     inside = policy.update(s, _Inputs(10.0, part, [[15.0, 0.2, 0.0, 0.0]]))
-    assert inside.lanes == Need(((0, False), (1, False)), hold=True)
+    assert inside.lanes == Need(((0, False), (1, False)), hold=True, stops=(0,))
 
 
 def test_a_robot_held_back_whose_missing_segments_are_free_keeps_those_it_holds():
@@ -704,7 +704,7 @@ def test_a_robot_held_back_whose_missing_segments_are_free_keeps_those_it_holds(
     policy = WaypointPolicy(["r0"], 0, spur_world(), None, WaypointParams())
     route = ((14.0, 1.5), (20.0, 0.0), (10.0, 0.0), (0.0, 0.0))
     s = _Drive(phase=RobotMode.HOME, route=route, index=1)
-    whole = Need(((0, False), (1, False)), hold=True)
+    whole = Need(((0, False), (1, False)), hold=True, stops=(0,))
     for held in (1, 0):
         queues = QueueState(segments=tuple(SegmentHold(("r0",) if k == held else (), False)
                                            for k in range(3)))

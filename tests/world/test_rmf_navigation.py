@@ -218,3 +218,31 @@ def test_a_room_behind_a_single_file_door_queues_beyond_the_door():
             assert min(gaps) > stand, (location.name, slot)
         assert 5.5 < location.queue[0][1] < 8.5, location.name  # in the corridor
         assert len(location.entry) >= 3 and location.parking == [], location.name
+
+
+@pytest.mark.parametrize("name, level", LEVELS + [("open_hall", "ground"),
+                                                  ("narrow_corridor", "ground"),
+                                                  ("passage", "ground")])
+def test_parking_spots_keep_a_slot_spacing_from_other_places(name, level):
+    # A robot parked nearer a point or queue slot of another location stands in the way
+    # of the robot serving or waiting there.
+    _, _, navigation = derived(name, level)
+    for location in navigation.locations:
+        for spot in location.parking:
+            others = [xy for other in navigation.locations
+                      for xy in (other.point, *other.queue,
+                                 *(p for p in other.parking if p is not spot))
+                      if other is not location or xy is not other.point]
+            gaps = np.linalg.norm(np.array(others) - np.array(spot), axis=1)
+            assert gaps.min() >= PARAMS.slot_spacing - 1e-9, (location.name, spot)
+
+
+def test_the_roadways_carry_their_single_file_segments():
+    # The import sizes the task stream on these roadways: without their single-file
+    # segments a leg out of a location would take the lane where its own queue waits,
+    # not the leg robots drive (the office's legs: 37 s longest instead of 50 s).
+    _, _, navigation = derived("narrow_corridor", "ground")
+    assert navigation.single_file
+    assert navigation.roadways.single_file == [list(s.nodes) for s in navigation.single_file]
+    assert Roadways(navigation.roadways, navigation.locations).segment_count == len(
+        navigation.single_file)
