@@ -347,12 +347,10 @@ class WaypointPolicy:
     A robot without a home (it started on a location) whose location's spots are all taken
     drives likewise to the nearest free parking spot elsewhere on its level, else another
     robot's free start spot; only with none free does it park on the last spot, beside the
-    robot there (before, every such robot did: on the airport terminal's seeds 0, 1 and
-    3-7 two or three robots circled each other round one parking spot to the end, 9-27 m
-    driven by robots idle for over 60 s, per run). A robot parking, or driving to wait at
-    a spot not its home, that another robot stands nearer chooses again from where it is
-    (``_keep_spot``): two robots that chose one free spot at once would otherwise circle
-    each other round it.
+    robot there. A robot parking, or driving to wait at a spot not its home, that another
+    robot stands nearer chooses again from where it is (``_keep_spot``): two robots that
+    chose one free spot at once would otherwise circle each other round it
+    (docs/worlds.md, "Unseen seeds 3-7 of airport_terminal, battle_royale and campus").
     A parked robot given a stop starts it as if standing on the location's point.
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
@@ -557,9 +555,7 @@ class WaypointPolicy:
         stands nearer that spot (as near and first in robot order), within
         ``parking_clearance`` of it (it chose the spot too, seeing it free), choose again
         as when done at the location, from where the robot is: another free parking spot
-        there, else ``_home_spot``'s; with none, keep the spot. Before, the two robots
-        circled each other round the spot to the end (the airport terminal, seed 7:
-        robot4 and robot5 round zone_2's second spot from 225 s)."""
+        there, else ``_home_spot``'s; with none, keep the spot."""
         spot = (_point(self._roadways.place(s.last_location).parking[s.index])
                 if s.phase == RobotMode.PARK else _point(s.route[-1]))
         if spot == self._home:
