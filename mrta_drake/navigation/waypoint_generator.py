@@ -344,7 +344,8 @@ class WaypointPolicy:
     another level, to the nearest free parking spot on its level, else the nearest free one
     of ``spots`` (the other robots' start spots) there (``_home_spot``); elsewhere, or with
     no such spot (it started on a location), the target is inactive and it stands still.
-    A parked robot given a stop starts it as if standing on the location's point.
+    A parked robot given a stop starts it as if standing on the location's point. A robot
+    with a home starts as one back home (``initial_state``).
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
     current stop is elsewhere and it is more than ``release_distance`` from the room's
@@ -405,6 +406,15 @@ class WaypointPolicy:
         return self._robot
 
     def initial_state(self) -> _Drive:
+        """At the start: standing at home (``home``, its start spot off the locations), as
+        a robot back home, so that pushed off it with nothing to do it drives back (before,
+        a robot never given a stop was idle, its target inactive, and stood wherever the
+        others pushed it: triple_H seed 1, robot6 pushed from its start spot onto a
+        corridor's lane, where the robots driving round it met head-on for 32 s); without
+        a home (or parking off), idle."""
+        if self._home is not None and self._params.parking:
+            return _Drive(phase=RobotMode.HOME, route=(self._home,),
+                          last_location=self._start_location)
         return _Drive(last_location=self._start_location)
 
     # --- Outputs -----------------------------------------------------------------------------
