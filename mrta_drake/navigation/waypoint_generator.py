@@ -351,8 +351,7 @@ class WaypointPolicy:
     robot stands nearer chooses again from where it is (``_keep_spot``): two robots that
     chose one free spot at once would otherwise circle each other round it
     (docs/worlds.md, "Unseen seeds 3-7 of airport_terminal, battle_royale and campus").
-    A parked robot given a stop starts it as if standing on the location's point. A robot
-    with a home starts as one back home (``initial_state``).
+    A parked robot given a stop starts it as if standing on the location's point.
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
     current stop is elsewhere and it is more than ``release_distance`` from the room's
@@ -413,15 +412,6 @@ class WaypointPolicy:
         return self._robot
 
     def initial_state(self) -> _Drive:
-        """At the start: standing at home (``home``, its start spot off the locations), as
-        a robot back home, so that pushed off it with nothing to do it drives back (before,
-        a robot never given a stop was idle, its target inactive, and stood wherever the
-        others pushed it: triple_H seed 1, robot6 pushed from its start spot onto a
-        corridor's lane, where the robots driving round it met head-on for 32 s); without
-        a home (or parking off), idle."""
-        if self._home is not None and self._params.parking:
-            return _Drive(phase=RobotMode.HOME, route=(self._home,),
-                          last_location=self._start_location)
         return _Drive(last_location=self._start_location)
 
     # --- Outputs -----------------------------------------------------------------------------

@@ -394,13 +394,13 @@ def test_robots_that_chose_one_parking_spot_together_share_the_spots_out():
 
 
 def test_a_robot_done_at_a_room_drives_home_on_its_level_though_another_robot_stands_there():
-    # r1 (home at 10.3, 0) stands idle on r0's home (10, 0) as r0 serves B, which has no
-    # parking spot: r0 drives back to its own home all the same. Before, it drove to a
-    # free start spot instead, and stood there when that spot's robot came home (the
-    # one-level office, seed 0: 10 of 25 tasks, robots waiting at each other's start spots
-    # in the lanes).
-    homes = [(10.0, 0.0), (10.3, 0.0)]
-    world = World([None, None], fixed([B], []), start_known=False, homes=homes)
+    # r1 (home at 20, 0) stands idle on r0's home (10, 0) as r0 serves B, which has no
+    # parking spot: r0 drives back to its own home all the same. Before, it drove to r1's
+    # free start spot instead, and stood there when r1 came home (the one-level office,
+    # seed 0: 10 of 25 tasks, robots waiting at each other's start spots in the lanes).
+    homes = [(10.0, 0.0), (20.0, 0.0)]
+    world = World([None, None], fixed([B], []), start_known=False, homes=homes,
+                  at=[homes[0], (10.3, 0.0)])
     world.run(until=120.0)
     assert [v.location for v in world.progress(0).visits] == [B]
     _, _, positions, targets = world.log[-1]
@@ -709,15 +709,3 @@ def test_a_robot_held_back_whose_missing_segments_are_free_keeps_those_it_holds(
         queues = QueueState(segments=tuple(SegmentHold(("r0",) if k == held else (), False)
                                            for k in range(3)))
         assert policy.update(s, _Inputs(10.0, queues, [[13.5, 1.5, 0.0, 0.0]])).lanes == whole
-
-
-def test_a_robot_never_given_a_stop_drives_back_to_its_start_spot_when_off_it():
-    # r0 starts off the locations with nothing to do and stands 2 m from its start spot
-    # (as when robots driving past push it away): it drives back (before, idle with its
-    # target inactive, it stood where it was pushed: triple_H seed 1, on a corridor's lane).
-    home = (10.0, 0.0)
-    world = World([None], fixed([]), start_known=False, homes=[home], at=[(12.0, 1.5)])
-    world.run(until=5.0)
-    _, _, positions, targets = world.log[-1]
-    assert targets[0].active and targets[0].stop_at_current and targets[0].current == home
-    np.testing.assert_allclose(positions[0], home, atol=0.05)
