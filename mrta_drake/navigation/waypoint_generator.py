@@ -805,9 +805,9 @@ class WaypointPolicy:
         # the rest at once, give up those for the ones dropped, and so on, every update
         # (the campus, seed 10: robot1, served 0.58 m off room_3's point, so standing in
         # no segment, held segments 6 and 5 in turn from 262 s to the end).
-        held = self._held(queues)
         if all(set(queues.segments[k].holders) <= {self._robot} for k, _ in wanted.segments):
             return wanted
+        held = self._held(queues)
         dropped = {k for k, _ in wanted.segments if k in held}.difference(
             stands_in(self._roadways, robots.xy, self._params.single_file))
         if dropped:
