@@ -165,7 +165,7 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
     stops: tuple[int, ...] = ()
     for run in route_runs(roadways, route, params.chain_gap, params.stand_distance):
         if run.last == len(route) - 2:  # the run where the route ends: it stands there
-            stops = _near(roadways, route[-1], params.stand_distance)
+            stops = stands_in(roadways, route[-1], params)
         if index <= run.first:  # ahead: how far along the route to its entry?
             ahead = math.dist(xy, route[index]) + sum(
                 math.dist(route[j], route[j + 1]) for j in range(index, run.first))
