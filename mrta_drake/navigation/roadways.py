@@ -285,6 +285,18 @@ class Roadways:
                 return self._segment_of.get((ends[0], (float(end[0]), float(end[1]))))
         return None
 
+    def distance_to_lanes(self, xy) -> float:
+        """Distance (m) from point ``xy`` (m) to the nearest lane (lift rides aside);
+        infinite without lanes."""
+        ends = [(self.node_position(a), self.node_position(b))
+                for a, b, lift in self.graph.edges(data="lift") if not lift]
+        if not ends:
+            return math.inf
+        a, b = (np.array(side, dtype=float) for side in zip(*ends, strict=True))
+        ab, rel = b - a, np.asarray(xy, dtype=float) - a
+        t = np.clip((rel * ab).sum(axis=1) / np.maximum((ab * ab).sum(axis=1), 1e-18), 0, 1)
+        return float(np.linalg.norm(rel - t[:, None] * ab, axis=1).min())
+
     def route_length(self, points) -> float:
         """Length (m) of the route ``points`` (k, 2), a lift ride counted as its edge's
         ``length``."""

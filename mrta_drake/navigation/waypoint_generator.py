@@ -66,9 +66,10 @@ class WaypointParams:
     lift_wait_distance: float = 3.0  # wait for it this far back along the route from the
     # cabin's point, one more metre per robot ahead in its queue
     single_file: SingleFileParams = SingleFileParams()  # holding single-file segments
+    on_lane: float = 0.05  # a start spot this near a lane is on it (``initial_state``)
 
     def __post_init__(self):
-        require_positive(self, "door_clearance", "overflow_spacing", unit=" m")
+        require_positive(self, "door_clearance", "overflow_spacing", "on_lane", unit=" m")
         require_positive(self, "door_patience", unit=" s")
 
 
@@ -412,6 +413,20 @@ class WaypointPolicy:
         return self._robot
 
     def initial_state(self) -> _Drive:
+        """At the start: a robot whose home (its start spot) is off the lanes (farther than
+        ``on_lane`` from every lane: a corridor's centre line between its two lanes, a
+        spot beside them) starts as one back home, so that pushed off it with nothing to
+        do it drives back (before, it was idle, its target inactive, and stood wherever
+        the others pushed it: triple_H seed 1, robot6, on the centre line of the dead end
+        to a charger, pushed by the robot driving home to that charger onto a lane of the
+        corridor across, where the robots driving round it met head-on for 32 s). A robot
+        starting on a lane stays idle: pushed off it, it stands off the lane, out of the
+        way (driving back, it would block that lane again: on the hospital at scale, robots
+        on lane spots driving back cost CPU, branch ``maps7a``)."""
+        if (self._home is not None and self._params.parking
+                and self._roadways.distance_to_lanes(self._home) > self._params.on_lane):
+            return _Drive(phase=RobotMode.HOME, route=(self._home,),
+                          last_location=self._start_location)
         return _Drive(last_location=self._start_location)
 
     # --- Outputs -----------------------------------------------------------------------------

@@ -709,3 +709,29 @@ def test_a_robot_held_back_whose_missing_segments_are_free_keeps_those_it_holds(
         queues = QueueState(segments=tuple(SegmentHold(("r0",) if k == held else (), False)
                                            for k in range(3)))
         assert policy.update(s, _Inputs(10.0, queues, [[13.5, 1.5, 0.0, 0.0]])).lanes == whole
+
+
+def test_a_robot_never_given_a_stop_drives_back_to_its_start_spot_off_the_lanes():
+    # r0 starts between the two lanes, off the locations, with nothing to do, and stands
+    # 2 m from its start spot (as when a robot driving past pushes it away): it drives
+    # back (before, idle with its target inactive, it stood where it was pushed: triple_H
+    # seed 1, onto a corridor's lane). r1, whose start spot is on a lane, stays idle where
+    # it stands, off that lane.
+    homes = [(10.0, 0.75), (20.0, 0.0)]
+    world = World([None, None], fixed([], []), start_known=False, homes=homes,
+                  at=[(12.0, 1.5), (20.0, -1.0)])
+    world.run(until=5.0)
+    _, _, positions, targets = world.log[-1]
+    assert targets[0].active and targets[0].stop_at_current and targets[0].current == homes[0]
+    np.testing.assert_allclose(positions[0], homes[0], atol=0.05)
+    assert not targets[1].active
+    np.testing.assert_allclose(positions[1], (20.0, -1.0))
+
+
+def test_a_start_spot_on_a_lane_is_within_on_lane_of_it():
+    roadways = loop_world()
+    assert roadways.distance_to_lanes((10.0, 0.75)) == pytest.approx(0.75)
+    assert roadways.distance_to_lanes((12.0, 0.0)) == 0.0
+    assert roadways.distance_to_lanes((-1.0, -1.0)) == pytest.approx(math.sqrt(2.0))
+    with pytest.raises(InputError, match="on_lane"):
+        WaypointParams(on_lane=0.0)
