@@ -352,7 +352,8 @@ class WaypointPolicy:
     robot stands nearer chooses again from where it is (``_keep_spot``): two robots that
     chose one free spot at once would otherwise circle each other round it
     (docs/worlds.md, "Unseen seeds 3-7 of airport_terminal, battle_royale and campus").
-    A parked robot given a stop starts it as if standing on the location's point.
+    A parked robot given a stop starts it as if standing on the location's point. A robot
+    whose start spot is off the lanes starts as one back home (``initial_state``).
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
     current stop is elsewhere and it is more than ``release_distance`` from the room's
