@@ -64,15 +64,12 @@ class Run:
 _BESIDE = 2.5  # m: the farthest a queue slot stands beside its lane (2.2 m, rmf_navigation)
 
 
-def _hop_segment(roadways: Roadways, a, b, c, stand_distance: float = 0.0
-                 ) -> tuple[int, bool] | None:
+def _hop_segment(roadways: Roadways, a, b, c) -> tuple[int, bool] | None:
     """The segment the hop from route point ``a`` to ``b`` drives (``c``: the point after
     ``b``, or None): its lane's; for a hop from a roadway node to a spot beside a lane
     from it (a queue slot beside the lanes, within ``_BESIDE``), that lane's; for a hop
-    from within ``stand_distance`` of a segment's lane into node ``b`` (a robot standing
-    in the segment, ``_lane_into``), that segment, the lane's way; for a hop from off the
-    lanes (``a`` no roadway node) onto a segment's lane at ``b``, that segment (the way
-    the route goes on along it)."""
+    from off the lanes (``a`` no roadway node) onto a segment's lane at ``b``, that
+    segment (the way the route goes on along it)."""
     segment = roadways.segment_of(a, b)
     if segment is not None:
         return segment
@@ -84,8 +81,6 @@ def _hop_segment(roadways: Roadways, a, b, c, stand_distance: float = 0.0
                  for n in roadways.graph.successors(start)]
         gap, n = min(lanes, key=lambda lane: lane[0], default=(math.inf, None))
         return roadways.segment_of(a, roadways.node_position(n)) if gap <= _BESIDE else None
-    if (along := _lane_into(roadways, a, b, stand_distance)) is not None:
-        return along
     if c is not None and (onward := roadways.segment_of(b, c)) is not None:
         return onward
     near = _near(roadways, b, 1e-3)
@@ -97,7 +92,7 @@ def _lane_into(roadways: Roadways, xy, b, distance: float) -> tuple[int, bool] |
     ``xy`` (m, not at ``b``) lies within ``distance`` of, beside it (the nearest such
     lane; ties by node name), or None."""
     end = roadways.node_at(b)
-    if end is None or distance <= 0.0 or math.dist(xy, b) < 1e-3:
+    if end is None or math.dist(xy, b) < 1e-3:
         return None
     lanes = sorted((_to_lane(xy, roadways.node_position(n), b), str(n))
                    for n in roadways.graph.predecessors(end)
@@ -128,7 +123,7 @@ def route_runs(roadways: Roadways, route: tuple[tuple[float, float], ...],
     gap = math.inf
     for j in range(len(route) - 1):
         segment = _hop_segment(roadways, route[j], route[j + 1],
-                               route[j + 2] if j + 2 < len(route) else None, stand_distance)
+                               route[j + 2] if j + 2 < len(route) else None)
         if segment is None:
             gap += math.dist(route[j], route[j + 1])
             continue
@@ -177,27 +172,19 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
          params: SingleFileParams) -> Need:
     """The segments a robot at ``xy`` driving ``route`` to point ``index`` needs, and
     whether it must hold where it is until it has them (it is within ``hold_distance``
-    of a run's entry, or in the run). A robot on its way to the route's first point
-    from within a segment whose lane leads there (``_lane_into``; the route begins at the
-    roadway node nearest the robot, e.g. after a new stop is given to a robot standing in
-    a segment) drives that segment first: the hop from where it stands belongs to the
-    route, so it keeps the segment it stands in while it waits for the rest of the run
-    (office seed 9: robot5, given a new stop while standing in segment 7, asked only for
-    the segments beyond; the robot granted segment 7 then drove in head-on and both
-    stood for good)."""
+    of a run's entry, or in the run). A robot holding back on its way to the route's
+    first point from within a segment whose lane leads there (``_lane_into``: the route
+    begins at the roadway node nearest the robot, e.g. after a new stop was given to a
+    robot standing in a segment) needs that segment too, the lane's way: it keeps the
+    segment it stands in while it waits (office seed 9: robot5, given a new stop in
+    segment 7, asked only for the segments beyond, the robot granted segment 7 drove in
+    head-on, and both stood for good)."""
     if roadways.segment_count == 0 or len(route) < 2:
         return NOTHING
-    if index == 0 and _lane_into(roadways, xy, route[0], params.stand_distance) is not None:
-        route, index = ((float(xy[0]), float(xy[1])), *route), 1
-        # Not cached: where the robot stands changes at every update.
-        runs = route_runs.__wrapped__(roadways, route, params.chain_gap,
-                                      params.stand_distance)
-    else:
-        runs = route_runs(roadways, route, params.chain_gap, params.stand_distance)
     wanted: dict[int, bool] = {}
     hold = False
     stops: tuple[int, ...] = ()
-    for run in runs:
+    for run in route_runs(roadways, route, params.chain_gap, params.stand_distance):
         if run.last == len(route) - 2:  # the run where the route ends: it stands there
             stops = stands_in(roadways, route[-1], params)
         if index <= run.first:  # ahead: how far along the route to its entry?
@@ -213,6 +200,9 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
         elif index == run.last + 2 and math.dist(xy, route[run.last + 1]) \
                 < params.clear_distance:  # just out
             wanted.update(dict(run.segments))
+    if hold and index == 0 and (
+            entry := _lane_into(roadways, xy, route[0], params.stand_distance)) is not None:
+        wanted.setdefault(*entry)
     if not wanted:
         return NOTHING
     return Need(tuple(sorted(wanted.items())), hold, tuple(k for k in stops if k in wanted))

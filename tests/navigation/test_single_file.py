@@ -90,20 +90,20 @@ def test_a_hop_from_beside_the_lanes_onto_a_segment_enters_it():
     assert [(r.first, r.last, r.segments) for r in runs] == [(0, 0, ((1, False),))]
 
 
-@pytest.mark.parametrize("route, expected", [
-    # West from A20 (the node nearest): the hop to it drives segment 1 (listed A30 -> A20),
-    # then segment 0 the other way (A20 -> A10): one run, in which it already is.
-    (WEST[3:], Need(((0, False), (1, True)), True)),
-    # East from A30: segment 1 the other way; segment 2, 10 m on, is another run.
-    (EAST[3:], Need(((1, False),), True)),
+@pytest.mark.parametrize("xy, route, expected", [
+    # 1 m into segment 1 (listed A30 -> A20), its new route west from A20 (the node
+    # nearest): it holds back for segment 0 and keeps segment 1, the way into A20.
+    ((21.0, 0.1), WEST[3:], Need(((0, False), (1, True)), True)),
+    # Beside the lanes, farther than the stand distance: the route's segments only.
+    ((21.0, 0.8), WEST[3:], Need(((0, False),), True)),
+    # Driving on out of segment 1 east from A30, nothing within reach: it holds nothing.
+    ((29.0, 0.1), EAST[3:], Need()),
 ])
-def test_a_robot_given_a_route_from_the_node_nearest_keeps_the_segment_it_stands_in(
-        route, expected):
-    # Standing in segment 1 (A20-A30) when its new route begins at a node of that lane:
-    # it must not give the segment up while it waits for the rest (office seed 9).
-    assert need(corridor(), route, 0, (24.0, 0.1), PARAMS) == expected
-    # Beside the lanes, farther than the stand distance: the route as it is.
-    assert need(corridor(), WEST[3:], 0, (24.0, 0.8), PARAMS) == Need()
+def test_a_robot_holding_back_on_its_way_to_its_route_keeps_the_segment_it_stands_in(
+        xy, route, expected):
+    # Else it gives the segment up while it waits, and a robot granted it drives in
+    # head-on (office seed 9).
+    assert need(corridor(), route, 0, xy, PARAMS) == expected
 
 
 @pytest.mark.parametrize("xy, spot, expected", [
