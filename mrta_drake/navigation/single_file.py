@@ -87,21 +87,6 @@ def _hop_segment(roadways: Roadways, a, b, c) -> tuple[int, bool] | None:
     return (near[0], True) if near else None
 
 
-def _lane_into(roadways: Roadways, xy, b, distance: float) -> tuple[int, bool] | None:
-    """The segment (index, way) of the single-file lane into roadway node ``b`` that
-    ``xy`` (m, not at ``b``) lies within ``distance`` of, beside it (the nearest such
-    lane; ties by node name), or None."""
-    end = roadways.node_at(b)
-    if end is None or math.dist(xy, b) < 1e-3:
-        return None
-    lanes = sorted((_to_lane(xy, roadways.node_position(n), b), str(n))
-                   for n in roadways.graph.predecessors(end)
-                   if roadways.segment_of(roadways.node_position(n), b) is not None)
-    if not lanes or lanes[0][0] > distance:
-        return None
-    return roadways.segment_of(roadways.node_position(lanes[0][1]), b)
-
-
 def _to_lane(xy, a, b) -> float:
     """Distance (m) from ``xy`` to the lane from ``a`` to ``b`` where ``xy`` lies beside
     it (its foot on the lane, past ``a``), else infinity."""
@@ -172,13 +157,12 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
          params: SingleFileParams) -> Need:
     """The segments a robot at ``xy`` driving ``route`` to point ``index`` needs, and
     whether it must hold where it is until it has them (it is within ``hold_distance``
-    of a run's entry, or in the run). A robot holding back on its way to the route's
-    first point from within a segment whose lane leads there (``_lane_into``: the route
-    begins at the roadway node nearest the robot, e.g. after a new stop was given to a
-    robot standing in a segment) needs that segment too, the lane's way: it keeps the
-    segment it stands in while it waits (office seed 9: robot5, given a new stop in
-    segment 7, asked only for the segments beyond, the robot granted segment 7 drove in
-    head-on, and both stood for good)."""
+    of a run's entry, or in the run). A robot holding back also needs the segments it
+    stands in (``stands_in``), each the way of its lane toward the point it drives to:
+    it keeps them while it waits, whatever its route says (office seed 9: robot5, given
+    a new stop while in segment 7, its new route from the node ahead, asked only for the
+    segments beyond; the robot granted segment 7 drove in head-on, and both stood for
+    good)."""
     if roadways.segment_count == 0 or len(route) < 2:
         return NOTHING
     wanted: dict[int, bool] = {}
@@ -200,9 +184,10 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
         elif index == run.last + 2 and math.dist(xy, route[run.last + 1]) \
                 < params.clear_distance:  # just out
             wanted.update(dict(run.segments))
-    if hold and index == 0 and (
-            entry := _lane_into(roadways, xy, route[0], params.stand_distance)) is not None:
-        wanted.setdefault(*entry)
+    if hold:
+        toward = route[min(index, len(route) - 1)]
+        for k in stands_in(roadways, xy, params):
+            wanted.setdefault(k, _way_toward(roadways, k, toward))
     if not wanted:
         return NOTHING
     return Need(tuple(sorted(wanted.items())), hold, tuple(k for k in stops if k in wanted))
@@ -240,6 +225,12 @@ def _near(roadways: Roadways, xy, distance: float) -> tuple[int, ...]:
         if math.hypot(xy[0] - ax - t * dx, xy[1] - ay - t * dy) <= distance:
             found.add(k)
     return tuple(sorted(found))
+
+
+def _way_toward(roadways: Roadways, segment: int, xy) -> bool:
+    """The way (forward or not) of the lane of ``segment`` whose end is nearest ``xy``."""
+    start, end = min(segment_lanes(roadways, segment), key=lambda lane: math.dist(lane[1], xy))
+    return roadways.segment_of(start, end)[1]
 
 
 def stands_in(roadways: Roadways, xy, params: SingleFileParams) -> tuple[int, ...]:
