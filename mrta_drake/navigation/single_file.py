@@ -157,12 +157,7 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
          params: SingleFileParams) -> Need:
     """The segments a robot at ``xy`` driving ``route`` to point ``index`` needs, and
     whether it must hold where it is until it has them (it is within ``hold_distance``
-    of a run's entry, or in the run). A robot holding back also needs the segments it
-    stands in (``stands_in``), each the way of its lane toward the point it drives to:
-    it keeps them while it waits, whatever its route says (office seed 9: robot5, given
-    a new stop while in segment 7, its new route from the node ahead, asked only for the
-    segments beyond; the robot granted segment 7 drove in head-on, and both stood for
-    good)."""
+    of a run's entry, or in the run)."""
     if roadways.segment_count == 0 or len(route) < 2:
         return NOTHING
     wanted: dict[int, bool] = {}
@@ -184,10 +179,6 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
         elif index == run.last + 2 and math.dist(xy, route[run.last + 1]) \
                 < params.clear_distance:  # just out
             wanted.update(dict(run.segments))
-    if hold:
-        toward = route[min(index, len(route) - 1)]
-        for k in stands_in(roadways, xy, params):
-            wanted.setdefault(k, _way_toward(roadways, k, toward))
     if not wanted:
         return NOTHING
     return Need(tuple(sorted(wanted.items())), hold, tuple(k for k in stops if k in wanted))
@@ -225,12 +216,6 @@ def _near(roadways: Roadways, xy, distance: float) -> tuple[int, ...]:
         if math.hypot(xy[0] - ax - t * dx, xy[1] - ay - t * dy) <= distance:
             found.add(k)
     return tuple(sorted(found))
-
-
-def _way_toward(roadways: Roadways, segment: int, xy) -> bool:
-    """The way (forward or not) of the lane of ``segment`` whose end is nearest ``xy``."""
-    start, end = min(segment_lanes(roadways, segment), key=lambda lane: math.dist(lane[1], xy))
-    return roadways.segment_of(start, end)[1]
 
 
 def stands_in(roadways: Roadways, xy, params: SingleFileParams) -> tuple[int, ...]:

@@ -795,6 +795,15 @@ class WaypointPolicy:
         wanted = need(self._roadways, s.route, s.index, robots.xy, self._params.single_file)
         if not wanted.hold:
             return wanted
+        # Held back, it keeps the segments it holds and stands in, whatever its route says
+        # (office seed 9: robot5, given a new stop while in segment 7, its new route from
+        # the node ahead, asked only for the segments beyond and gave segment 7 up; the
+        # robot granted it drove in head-on and both stood for good).
+        held = self._held(queues)
+        here = stands_in(self._roadways, robots.xy, self._params.single_file)
+        kept = {k: held[k] for k in here if k in held} | dict(wanted.segments)
+        if len(kept) > len(wanted.segments):
+            wanted = Need(tuple(sorted(kept.items())), True, wanted.stops)
         if queues.holds_segments(self._robot, wanted.segments):
             return Need(wanted.segments, stops=wanted.stops)
         # Held back, it holds none of the run's segments it does not stand in: it gives
@@ -807,9 +816,7 @@ class WaypointPolicy:
         # no segment, held segments 6 and 5 in turn from 262 s to the end).
         if all(set(queues.segments[k].holders) <= {self._robot} for k, _ in wanted.segments):
             return wanted
-        held = self._held(queues)
-        dropped = {k for k, _ in wanted.segments if k in held}.difference(
-            stands_in(self._roadways, robots.xy, self._params.single_file))
+        dropped = {k for k, _ in wanted.segments if k in held}.difference(here)
         if dropped:
             return wanted.without(dropped)
         return wanted

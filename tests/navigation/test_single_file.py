@@ -90,23 +90,6 @@ def test_a_hop_from_beside_the_lanes_onto_a_segment_enters_it():
     assert [(r.first, r.last, r.segments) for r in runs] == [(0, 0, ((1, False),))]
 
 
-@pytest.mark.parametrize("xy, route, index, expected", [
-    # 1 m into segment 1 (listed A30 -> A20), its new route west from A20 (the node
-    # nearest): it holds back for segment 0 and keeps segment 1, the way into A20 ...
-    ((21.0, 0.1), WEST[3:], 0, Need(((0, False), (1, True)), True)),
-    # ... also once it counts A20 as passed (driving to A10 while still in segment 1).
-    ((21.0, 0.1), WEST[3:], 1, Need(((0, False), (1, True)), True)),
-    # Beside the lanes, farther than the stand distance: the route's segments only.
-    ((21.0, 0.8), WEST[3:], 0, Need(((0, False),), True)),
-    # Driving on out of segment 1 east from A30, nothing within reach: it holds nothing.
-    ((29.0, 0.1), EAST[3:], 0, Need()),
-])
-def test_a_robot_holding_back_keeps_the_segment_it_stands_in(xy, route, index, expected):
-    # Else it gives the segment up while it waits, and a robot granted it drives in
-    # head-on (office seed 9).
-    assert need(corridor(), route, index, xy, PARAMS) == expected
-
-
 @pytest.mark.parametrize("xy, spot, expected", [
     ((25.0, 0.3), (25.0, 0.0), Need(((1, True),), False, (1,))),  # in 1 already: asks, drives
     ((25.0, 3.0), (25.0, 0.4), Need(((1, True),), True, (1,))),  # driving up to a slot in 1

@@ -709,3 +709,20 @@ def test_a_robot_held_back_whose_missing_segments_are_free_keeps_those_it_holds(
         queues = QueueState(segments=tuple(SegmentHold(("r0",) if k == held else (), False)
                                            for k in range(3)))
         assert policy.update(s, _Inputs(10.0, queues, [[13.5, 1.5, 0.0, 0.0]])).lanes == whole
+
+
+def test_a_robot_held_back_keeps_the_segment_it_holds_and_stands_in_off_its_route():
+    # r0, 1 m up the spur J-S (segment 2, which it holds northbound-out: S -> J), given a
+    # way west from J that it counts as begun (driving to W); x holds W-J. Held back, it
+    # keeps the spur it stands in: before, it asked for W-J alone, gave the spur up, and
+    # a robot granted it drove in head-on (office seed 9: five robots stood ~180 s).
+    policy = WaypointPolicy(["r0"], 0, spur_world(), None, WaypointParams())
+    s = _Drive(phase=RobotMode.HOME, route=((10.0, 0.0), (0.0, 0.0)), index=1)
+    queues = QueueState(segments=(SegmentHold(("x",), True), SegmentHold(),
+                                  SegmentHold(("r0",), False)))
+    held_back = policy.update(s, _Inputs(10.0, queues, [[10.0, 1.0, -math.pi / 2, 0.0]]))
+    assert held_back.lanes == Need(((0, False), (2, False)), hold=True, stops=(0,))
+    # Not holding the spur, it does not ask for it (it waits for W-J as before).
+    free = QueueState(segments=(SegmentHold(("x",), True), SegmentHold(), SegmentHold()))
+    waiting = policy.update(s, _Inputs(10.0, free, [[10.0, 1.0, -math.pi / 2, 0.0]]))
+    assert waiting.lanes == Need(((0, False),), hold=True, stops=(0,))
