@@ -722,6 +722,9 @@ def test_a_robot_held_back_keeps_the_segment_it_holds_and_stands_in_off_its_rout
                                   SegmentHold(("r0",), False)))
     held_back = policy.update(s, _Inputs(10.0, queues, [[10.0, 1.0, -math.pi / 2, 0.0]]))
     assert held_back.lanes == Need(((0, False), (2, False)), hold=True, stops=(0,))
+    # At J, where the segments meet, only its route's, as before.
+    at_j = policy.update(s, _Inputs(10.0, queues, [[10.0, 0.3, -math.pi / 2, 0.0]]))
+    assert at_j.lanes == Need(((0, False),), hold=True, stops=(0,))
     # Not holding the spur, it does not ask for it (it waits for W-J as before).
     free = QueueState(segments=(SegmentHold(("x",), True), SegmentHold(), SegmentHold()))
     waiting = policy.update(s, _Inputs(10.0, free, [[10.0, 1.0, -math.pi / 2, 0.0]]))
