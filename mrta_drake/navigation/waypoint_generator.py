@@ -797,7 +797,7 @@ class WaypointPolicy:
             return wanted
         # Held back inside a lane (farther than stand_distance from every roadway node), it
         # keeps the segments it holds and stands in, whatever its route says (office seed
-        # 9: robot5, given a new stop 0.7 m into segment 7, its new route from the node
+        # 9: robot5, given a new stop 0.9 m into segment 7, its new route from the node
         # ahead, asked only for the segments beyond and gave segment 7 up; the robot
         # granted it drove in head-on and both stood for good). At a node, where segments
         # meet, it keeps only those of its route, as before (kept all, robots at their
