@@ -811,6 +811,19 @@ class WaypointPolicy:
         wanted = need(self._roadways, s.route, s.index, robots.xy, self._params.single_file)
         if not wanted.hold:
             return wanted
+        # Held back inside a lane (farther than stand_distance from every roadway node), it
+        # keeps the segments it holds and stands in, whatever its route says (office seed
+        # 9: robot5, given a new stop 0.9 m into segment 7, its new route from the node
+        # ahead, asked only for the segments beyond and gave segment 7 up; the robot
+        # granted it drove in head-on and both stood for good). At a node, where segments
+        # meet, it keeps only those of its route, as before (kept all, robots at their
+        # start spots held more and the office's seeds 3 and 6 served 3 and 6 tasks fewer).
+        held = self._held(queues)
+        here = stands_in(self._roadways, robots.xy, self._params.single_file)
+        if here and held and self._between_nodes(robots.xy):
+            kept = {k: held[k] for k in here if k in held} | dict(wanted.segments)
+            if len(kept) > len(wanted.segments):
+                wanted = Need(tuple(sorted(kept.items())), True, wanted.stops)
         if queues.holds_segments(self._robot, wanted.segments):
             return Need(wanted.segments, stops=wanted.stops)
         # Held back, it holds none of the run's segments it does not stand in: it gives
@@ -823,12 +836,17 @@ class WaypointPolicy:
         # no segment, held segments 6 and 5 in turn from 262 s to the end).
         if all(set(queues.segments[k].holders) <= {self._robot} for k, _ in wanted.segments):
             return wanted
-        held = self._held(queues)
-        dropped = {k for k, _ in wanted.segments if k in held}.difference(
-            stands_in(self._roadways, robots.xy, self._params.single_file))
+        dropped = {k for k, _ in wanted.segments if k in held}.difference(here)
         if dropped:
             return wanted.without(dropped)
         return wanted
+
+    def _between_nodes(self, xy) -> bool:
+        """Whether ``xy`` is farther than ``single_file.stand_distance`` from every roadway
+        node (inside a lane, not where lanes meet)."""
+        reach = self._params.single_file.stand_distance
+        return all(_distance(xy, self._roadways.node_position(n)) > reach
+                   for n in self._roadways.graph.nodes)
 
     def _standing_in(self, robots: _Robots, queues: QueueState) -> Need:
         """Giving way (a ``releases`` order): only the single-file segments the robot

@@ -735,3 +735,23 @@ def test_a_start_spot_on_a_lane_is_within_on_lane_of_it():
     assert roadways.distance_to_lanes((-1.0, -1.0)) == pytest.approx(math.sqrt(2.0))
     with pytest.raises(InputError, match="on_lane"):
         WaypointParams(on_lane=0.0)
+
+
+def test_a_robot_held_back_keeps_the_segment_it_holds_and_stands_in_off_its_route():
+    # r0, 1 m up the spur J-S (segment 2, which it holds northbound-out: S -> J), given a
+    # way west from J that it counts as begun (driving to W); x holds W-J. Held back, it
+    # keeps the spur it stands in: before, it asked for W-J alone, gave the spur up, and
+    # a robot granted it drove in head-on (office seed 9: five robots stood ~180 s).
+    policy = WaypointPolicy(["r0"], 0, spur_world(), None, WaypointParams())
+    s = _Drive(phase=RobotMode.HOME, route=((10.0, 0.0), (0.0, 0.0)), index=1)
+    queues = QueueState(segments=(SegmentHold(("x",), True), SegmentHold(),
+                                  SegmentHold(("r0",), False)))
+    held_back = policy.update(s, _Inputs(10.0, queues, [[10.0, 1.0, -math.pi / 2, 0.0]]))
+    assert held_back.lanes == Need(((0, False), (2, False)), hold=True, stops=(0,))
+    # At J, where the segments meet, only its route's, as before.
+    at_j = policy.update(s, _Inputs(10.0, queues, [[10.0, 0.3, -math.pi / 2, 0.0]]))
+    assert at_j.lanes == Need(((0, False),), hold=True, stops=(0,))
+    # Not holding the spur, it does not ask for it (it waits for W-J as before).
+    free = QueueState(segments=(SegmentHold(("x",), True), SegmentHold(), SegmentHold()))
+    waiting = policy.update(s, _Inputs(10.0, free, [[10.0, 1.0, -math.pi / 2, 0.0]]))
+    assert waiting.lanes == Need(((0, False),), hold=True, stops=(0,))
