@@ -138,4 +138,5 @@ def _shifted(location: LocationConfig, new_id: int, level: str, layout: LevelLay
         id=new_id, name=f"{level}/{location.name}",
         point=list(layout.to_world(level, location.point)), queue=moved(location.queue),
         entry=moved(location.entry), exit_node=f"{level}/{location.exit_node}",
-        approach_node=f"{level}/{location.approach_node}", parking=moved(location.parking))
+        approach_node=f"{level}/{location.approach_node}", parking=moved(location.parking),
+        overflow=moved(location.overflow))
