@@ -68,7 +68,8 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
         [(name, level.elevation, worlds[name].bounds) for name, level in
          building.levels.items()], gap)
     floor_plan = combined_floor_plan(building.name, worlds, layout, building.source)
-    nodes, edges, locations, notes, single_file = {}, [], [], [], []
+    nodes, edges, locations, single_file = {}, [], [], []
+    notes = unaligned_levels(building)
     cabin_nodes: dict[tuple[str, str], str] = {}
     for name, level in building.levels.items():
         navigation = level_navigation(building, name, worlds[name],
@@ -107,6 +108,24 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
                          f"graph {graph}: robots could not leave their level")
     roadways = RoadwaysConfig(nodes=nodes, edges=edges, single_file=single_file)
     return BuildingLevels(layout, floor_plan, locations, roadways, tuple(lifts), notes)
+
+
+def unaligned_levels(building: Building) -> list[str]:
+    """A note for each level of a ``reference_image`` building that shares fewer than two
+    fiducials with the reference level: it is taken as drawn in that level's frame
+    (``rmf_coordinates``), which is right only if it was; lifts and stairs may not line
+    up."""
+    if building.coordinate_system.kind != "reference_image":
+        return []
+    reference = {f.name for f in building.levels[building.reference_level].fiducials}
+    notes = []
+    for name, level in building.levels.items():
+        shared = len(reference & {f.name for f in level.fiducials})
+        if name != building.reference_level and shared < 2:
+            notes.append(f"{name}: {shared} fiducial(s) shared with the reference level "
+                         f"{building.reference_level}: taken as drawn in its frame, not "
+                         "aligned")
+    return notes
 
 
 def _stop(lift, level: str, elevation: float, node: str, nodes, layout: LevelLayout
