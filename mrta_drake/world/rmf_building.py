@@ -431,9 +431,12 @@ class _Parser:
         for door_name, door_raw in self.mapping(lift.get("doors"), f"{where}.doors").items():
             here = f"{where}.doors.{door_name}"
             door = self.mapping(door_raw, here)
+            for key in ("x", "y"):  # the door's place on the cabin's faces
+                if key not in door:
+                    self.fail(here, f"a lift door needs {key}")
             doors[str(door_name)] = LiftDoor(
-                str(door_name), (self.number(door.get("x", 0.0), f"{here}.x"),
-                                 self.number(door.get("y", 0.0), f"{here}.y")),
+                str(door_name), (self.number(door["x"], f"{here}.x"),
+                                 self.number(door["y"], f"{here}.y")),
                 self.number(door.get("width"), f"{here}.width", positive=True),
                 int(self.number(door.get("door_type", 2), f"{here}.door_type")))
         if not doors:
