@@ -292,8 +292,9 @@ class WaypointPolicy:
       the queue advances; one slot further back while the holder stands at the head slot
       (within ``waypoint_tolerance``: it waits there, for single-file segments or its
       doorway, and the first robot waiting would stand in its way in); robots beyond the
-      last slot wait ``overflow_spacing`` apart back from the tail slot towards the
-      approach node (``_queue_spot``; before, they all drove to the tail slot and stood
+      last slot wait on the location's overflow spots where it has them, else
+      ``overflow_spacing`` apart back from the tail slot towards the approach node
+      (``_queue_spot``; before, they all drove to the tail slot and stood
       round it: office seed 2, coe's one slot, whose holder, waiting at it, was boxed in).
     - lift: a route through a lift (``Roadways.lift_edge``: its cabin's node on this level,
       then on the next) is cut there. Within ``lift_request_distance`` of the cabin's point
@@ -1022,11 +1023,14 @@ class WaypointPolicy:
 
     def _queue_spot(self, place, index: int) -> tuple[float, float]:
         """Where the robot at place ``index`` of ``place``'s queue waits (world frame, m):
-        that slot; beyond the last, ``overflow_spacing`` m apart from the tail slot
-        towards the approach node, at most as far as that node."""
+        that slot; beyond the last, the place's overflow spots in order (the last shared),
+        else ``overflow_spacing`` m apart from the tail slot towards the approach node, at
+        most as far as that node."""
         last = len(place.queue) - 1
         if index <= last:
             return _point(place.queue[index])
+        if len(place.overflow):
+            return _point(place.overflow[min(index - last, len(place.overflow)) - 1])
         tail = place.tail
         towards = self._roadways.node_position(place.approach_node) - tail
         length = float(np.linalg.norm(towards))

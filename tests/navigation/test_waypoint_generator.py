@@ -39,11 +39,12 @@ from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig
 A, B, C = 0, 1, 2
 
 
-def loop_world(parking: bool = False) -> Roadways:
+def loop_world(parking: bool = False, overflow=()) -> Roadways:
     """As in test_roadways: an eastbound lane at y = 0 and a westbound one at y = 1.5 joined
     at x = 0 and 30; rooms A, B, C at x = 5, 15, 25, point at y = 5, door at y = 2.5, three
     queue slots east of the door on the westbound lane; with ``parking``, a parking spot 2 m
-    east of each point."""
+    east of each point; ``overflow``: each location's overflow spots, (dx, y) m from its
+    point's x."""
     xs = (0, 10, 20, 30)
     nodes = {f"S{x}": [x, 0.0] for x in xs} | {f"N{x}": [x, 1.5] for x in xs}
     edges = [["S0", "S10"], ["S10", "S20"], ["S20", "S30"], ["S30", "N30"],
@@ -53,6 +54,7 @@ def loop_world(parking: bool = False) -> Roadways:
             id=i, point=[x, 5.0], queue=[[x + 1.0, 1.5], [x + 2.0, 1.5], [x + 3.0, 1.5]],
             entry=[[x, 2.5]], exit_node=f"N{x - 5}", approach_node=f"N{x + 5}",
             parking=[[x + 2.0, 5.0], [x + 2.0, 6.5]] if parking else [],
+            overflow=[[x + dx, y] for dx, y in overflow],
         )
         for i, x in enumerate((5, 15, 25))
     ]
@@ -111,11 +113,11 @@ class World:
     """Robots ``r0, r1, ...`` starting on the points of ``starts`` (location ids)."""
 
     def __init__(self, starts, plan_source, start_known=True, params=None, parking=False,
-                 homes=None, at=None):
+                 homes=None, at=None, overflow=()):
         """``homes``: start spots (x, y) off the locations instead, one per robot (each
         robot's home; all of them its spots); ``at``: where the robots stand at first (x, y)
-        if not there."""
-        self.roadways = roadways = loop_world(parking)
+        if not there; ``overflow``: as ``loop_world``'s."""
+        self.roadways = roadways = loop_world(parking, overflow)
         self.robots = [f"r{i}" for i in range(len(starts))]
         builder = DiagramBuilder()
         plan = builder.AddSystem(plan_source)
@@ -223,6 +225,20 @@ def test_more_robots_than_slots_wait_back_from_the_tail_slot():
     # (N20, 2 m east of it), not on the third robot at the tail slot.
     assert slots == [tuple(map(float, place.queue[k])) for k in (0, 1)] + [
         tail, (tail[0] + 1.0, tail[1])]
+
+
+def test_more_robots_than_slots_wait_on_the_overflow_spots_where_given():
+    # The importer gives a location overflow spots where those on the line to the approach
+    # node would stand in an obstacle: the fourth robot waits on the first, not on the line.
+    world = World([C] * 5, fixed(*[[B]] * 5), overflow=[(3.0, 3.5)])
+    world.run(until=70)
+    place = world.roadways.place(B)
+    full = [(q, targets) for _, state, _, targets in world.log
+            if len((q := state.room(B)).waiting) == 4]
+    assert full
+    queue, targets = full[-1]
+    slots = [targets[int(robot[1:])].current for robot in queue.waiting]
+    assert slots == [tuple(map(float, place.queue[k])) for k in (0, 1, 2)] + [(18.0, 3.5)]
 
 
 def plan(*stops) -> FleetPlan:
