@@ -404,6 +404,7 @@ class WaypointPolicy:
         self._roadways = roadways
         self._params = params
         self._start_location = start_location
+        self._spots_cache: dict[tuple, tuple[bool, tuple]] = {}  # ``_spots_reached``'s
         # The outputs of the state last read: most updates keep the state object as it is.
         self._last_outputs: _Outputs | None = None
 
@@ -589,14 +590,31 @@ class WaypointPolicy:
         levels) would otherwise drive for a home on another level and stand at the lift
         (the two-floor clinic, 10 robots, seed 0: robot7 from 200 s to the end, in
         robot2's way)."""
-        if self._home is not None and lanes.spots_reached(place.id, [self._home]):
+        home, here = self._spots_reached(place, lanes)
+        if home:
             return self._home
-
-        def nearest(spots):
-            return sorted(spots, key=lambda spot: _distance(spot, place.point))
-
-        here = lanes.spots_reached(place.id, nearest(self._parking) + nearest(self._spots))
         return next((spot for spot in here if self._free(spot, others)), None)
+
+    def _spots_reached(self, place, lanes: Roadways) -> tuple[bool, tuple]:
+        """Whether the lanes lead from ``place`` to the robot's home without a lift ride;
+        if not, the parking spots and then the other robots' start spots they so lead to,
+        each nearest ``place`` first (``_home_spot``). A function of the roadways alone
+        (``lanes``, identified by their ``closures``), kept per roadways and place: each
+        costs a search of the lanes and a nearest-node scan per spot, and an idle robot
+        that sees another nearer its spot asks again at every update."""
+        key = (lanes.closures, place.id)
+        reached = self._spots_cache.get(key)
+        if reached is None:
+            if self._home is not None and lanes.spots_reached(place.id, [self._home]):
+                reached = (True, ())
+            else:
+                def nearest(spots):
+                    return sorted(spots, key=lambda spot: _distance(spot, place.point))
+
+                reached = (False, tuple(lanes.spots_reached(
+                    place.id, nearest(self._parking) + nearest(self._spots))))
+            self._spots_cache[key] = reached
+        return reached
 
     def _drive_to(self, s: _Drive, stop: Stop, route, lanes: Roadways, t: float) -> _Drive:
         """Drive to ``stop`` along ``route(lanes)`` (a function of the roadways: waypoints,
