@@ -59,13 +59,16 @@ class UnicycleRobots(LeafSystem):
     unconnected: all zero.
     Input ``relocations``: abstract ``Relocations`` (a lift ride's end): a robot whose
     sequence number is new is put on its pose, at rest, in an unrestricted update at the
-    same rate (before that instant's step); each pose is applied once.
+    same rate (before that instant's step); each pose is applied once. With ``relocations``
+    False (a run without lifts) the block has neither that input nor that update: an
+    unrestricted update at the robots' rate, even one that changes nothing, has Drake copy
+    the whole diagram's state at every step (every other step of the stack's 10 Hz blocks).
     Output ``state`` (4N): [x, y, theta, v] per robot, world frame, m, rad, m/s.
     Output ``plant_positions`` (3N): [x, y, theta] per robot, the planar joints' positions.
     """
 
     def __init__(self, robot_names, starts, params: UnicycleParams = UnicycleParams(), *,
-                 rate_hz: float):
+                 rate_hz: float, relocations: bool = True):
         super().__init__()
         starts = np.asarray(starts, dtype=float).reshape(len(robot_names), 3)
         self._n = len(robot_names)
@@ -76,15 +79,18 @@ class UnicycleRobots(LeafSystem):
         initial[:, :3] = starts
         state = self.DeclareDiscreteState(initial.ravel())
         self.DeclareVectorInputPort("commands", ROBOT_COMMAND_SIZE * self._n)
-        self._relocations = self.DeclareAbstractInputPort("relocations",
-                                                          Value[object](Relocations()))
-        self._applied = self.DeclareAbstractState(Value[object](_Applied((0,) * self._n)))
+        if relocations:
+            self._relocations = self.DeclareAbstractInputPort("relocations",
+                                                              Value[object](Relocations()))
+            self._applied = self.DeclareAbstractState(
+                Value[object](_Applied((0,) * self._n)))
         self.DeclareStateOutputPort("state", state)
         self.DeclareVectorOutputPort(
             "plant_positions", PLANAR_POSITION_SIZE * self._n, self._calc_plant_positions,
             prerequisites_of_calc={self.xd_ticket()})
         self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._step)
-        self.DeclarePeriodicUnrestrictedUpdateEvent(self._dt, 0.0, self._relocate)
+        if relocations:
+            self.DeclarePeriodicUnrestrictedUpdateEvent(self._dt, 0.0, self._relocate)
 
     @property
     def num_robots(self) -> int:
