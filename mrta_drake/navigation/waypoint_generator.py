@@ -3,6 +3,7 @@
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from operator import attrgetter
 
 import numpy as np
 from pydrake.common.value import Value
@@ -111,9 +112,11 @@ class _Drive:
 
 @dataclass(frozen=True)
 class _FleetState:
-    """The fleet waypoints block's state: every robot's policy state, in robot order."""
+    """The fleet waypoints block's state: every robot's policy state, in robot order, and
+    the policy's ``outputs`` of each (made once per state, for every output port)."""
 
     robots: tuple
+    outputs: tuple
 
     def __deepcopy__(self, memo):
         return self  # immutable (so are the policies' states): Drake's copies can share it
@@ -1125,45 +1128,42 @@ class FleetWaypoints(LeafSystem):
     def __init__(self, policies: Sequence[WaypointPolicy], *, rate_hz: float):
         super().__init__()
         self._policies = tuple(policies)
-        self._state_index = self.DeclareAbstractState(Value[object](_FleetState(tuple(
-            policy.initial_state() for policy in self._policies))))
+        initial = self._state(tuple(policy.initial_state() for policy in self._policies))
+        self._state_index = self.DeclareAbstractState(Value[object](initial))
         self._inputs = _declare_inputs(self, len(self._policies))
         tickets = {self.abstract_state_ticket(self._state_index)}
         for k, policy in enumerate(self._policies):
-            initial = policy.outputs(policy.initial_state())
             for name in _OUTPUTS:
                 self.DeclareAbstractOutputPort(
                     f"{name}_{policy.robot}",
-                    _model(getattr(initial, name)),
-                    lambda context, output, name=name, policy=policy, k=k:
-                        output.set_value(getattr(policy.outputs(self._robots(context)[k]),
-                                                 name)),
+                    _model(getattr(initial.outputs[k], name)),
+                    lambda context, output, name=name, k=k:
+                        output.set_value(getattr(self._fleet_state(context).outputs[k], name)),
                     prerequisites_of_calc=tickets)
         for fleet, name in (("targets", "target"), ("queue_requests", "queue_request"),
                             ("progress", "progress")):
             self.DeclareAbstractOutputPort(
-                f"fleet_{fleet}", _model(tuple(
-                    getattr(policy.outputs(policy.initial_state()), name)
-                    for policy in self._policies)),
-                lambda context, output, name=name: output.set_value(self._fleet(context, name)),
+                f"fleet_{fleet}", _model(tuple(map(attrgetter(name), initial.outputs))),
+                lambda context, output, name=attrgetter(name): output.set_value(
+                    tuple(map(name, self._fleet_state(context).outputs))),
                 prerequisites_of_calc=tickets)
         self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate_hz, 0.0, self._update)
 
-    def _robots(self, context) -> tuple:
-        return context.get_abstract_state(self._state_index).get_value().robots
+    def _state(self, robots: tuple) -> _FleetState:
+        """The block's state of the robots' policy states ``robots``, with their outputs."""
+        return _FleetState(robots, tuple(
+            policy.outputs(s) for policy, s in zip(self._policies, robots, strict=True)))
 
-    def _fleet(self, context, name: str) -> tuple:
-        """Every robot's output payload ``name``, in robot order."""
-        return tuple(getattr(policy.outputs(s), name)
-                     for policy, s in zip(self._policies, self._robots(context), strict=True))
+    def _fleet_state(self, context) -> _FleetState:
+        return context.get_abstract_state(self._state_index).get_value()
 
     def _update(self, context, state) -> EventStatus:
         inputs = WaypointInputs(self._inputs, context)
-        old = self._robots(context)
+        old = self._fleet_state(context).robots
         new = tuple(policy.update(s, inputs)
                     for policy, s in zip(self._policies, old, strict=True))
         if all(a is b for a, b in zip(new, old, strict=True)):
             return EventStatus.DidNothing()  # Drake applies an instant's updates only if one
             # changed
-        state.get_mutable_abstract_state(self._state_index).set_value(_FleetState(new))
+        state.get_mutable_abstract_state(self._state_index).set_value(self._state(new))
         return EventStatus.Succeeded()
