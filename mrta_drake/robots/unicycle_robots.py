@@ -78,7 +78,7 @@ class UnicycleRobots(LeafSystem):
         initial = np.zeros((self._n, ROBOT_STATE_SIZE))
         initial[:, :3] = starts
         state = self.DeclareDiscreteState(initial.ravel())
-        self.DeclareVectorInputPort("commands", ROBOT_COMMAND_SIZE * self._n)
+        self._commands = self.DeclareVectorInputPort("commands", ROBOT_COMMAND_SIZE * self._n)
         if relocations:
             self._relocations = self.DeclareAbstractInputPort("relocations",
                                                               Value[object](Relocations()))
@@ -103,8 +103,8 @@ class UnicycleRobots(LeafSystem):
     def _step(self, context, discrete_state) -> None:
         p, dt = self._params, self._dt
         x = context.get_discrete_state_vector().value().reshape(self._n, ROBOT_STATE_SIZE)
-        if self.get_input_port(0).HasValue(context):
-            u = self.get_input_port(0).Eval(context).reshape(self._n, ROBOT_COMMAND_SIZE)
+        if self._commands.HasValue(context):
+            u = self._commands.Eval(context).reshape(self._n, ROBOT_COMMAND_SIZE)
         else:
             u = np.zeros((self._n, ROBOT_COMMAND_SIZE))
         discrete_state.set_value(unicycle_step(x, u, p, dt).ravel())
