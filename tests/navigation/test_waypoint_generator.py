@@ -709,3 +709,22 @@ def test_a_robot_held_back_whose_missing_segments_are_free_keeps_those_it_holds(
         queues = QueueState(segments=tuple(SegmentHold(("r0",) if k == held else (), False)
                                            for k in range(3)))
         assert policy.update(s, _Inputs(10.0, queues, [[13.5, 1.5, 0.0, 0.0]])).lanes == whole
+
+
+def test_where_a_robot_waits_is_kept_per_roadways_and_place_not_mixed_across_closures():
+    # ``_home_spot``'s lanes searches are kept per roadways (by their closures) and place:
+    # a closure that cuts the way home gives another answer, each time it is asked.
+    roadways = loop_world(parking=True)
+    home = (20.0, 0.0)
+
+    def policy():
+        return WaypointPolicy(["r0", "r1"], 0, roadways, B, home=home,
+                              spots=[home, (0.0, 0.0)])
+
+    closed = roadways.closed([(16.0, 18.0, -0.5, 0.5)])  # the eastbound lane S10-S20
+    kept = policy()
+    answers = [kept._spots_reached(roadways.place(place), lanes)
+               for place in (B, A) for lanes in (roadways, closed, roadways, closed)]
+    assert answers == [policy()._spots_reached(roadways.place(place), lanes)
+                       for place in (B, A) for lanes in (roadways, closed, roadways, closed)]
+    assert answers[0] == (True, ()) and not answers[1][0] and answers[1][1]
