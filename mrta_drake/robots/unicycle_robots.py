@@ -60,9 +60,10 @@ class UnicycleRobots(LeafSystem):
     Input ``relocations``: abstract ``Relocations`` (a lift ride's end): a robot whose
     sequence number is new is put on its pose, at rest, in an unrestricted update at the
     same rate (before that instant's step); each pose is applied once. With ``relocations``
-    False (a run without lifts) the block has neither that input nor that update: one that
-    changes nothing still costs its dispatch at every step (Drake copies the block's state
-    for it and calls the handler; ~4 us a step of 25 robots).
+    False (a run without lifts, whose stack leaves the input unconnected) the block has no
+    such update and never reads the input: an update that changes nothing still costs its
+    dispatch at every step (Drake copies the block's state for it and calls the handler;
+    ~4 us a step of 25 robots).
     Output ``state`` (4N): [x, y, theta, v] per robot, world frame, m, rad, m/s.
     Output ``plant_positions`` (3N): [x, y, theta] per robot, the planar joints' positions.
     """
@@ -79,9 +80,9 @@ class UnicycleRobots(LeafSystem):
         initial[:, :3] = starts
         state = self.DeclareDiscreteState(initial.ravel())
         self._commands = self.DeclareVectorInputPort("commands", ROBOT_COMMAND_SIZE * self._n)
+        self._relocations = self.DeclareAbstractInputPort("relocations",
+                                                          Value[object](Relocations()))
         if relocations:
-            self._relocations = self.DeclareAbstractInputPort("relocations",
-                                                              Value[object](Relocations()))
             self._applied = self.DeclareAbstractState(
                 Value[object](_Applied((0,) * self._n)))
         self.DeclareStateOutputPort("state", state)

@@ -93,16 +93,16 @@ def test_a_relocation_is_applied_once_when_its_sequence_number_is_new():
     assert 7.0 <= x <= 7.15 and y == pytest.approx(7.0)  # moved there, then drove on
 
 
-def test_without_relocations_the_robots_have_no_relocation_input_or_update_and_step_alike(
+def test_without_relocations_the_robots_have_no_relocation_update_and_step_alike(
         monkeypatch):
-    # A run without lifts: no relocations input, no unrestricted update (Drake would copy
-    # the whole state for it at every step), the same steps.
+    # A run without lifts: no relocation update (its dispatch costs at every step) and no
+    # state for it, the same steps.
     calls = []
     relocate = UnicycleRobots._relocate
     monkeypatch.setattr(UnicycleRobots, "_relocate",
                         lambda self, *args: calls.append(1) or relocate(self, *args))
     robots = UnicycleRobots(["a"], [[0.0, 0.0, 0.0]], rate_hz=20.0, relocations=False)
-    assert not robots.HasInputPort("relocations") and robots.num_abstract_states() == 0
+    assert robots.num_abstract_states() == 0
     starts, commands = [[0.0, 0.0, 0.0], [5.0, 5.0, 1.0]], [[1.0, 0.3], [0.5, -0.2]]
     without = _run(starts, commands, 3.0, relocations=False)
     assert not calls
