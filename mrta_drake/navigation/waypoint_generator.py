@@ -3,6 +3,7 @@
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from operator import attrgetter
 
 import numpy as np
 from pydrake.common.value import Value
@@ -112,9 +113,11 @@ class _Drive:
 
 @dataclass(frozen=True)
 class _FleetState:
-    """The fleet waypoints block's state: every robot's policy state, in robot order."""
+    """The fleet waypoints block's state: every robot's policy state, in robot order, and
+    the policy's ``outputs`` of each (made once per state, for every output port)."""
 
     robots: tuple
+    outputs: tuple
 
     def __deepcopy__(self, memo):
         return self  # immutable (so are the policies' states): Drake's copies can share it
@@ -407,6 +410,7 @@ class WaypointPolicy:
         self._roadways = roadways
         self._params = params
         self._start_location = start_location
+        self._spots_cache: dict[tuple, tuple[bool, tuple]] = {}  # ``_spots_reached``'s
         # The outputs of the state last read: most updates keep the state object as it is.
         self._last_outputs: _Outputs | None = None
 
@@ -606,14 +610,31 @@ class WaypointPolicy:
         levels) would otherwise drive for a home on another level and stand at the lift
         (the two-floor clinic, 10 robots, seed 0: robot7 from 200 s to the end, in
         robot2's way)."""
-        if self._home is not None and lanes.spots_reached(place.id, [self._home]):
+        home, here = self._spots_reached(place, lanes)
+        if home:
             return self._home
-
-        def nearest(spots):
-            return sorted(spots, key=lambda spot: _distance(spot, place.point))
-
-        here = lanes.spots_reached(place.id, nearest(self._parking) + nearest(self._spots))
         return next((spot for spot in here if self._free(spot, others)), None)
+
+    def _spots_reached(self, place, lanes: Roadways) -> tuple[bool, tuple]:
+        """Whether the lanes lead from ``place`` to the robot's home without a lift ride;
+        if not, the parking spots and then the other robots' start spots they so lead to,
+        each nearest ``place`` first (``_home_spot``). A function of the roadways alone
+        (``lanes``, identified by their ``closures``), kept per roadways and place: each
+        costs a search of the lanes and a nearest-node scan per spot, and an idle robot
+        that sees another nearer its spot asks again at every update."""
+        key = (lanes.closures, place.id)
+        reached = self._spots_cache.get(key)
+        if reached is None:
+            if self._home is not None and lanes.spots_reached(place.id, [self._home]):
+                reached = (True, ())
+            else:
+                def nearest(spots):
+                    return sorted(spots, key=lambda spot: _distance(spot, place.point))
+
+                reached = (False, tuple(lanes.spots_reached(
+                    place.id, nearest(self._parking) + nearest(self._spots))))
+            self._spots_cache[key] = reached
+        return reached
 
     def _drive_to(self, s: _Drive, stop: Stop, route, lanes: Roadways, t: float) -> _Drive:
         """Drive to ``stop`` along ``route(lanes)`` (a function of the roadways: waypoints,
@@ -1145,45 +1166,42 @@ class FleetWaypoints(LeafSystem):
     def __init__(self, policies: Sequence[WaypointPolicy], *, rate_hz: float):
         super().__init__()
         self._policies = tuple(policies)
-        self._state_index = self.DeclareAbstractState(Value[object](_FleetState(tuple(
-            policy.initial_state() for policy in self._policies))))
+        initial = self._state(tuple(policy.initial_state() for policy in self._policies))
+        self._state_index = self.DeclareAbstractState(Value[object](initial))
         self._inputs = _declare_inputs(self, len(self._policies))
         tickets = {self.abstract_state_ticket(self._state_index)}
         for k, policy in enumerate(self._policies):
-            initial = policy.outputs(policy.initial_state())
             for name in _OUTPUTS:
                 self.DeclareAbstractOutputPort(
                     f"{name}_{policy.robot}",
-                    _model(getattr(initial, name)),
-                    lambda context, output, name=name, policy=policy, k=k:
-                        output.set_value(getattr(policy.outputs(self._robots(context)[k]),
-                                                 name)),
+                    _model(getattr(initial.outputs[k], name)),
+                    lambda context, output, name=name, k=k:
+                        output.set_value(getattr(self._fleet_state(context).outputs[k], name)),
                     prerequisites_of_calc=tickets)
         for fleet, name in (("targets", "target"), ("queue_requests", "queue_request"),
                             ("progress", "progress")):
             self.DeclareAbstractOutputPort(
-                f"fleet_{fleet}", _model(tuple(
-                    getattr(policy.outputs(policy.initial_state()), name)
-                    for policy in self._policies)),
-                lambda context, output, name=name: output.set_value(self._fleet(context, name)),
+                f"fleet_{fleet}", _model(tuple(map(attrgetter(name), initial.outputs))),
+                lambda context, output, name=attrgetter(name): output.set_value(
+                    tuple(map(name, self._fleet_state(context).outputs))),
                 prerequisites_of_calc=tickets)
         self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate_hz, 0.0, self._update)
 
-    def _robots(self, context) -> tuple:
-        return context.get_abstract_state(self._state_index).get_value().robots
+    def _state(self, robots: tuple) -> _FleetState:
+        """The block's state of the robots' policy states ``robots``, with their outputs."""
+        return _FleetState(robots, tuple(
+            policy.outputs(s) for policy, s in zip(self._policies, robots, strict=True)))
 
-    def _fleet(self, context, name: str) -> tuple:
-        """Every robot's output payload ``name``, in robot order."""
-        return tuple(getattr(policy.outputs(s), name)
-                     for policy, s in zip(self._policies, self._robots(context), strict=True))
+    def _fleet_state(self, context) -> _FleetState:
+        return context.get_abstract_state(self._state_index).get_value()
 
     def _update(self, context, state) -> EventStatus:
         inputs = WaypointInputs(self._inputs, context)
-        old = self._robots(context)
+        old = self._fleet_state(context).robots
         new = tuple(policy.update(s, inputs)
                     for policy, s in zip(self._policies, old, strict=True))
         if all(a is b for a, b in zip(new, old, strict=True)):
             return EventStatus.DidNothing()  # Drake applies an instant's updates only if one
             # changed
-        state.get_mutable_abstract_state(self._state_index).set_value(_FleetState(new))
+        state.get_mutable_abstract_state(self._state_index).set_value(self._state(new))
         return EventStatus.Succeeded()

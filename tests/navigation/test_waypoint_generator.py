@@ -771,3 +771,22 @@ def test_a_robot_held_back_keeps_the_segment_it_holds_and_stands_in_off_its_rout
     free = QueueState(segments=(SegmentHold(("x",), True), SegmentHold(), SegmentHold()))
     waiting = policy.update(s, _Inputs(10.0, free, [[10.0, 1.0, -math.pi / 2, 0.0]]))
     assert waiting.lanes == Need(((0, False),), hold=True, stops=(0,))
+
+
+def test_where_a_robot_waits_is_kept_per_roadways_and_place_not_mixed_across_closures():
+    # ``_home_spot``'s lanes searches are kept per roadways (by their closures) and place:
+    # a closure that cuts the way home gives another answer, each time it is asked.
+    roadways = loop_world(parking=True)
+    home = (20.0, 0.0)
+
+    def policy():
+        return WaypointPolicy(["r0", "r1"], 0, roadways, B, home=home,
+                              spots=[home, (0.0, 0.0)])
+
+    closed = roadways.closed([(16.0, 18.0, -0.5, 0.5)])  # the eastbound lane S10-S20
+    kept = policy()
+    answers = [kept._spots_reached(roadways.place(place), lanes)
+               for place in (B, A) for lanes in (roadways, closed, roadways, closed)]
+    assert answers == [policy()._spots_reached(roadways.place(place), lanes)
+                       for place in (B, A) for lanes in (roadways, closed, roadways, closed)]
+    assert answers[0] == (True, ()) and not answers[1][0] and answers[1][1]
