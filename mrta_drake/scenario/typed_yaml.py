@@ -60,8 +60,10 @@ def yaml_key(f: dataclasses.Field) -> str:
     return name[:-1] if name.endswith("_") and keyword.iskeyword(name[:-1]) else name
 
 
+@functools.cache
 def _fields(schema) -> dict[str, tuple[dataclasses.Field, object]]:
-    """The init fields of dataclass ``schema`` by YAML key, with their type hints."""
+    """The init fields of dataclass ``schema`` by YAML key, with their type hints (once per
+    schema: the hints are evaluated from the annotations' text; read it, don't change it)."""
     hints = typing.get_type_hints(schema)
     return {yaml_key(f): (f, hints[f.name]) for f in dataclasses.fields(schema) if f.init}
 
