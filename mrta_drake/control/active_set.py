@@ -57,7 +57,9 @@ def dual_active_set(data, columns, size, kept):
     active, dual = np.zeros(n + 1, np.int64), np.zeros(n + 1)
     is_active = np.zeros(m, np.bool_)
     s, d, z, r, normal = np.empty(m), np.empty(n), np.empty(n), np.empty(n + 1), np.empty(n)
-    q, r_norm = 0, 1.0
+    # int64 from the start: a literal 0 (or -1) would compile each helper it reaches twice,
+    # for Literal[int](0) while numba's typing widens it and for int64 (~0.8 CPU s cold).
+    q, r_norm = np.int64(0), 1.0
     tolerance = m * _EPS * (2.0 * n) * (n / math.sqrt(2.0)) * 100.0
     steps = 0
     while steps < _MAX_STEPS:
@@ -75,7 +77,7 @@ def dual_active_set(data, columns, size, kept):
         while steps < _MAX_STEPS:
             steps += 1
             _directions(J, R, normal, q, d, z, r)
-            blocking, partial = -1, math.inf  # largest dual step keeping multipliers >= 0
+            blocking, partial = np.int64(-1), math.inf  # largest dual step keeping multipliers >= 0
             for k in range(q):
                 if r[k] > 0.0 and dual[k] / r[k] < partial:
                     partial, blocking = dual[k] / r[k], active[k]

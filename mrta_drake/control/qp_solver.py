@@ -225,7 +225,7 @@ def _pairwise_sum(a):
     to the bit: blocks of at most 128 with eight accumulators; a longer range is split in
     two (the first part a multiple of 8 long) and the parts' sums added."""
     if len(a) <= 128:  # one block (every QP of up to 64 robots): no task stack to allocate
-        return _block_sum(a, 0, len(a))
+        return _block_sum(a, np.int64(0), len(a))  # int64, not Literal[int](0): one copy
     tasks = np.empty((128, 3), np.int64)  # start, length, halves already queued
     sums = np.empty(128)
     tasks[0, 0], tasks[0, 1], tasks[0, 2] = 0, len(a), 0

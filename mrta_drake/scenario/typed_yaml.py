@@ -8,9 +8,12 @@ twice in one mapping, at any depth, naming the line and the key.
 dataclasses refuse, and its errors name a key but not where it sits. So: ``check_shape``
 walks the raw data against the schema first and reports the full field path
 (``robots[2].start``), an unknown field or a missing required one (a field without a
-default); then ``yaml_load_typed`` builds a mutable twin of the schema, and ``load_typed``
+default); then Drake's loader fills a mutable twin of the schema, and ``load_typed``
 converts the twin into the frozen classes, whose own ``__post_init__`` checks may raise
-``InputError`` naming a field relative to themselves.
+``InputError`` naming a field relative to themselves. The twin is filled from the data
+already parsed (the merge step of ``yaml_load_typed``, which would otherwise take the data
+as YAML text and parse it again with PyYAML's pure-Python parser: ~5 % of a warm
+quickstart, docs/benchmarks.md, "The first run", "Tenth round").
 
 Fields annotated with a bare ``dict`` hold free-form parameters: they are copied through
 untouched and checked later by whoever owns them. A fixed-length ``tuple[T, ...]`` of one
@@ -25,15 +28,19 @@ import types
 import typing
 
 import yaml
-from pydrake.common.yaml import yaml_load_typed
+from pydrake.common import yaml as drake_yaml
 
 from mrta_drake.errors import InputError
 
 _MERGE_TAG = "tag:yaml.org,2002:merge"
-# libyaml's parser and emitter when PyYAML was built with them (the same documents, ~10x
-# faster); errors are always reported as the pure-Python parser words them.
+# libyaml's parser when PyYAML was built with it (the same documents, ~10x faster); errors
+# are always reported as the pure-Python parser words them.
 _FAST_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-_FAST_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+# ``yaml_load_typed``'s defaults: unknown keys refused, fields without YAML keep their
+# defaults, a mapping merged into its default's keys.
+_DRAKE_OPTIONS = drake_yaml._LoadYamlOptions(allow_yaml_with_no_schema=False,
+                                             allow_schema_with_no_yaml=True,
+                                             retain_map_defaults=True)
 
 
 def _short(value) -> str:
@@ -53,8 +60,10 @@ def yaml_key(f: dataclasses.Field) -> str:
     return name[:-1] if name.endswith("_") and keyword.iskeyword(name[:-1]) else name
 
 
+@functools.cache
 def _fields(schema) -> dict[str, tuple[dataclasses.Field, object]]:
-    """The init fields of dataclass ``schema`` by YAML key, with their type hints."""
+    """The init fields of dataclass ``schema`` by YAML key, with their type hints (once per
+    schema: the hints are evaluated from the annotations' text; read it, don't change it)."""
     hints = typing.get_type_hints(schema)
     return {yaml_key(f): (f, hints[f.name]) for f in dataclasses.fields(schema) if f.init}
 
@@ -144,7 +153,7 @@ def check_shape(value, schema, file: str, path: str = "") -> None:
 @functools.cache
 def _thawed(schema):
     """A mutable twin of a (frozen) dataclass type, recursively; tuples become lists, other
-    types stay. Bare-dict fields are left out (yaml_load_typed cannot type them); required
+    types stay. Bare-dict fields are left out (Drake's loader cannot type them); required
     fields get a placeholder default (``check_shape`` made sure they are given)."""
     inner = _optional_inner(schema)
     if inner is not None:
@@ -223,7 +232,7 @@ def _freeze(value, schema, raw, file: str, path: str):
 
 
 def _for_drake(value, schema):
-    """``value`` as the twin's YAML: bare-dict fields removed (yaml_load_typed cannot type
+    """``value`` as the twin's data: bare-dict fields removed (Drake's loader cannot type
     them), keys renamed to the fields' Python names (``from`` -> ``from_``)."""
     inner = _optional_inner(schema)
     if inner is not None:
@@ -246,15 +255,18 @@ def _for_drake(value, schema):
 def load_typed(data, schema, file: str, path: str = ""):
     """Build a frozen ``schema`` instance from raw YAML ``data`` (already parsed), raising
     InputError that names ``file`` and the field path on any mismatch."""
-    if typing.get_origin(schema) is list:  # yaml_load_typed wants a mapping at the root
+    if typing.get_origin(schema) is list:  # Drake's loader wants a mapping at the root
         check_shape(data, schema, file, path)
         (item,) = typing.get_args(schema)
         return [load_typed(v, item, file, _join(path, i)) for i, v in enumerate(data)]
     data = {} if data is None else data
     check_shape(data, schema, file, path)
-    text = yaml.dump(_for_drake(data, schema), Dumper=_FAST_DUMPER, sort_keys=False)
-    try:
-        mutable = yaml_load_typed(schema=_thawed(schema), data=text)
+    twin = _thawed(schema)
+    mutable = twin()
+    try:  # ``yaml_load_typed`` less its parsing of YAML text (the data is parsed already)
+        drake_yaml._merge_yaml_dict_into_target(options=_DRAKE_OPTIONS,
+                                                yaml_dict=_for_drake(data, schema),
+                                                target=mutable, target_schema=twin)
     except Exception as error:  # Drake names the key only; check_shape caught the usual cases.
         raise InputError(file, path or None, str(error).splitlines()[0]) from None
     return _freeze(mutable, schema, data, file, path)
