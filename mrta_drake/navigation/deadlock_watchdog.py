@@ -154,11 +154,16 @@ class DeadlockWatchdog(LeafSystem):
        ``standstills.back_off_spot`` finds a spot clear of the others' ways is ordered
        there; every member's anchor starts again, so the group gets another
        ``standstill_time`` before the next order. A group with no spot for anyone is tried
-       again at the next update. A stalled robot in no group but with people within
-       ``block_gap`` of it backs off the same way, to a spot off their ways (a person
-       waiting for a robot to pass and the robot waiting for the person); one with nobody
-       near but nearer a wall than ``wall_clearance`` backs off to a spot clear of walls
-       (``_back_off_alone``).
+       again at the next update; once its stalled robots have stood twice
+       ``standstill_time`` with no spot clear of the others' ways, the spots need not be
+       (``_order``): the robot backs off wherever it can, in a corridor back along the way
+       it came, rather than the group being tried again for good (office seed 9 on main
+       0071ae6: a robot holding single-file segments and one, 0.85 m ahead of it, waiting
+       for them found no spot clear of each other's ways for 180 s). A stalled robot in
+       no group but with people within ``block_gap`` of it backs off the same way, to a
+       spot off their ways (a person waiting for a robot to pass and the robot waiting
+       for the person); one with nobody near but nearer a wall than ``wall_clearance``
+       backs off to a spot clear of walls (``_back_off_alone``).
     4. An order holds until ``yield_time`` after its robot reached its spot (within
        ``progress_distance``; an order without blockers ends there), or after the order
        if it has not reached it by then: then
@@ -447,7 +452,9 @@ class DeadlockWatchdog(LeafSystem):
                ) -> BackOff | None:
         """The back-off of the first robot of ``group`` (in ``yield_order``, those with
         fewer ``misses`` first) with a free spot, away from the spots it missed, that frees
-        the way of a stalled robot, or None."""
+        the way of a stalled robot, or None; the spot clear of the others' ways, or, with
+        none such after the group's stalled robots stood twice ``standstill_time``, any
+        (class docstring, step 3)."""
         humans: HumanStates = (self._humans.Eval(context) if self._humans.HasValue(context)
                                else NO_HUMANS)
         xy = states[:, :2]
@@ -459,22 +466,25 @@ class DeadlockWatchdog(LeafSystem):
         missed_spots = {k: self._spots_to_avoid(k, misses) for k in group}
         all_ways = [_way(xy[j], targets[j]) for j in range(len(xy))]
         in_way = in_ways(group, stalled, xy, self._radii, all_ways, p.spot_clearance)
-        for k in sorted(yield_order(group, idle, stalled, self._priorities, in_way),
-                        key=lambda k: len(missed_spots[k])):
-            if stalled_here == [k] or k in broken:
-                continue  # it would make way for nobody, or cannot move
-            blockers = tuple(j for j in group if j != k)
-            ways = [(all_ways[j], self._radii[j]) for j in blockers]
-            spot = back_off_spot(k, xy, self._radii, ways,
-                                 np.asarray(humans.positions).reshape(-1, 2),
-                                 np.asarray(humans.radii).reshape(-1), self._costmap,
-                                 p.search_reach, p.spot_clearance, p.wall_clearance,
-                                 avoid=missed_spots[k], avoid_radius=p.progress_distance,
-                                 min_move=p.back_off_distance)
-            if spot is not None:
-                since = min(anchors[j].since for j in stalled_here)
-                return BackOff(self._robots[k], spot, now, now + p.yield_time,
-                               tuple(self._robots[j] for j in blockers), since)
+        since = min(anchors[j].since for j in stalled_here)
+        candidates = [k for k in sorted(yield_order(group, idle, stalled, self._priorities,
+                                                    in_way),
+                                        key=lambda k: len(missed_spots[k]))
+                      if stalled_here != [k] and k not in broken]  # else it frees nobody
+        keep_ways = (True,) if now - since < 2 * p.standstill_time - 1e-9 else (True, False)
+        for off_ways in keep_ways:
+            for k in candidates:
+                blockers = tuple(j for j in group if j != k)
+                ways = [(all_ways[j], self._radii[j]) for j in blockers] if off_ways else []
+                spot = back_off_spot(k, xy, self._radii, ways,
+                                     np.asarray(humans.positions).reshape(-1, 2),
+                                     np.asarray(humans.radii).reshape(-1), self._costmap,
+                                     p.search_reach, p.spot_clearance, p.wall_clearance,
+                                     avoid=missed_spots[k], avoid_radius=p.progress_distance,
+                                     min_move=p.back_off_distance)
+                if spot is not None:
+                    return BackOff(self._robots[k], spot, now, now + p.yield_time,
+                                   tuple(self._robots[j] for j in blockers), since)
         return None
 
 

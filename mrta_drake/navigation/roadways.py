@@ -28,7 +28,8 @@ class Place:
     """A location's geometry, validated: ``point`` (2,), ``queue`` (n, 2) head slot first with
     n >= 1, ``entry`` (k, 2) from the head slot to the point (intermediate points only), and
     the roadway nodes robots leave by and approach from; ``parking`` (p, 2): spots where a
-    robot with nothing left to do waits off the point (p may be 0)."""
+    robot with nothing left to do waits off the point (p may be 0); ``overflow`` (o, 2):
+    where robots beyond the last slot wait (o may be 0: on the way to the approach node)."""
 
     id: int
     point: np.ndarray
@@ -37,6 +38,7 @@ class Place:
     exit_node: str
     approach_node: str
     parking: np.ndarray = field(default_factory=lambda: frozen_array(np.zeros((0, 2))))
+    overflow: np.ndarray = field(default_factory=lambda: frozen_array(np.zeros((0, 2))))
 
     @property
     def tail(self) -> np.ndarray:
@@ -52,6 +54,12 @@ def _xy(value, file, field) -> np.ndarray:
     ):
         raise InputError(file, field, f"expected [x, y] in metres, got {value!r}")
     return frozen_array(value)
+
+
+def _spots(spots, file, field) -> np.ndarray:
+    """``spots`` ([x, y] each, m) as a (k, 2) array; a bad one raises ``InputError``."""
+    return frozen_array([_xy(p, file, f"{field}[{k}]") for k, p in enumerate(spots)],
+                        shape=(len(spots), 2))
 
 
 def _polyline_length(points: np.ndarray) -> float:
@@ -200,9 +208,8 @@ class Roadways:
             entry=frozen_array(entry, shape=(len(entry), 2)),
             exit_node=location.exit_node,
             approach_node=location.approach_node,
-            parking=frozen_array(
-                [_xy(p, file, f"{field}.parking[{k}]") for k, p in enumerate(location.parking)],
-                shape=(len(location.parking), 2)),
+            parking=_spots(location.parking, file, f"{field}.parking"),
+            overflow=_spots(location.overflow, file, f"{field}.overflow"),
         )
 
     def _check_reachable(self, locations: Sequence[LocationConfig]) -> None:
@@ -284,6 +291,18 @@ class Roadways:
             if _on_segment(b, self.node_position(start), end):
                 return self._segment_of.get((ends[0], (float(end[0]), float(end[1]))))
         return None
+
+    def distance_to_lanes(self, xy) -> float:
+        """Distance (m) from point ``xy`` (m) to the nearest lane (lift rides aside);
+        infinite without lanes."""
+        ends = [(self.node_position(a), self.node_position(b))
+                for a, b, lift in self.graph.edges(data="lift") if not lift]
+        if not ends:
+            return math.inf
+        a, b = (np.array(side, dtype=float) for side in zip(*ends, strict=True))
+        ab, rel = b - a, np.asarray(xy, dtype=float) - a
+        t = np.clip((rel * ab).sum(axis=1) / np.maximum((ab * ab).sum(axis=1), 1e-18), 0, 1)
+        return float(np.linalg.norm(rel - t[:, None] * ab, axis=1).min())
 
     def route_length(self, points) -> float:
         """Length (m) of the route ``points`` (k, 2), a lift ride counted as its edge's

@@ -53,8 +53,10 @@ class RoomQueues(LeafSystem):
     The ``segments`` single-file segments (0 .. segments - 1) are granted in the same update,
     after the rooms, from each request's ``segments`` (the set the robot wants now):
 
-    1. Release: a holder that no longer names a segment gives it up. A robot holding a
-       segment alone takes the way it now names (it turns in it).
+    1. Release: a holder that no longer names a segment gives it up. Robots holding a
+       segment, alone or together, that all name it one way take that way (they turn in
+       it: office seeds 1, 3 and 5, two robots standing in the dead end to a charger that
+       both wanted out each waited for the other, whose hold kept the way in).
     2. Wait: a robot naming a segment it does not hold waits (in the order it first did so;
        new ones in robot order); one that no longer does stops waiting.
     3. Grant: robots that hold some of the segments they name (they stand in them) first,
@@ -133,8 +135,8 @@ class RoomQueues(LeafSystem):
         holds = []
         for k, hold in enumerate(old.segments):
             holders = tuple(r for r in hold.holders if k in wanted[r])
-            way = wanted[holders[0]][k] if len(holders) == 1 else hold.forward
-            holds.append(SegmentHold(holders, way))
+            ways = {wanted[r][k] for r in holders}
+            holds.append(SegmentHold(holders, ways.pop() if len(ways) == 1 else hold.forward))
 
         def needs(robot):
             return any(robot not in holds[k].holders for k in wanted[robot])

@@ -3,6 +3,7 @@
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from operator import attrgetter
 
 import numpy as np
 from pydrake.common.value import Value
@@ -66,9 +67,10 @@ class WaypointParams:
     lift_wait_distance: float = 3.0  # wait for it this far back along the route from the
     # cabin's point, one more metre per robot ahead in its queue
     single_file: SingleFileParams = SingleFileParams()  # holding single-file segments
+    on_lane: float = 0.05  # a start spot this near a lane is on it (``initial_state``)
 
     def __post_init__(self):
-        require_positive(self, "door_clearance", "overflow_spacing", unit=" m")
+        require_positive(self, "door_clearance", "overflow_spacing", "on_lane", unit=" m")
         require_positive(self, "door_patience", unit=" s")
 
 
@@ -111,9 +113,11 @@ class _Drive:
 
 @dataclass(frozen=True)
 class _FleetState:
-    """The fleet waypoints block's state: every robot's policy state, in robot order."""
+    """The fleet waypoints block's state: every robot's policy state, in robot order, and
+    the policy's ``outputs`` of each (made once per state, for every output port)."""
 
     robots: tuple
+    outputs: tuple
 
     def __deepcopy__(self, memo):
         return self  # immutable (so are the policies' states): Drake's copies can share it
@@ -291,8 +295,9 @@ class WaypointPolicy:
       the queue advances; one slot further back while the holder stands at the head slot
       (within ``waypoint_tolerance``: it waits there, for single-file segments or its
       doorway, and the first robot waiting would stand in its way in); robots beyond the
-      last slot wait ``overflow_spacing`` apart back from the tail slot towards the
-      approach node (``_queue_spot``; before, they all drove to the tail slot and stood
+      last slot wait on the location's overflow spots where it has them, else
+      ``overflow_spacing`` apart back from the tail slot towards the approach node
+      (``_queue_spot``; before, they all drove to the tail slot and stood
       round it: office seed 2, coe's one slot, whose holder, waiting at it, was boxed in).
     - lift: a route through a lift (``Roadways.lift_edge``: its cabin's node on this level,
       then on the next) is cut there. Within ``lift_request_distance`` of the cabin's point
@@ -351,7 +356,8 @@ class WaypointPolicy:
     robot stands nearer chooses again from where it is (``_keep_spot``): two robots that
     chose one free spot at once would otherwise circle each other round it
     (docs/worlds.md, "Unseen seeds 3-7 of airport_terminal, battle_royale and campus").
-    A parked robot given a stop starts it as if standing on the location's point.
+    A parked robot given a stop starts it as if standing on the location's point. A robot
+    whose start spot is off the lanes starts as one back home (``initial_state``).
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
     current stop is elsewhere and it is more than ``release_distance`` from the room's
@@ -404,6 +410,7 @@ class WaypointPolicy:
         self._roadways = roadways
         self._params = params
         self._start_location = start_location
+        self._spots_cache: dict[tuple, tuple[bool, tuple]] = {}  # ``_spots_reached``'s
         # The outputs of the state last read: most updates keep the state object as it is.
         self._last_outputs: _Outputs | None = None
 
@@ -412,6 +419,20 @@ class WaypointPolicy:
         return self._robot
 
     def initial_state(self) -> _Drive:
+        """At the start: a robot whose home (its start spot) is off the lanes (farther than
+        ``on_lane`` from every lane: a corridor's centre line between its two lanes, a
+        spot beside them) starts as one back home, so that pushed off it with nothing to
+        do it drives back (before, it was idle, its target inactive, and stood wherever
+        the others pushed it: triple_H seed 1, robot6, on the centre line of the dead end
+        to a charger, pushed by the robot driving home to that charger onto a lane of the
+        corridor across, where the robots driving round it met head-on for 32 s). A robot
+        starting on a lane stays idle: pushed off it, it stands off the lane, out of the
+        way (driving back, it would block that lane again: on the hospital at scale, robots
+        on lane spots driving back cost CPU, branch ``maps7a``)."""
+        if (self._home is not None and self._params.parking
+                and self._roadways.distance_to_lanes(self._home) > self._params.on_lane):
+            return _Drive(phase=RobotMode.HOME, route=(self._home,),
+                          last_location=self._start_location)
         return _Drive(last_location=self._start_location)
 
     # --- Outputs -----------------------------------------------------------------------------
@@ -589,14 +610,31 @@ class WaypointPolicy:
         levels) would otherwise drive for a home on another level and stand at the lift
         (the two-floor clinic, 10 robots, seed 0: robot7 from 200 s to the end, in
         robot2's way)."""
-        if self._home is not None and lanes.spots_reached(place.id, [self._home]):
+        home, here = self._spots_reached(place, lanes)
+        if home:
             return self._home
-
-        def nearest(spots):
-            return sorted(spots, key=lambda spot: _distance(spot, place.point))
-
-        here = lanes.spots_reached(place.id, nearest(self._parking) + nearest(self._spots))
         return next((spot for spot in here if self._free(spot, others)), None)
+
+    def _spots_reached(self, place, lanes: Roadways) -> tuple[bool, tuple]:
+        """Whether the lanes lead from ``place`` to the robot's home without a lift ride;
+        if not, the parking spots and then the other robots' start spots they so lead to,
+        each nearest ``place`` first (``_home_spot``). A function of the roadways alone
+        (``lanes``, identified by their ``closures``), kept per roadways and place: each
+        costs a search of the lanes and a nearest-node scan per spot, and an idle robot
+        that sees another nearer its spot asks again at every update."""
+        key = (lanes.closures, place.id)
+        reached = self._spots_cache.get(key)
+        if reached is None:
+            if self._home is not None and lanes.spots_reached(place.id, [self._home]):
+                reached = (True, ())
+            else:
+                def nearest(spots):
+                    return sorted(spots, key=lambda spot: _distance(spot, place.point))
+
+                reached = (False, tuple(lanes.spots_reached(
+                    place.id, nearest(self._parking) + nearest(self._spots))))
+            self._spots_cache[key] = reached
+        return reached
 
     def _drive_to(self, s: _Drive, stop: Stop, route, lanes: Roadways, t: float) -> _Drive:
         """Drive to ``stop`` along ``route(lanes)`` (a function of the roadways: waypoints,
@@ -795,6 +833,19 @@ class WaypointPolicy:
         wanted = need(self._roadways, s.route, s.index, robots.xy, self._params.single_file)
         if not wanted.hold:
             return wanted
+        # Held back inside a lane (farther than stand_distance from every roadway node), it
+        # keeps the segments it holds and stands in, whatever its route says (office seed
+        # 9: robot5, given a new stop 0.9 m into segment 7, its new route from the node
+        # ahead, asked only for the segments beyond and gave segment 7 up; the robot
+        # granted it drove in head-on and both stood for good). At a node, where segments
+        # meet, it keeps only those of its route, as before (kept all, robots at their
+        # start spots held more and the office's seeds 3 and 6 served 3 and 6 tasks fewer).
+        held = self._held(queues)
+        here = stands_in(self._roadways, robots.xy, self._params.single_file)
+        if here and held and self._between_nodes(robots.xy):
+            kept = {k: held[k] for k in here if k in held} | dict(wanted.segments)
+            if len(kept) > len(wanted.segments):
+                wanted = Need(tuple(sorted(kept.items())), True, wanted.stops)
         if queues.holds_segments(self._robot, wanted.segments):
             return Need(wanted.segments, stops=wanted.stops)
         # Held back, it holds none of the run's segments it does not stand in: it gives
@@ -807,12 +858,17 @@ class WaypointPolicy:
         # no segment, held segments 6 and 5 in turn from 262 s to the end).
         if all(set(queues.segments[k].holders) <= {self._robot} for k, _ in wanted.segments):
             return wanted
-        held = self._held(queues)
-        dropped = {k for k, _ in wanted.segments if k in held}.difference(
-            stands_in(self._roadways, robots.xy, self._params.single_file))
+        dropped = {k for k, _ in wanted.segments if k in held}.difference(here)
         if dropped:
             return wanted.without(dropped)
         return wanted
+
+    def _between_nodes(self, xy) -> bool:
+        """Whether ``xy`` is farther than ``single_file.stand_distance`` from every roadway
+        node (inside a lane, not where lanes meet)."""
+        reach = self._params.single_file.stand_distance
+        return all(_distance(xy, self._roadways.node_position(n)) > reach
+                   for n in self._roadways.graph.nodes)
 
     def _standing_in(self, robots: _Robots, queues: QueueState) -> Need:
         """Giving way (a ``releases`` order): only the single-file segments the robot
@@ -988,11 +1044,14 @@ class WaypointPolicy:
 
     def _queue_spot(self, place, index: int) -> tuple[float, float]:
         """Where the robot at place ``index`` of ``place``'s queue waits (world frame, m):
-        that slot; beyond the last, ``overflow_spacing`` m apart from the tail slot
-        towards the approach node, at most as far as that node."""
+        that slot; beyond the last, the place's overflow spots in order (the last shared),
+        else ``overflow_spacing`` m apart from the tail slot towards the approach node, at
+        most as far as that node."""
         last = len(place.queue) - 1
         if index <= last:
             return _point(place.queue[index])
+        if len(place.overflow):
+            return _point(place.overflow[min(index - last, len(place.overflow)) - 1])
         tail = place.tail
         towards = self._roadways.node_position(place.approach_node) - tail
         length = float(np.linalg.norm(towards))
@@ -1107,45 +1166,42 @@ class FleetWaypoints(LeafSystem):
     def __init__(self, policies: Sequence[WaypointPolicy], *, rate_hz: float):
         super().__init__()
         self._policies = tuple(policies)
-        self._state_index = self.DeclareAbstractState(Value[object](_FleetState(tuple(
-            policy.initial_state() for policy in self._policies))))
+        initial = self._state(tuple(policy.initial_state() for policy in self._policies))
+        self._state_index = self.DeclareAbstractState(Value[object](initial))
         self._inputs = _declare_inputs(self, len(self._policies))
         tickets = {self.abstract_state_ticket(self._state_index)}
         for k, policy in enumerate(self._policies):
-            initial = policy.outputs(policy.initial_state())
             for name in _OUTPUTS:
                 self.DeclareAbstractOutputPort(
                     f"{name}_{policy.robot}",
-                    _model(getattr(initial, name)),
-                    lambda context, output, name=name, policy=policy, k=k:
-                        output.set_value(getattr(policy.outputs(self._robots(context)[k]),
-                                                 name)),
+                    _model(getattr(initial.outputs[k], name)),
+                    lambda context, output, name=name, k=k:
+                        output.set_value(getattr(self._fleet_state(context).outputs[k], name)),
                     prerequisites_of_calc=tickets)
         for fleet, name in (("targets", "target"), ("queue_requests", "queue_request"),
                             ("progress", "progress")):
             self.DeclareAbstractOutputPort(
-                f"fleet_{fleet}", _model(tuple(
-                    getattr(policy.outputs(policy.initial_state()), name)
-                    for policy in self._policies)),
-                lambda context, output, name=name: output.set_value(self._fleet(context, name)),
+                f"fleet_{fleet}", _model(tuple(map(attrgetter(name), initial.outputs))),
+                lambda context, output, name=attrgetter(name): output.set_value(
+                    tuple(map(name, self._fleet_state(context).outputs))),
                 prerequisites_of_calc=tickets)
         self.DeclarePeriodicUnrestrictedUpdateEvent(1.0 / rate_hz, 0.0, self._update)
 
-    def _robots(self, context) -> tuple:
-        return context.get_abstract_state(self._state_index).get_value().robots
+    def _state(self, robots: tuple) -> _FleetState:
+        """The block's state of the robots' policy states ``robots``, with their outputs."""
+        return _FleetState(robots, tuple(
+            policy.outputs(s) for policy, s in zip(self._policies, robots, strict=True)))
 
-    def _fleet(self, context, name: str) -> tuple:
-        """Every robot's output payload ``name``, in robot order."""
-        return tuple(getattr(policy.outputs(s), name)
-                     for policy, s in zip(self._policies, self._robots(context), strict=True))
+    def _fleet_state(self, context) -> _FleetState:
+        return context.get_abstract_state(self._state_index).get_value()
 
     def _update(self, context, state) -> EventStatus:
         inputs = WaypointInputs(self._inputs, context)
-        old = self._robots(context)
+        old = self._fleet_state(context).robots
         new = tuple(policy.update(s, inputs)
                     for policy, s in zip(self._policies, old, strict=True))
         if all(a is b for a, b in zip(new, old, strict=True)):
             return EventStatus.DidNothing()  # Drake applies an instant's updates only if one
             # changed
-        state.get_mutable_abstract_state(self._state_index).set_value(_FleetState(new))
+        state.get_mutable_abstract_state(self._state_index).set_value(self._state(new))
         return EventStatus.Succeeded()

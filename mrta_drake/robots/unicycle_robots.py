@@ -59,13 +59,17 @@ class UnicycleRobots(LeafSystem):
     unconnected: all zero.
     Input ``relocations``: abstract ``Relocations`` (a lift ride's end): a robot whose
     sequence number is new is put on its pose, at rest, in an unrestricted update at the
-    same rate (before that instant's step); each pose is applied once.
+    same rate (before that instant's step); each pose is applied once. With ``relocations``
+    False (a run without lifts, whose stack leaves the input unconnected) the block has no
+    such update and never reads the input: an update that changes nothing still costs its
+    dispatch at every step (Drake copies the block's state for it and calls the handler;
+    ~4 us a step of 25 robots).
     Output ``state`` (4N): [x, y, theta, v] per robot, world frame, m, rad, m/s.
     Output ``plant_positions`` (3N): [x, y, theta] per robot, the planar joints' positions.
     """
 
     def __init__(self, robot_names, starts, params: UnicycleParams = UnicycleParams(), *,
-                 rate_hz: float):
+                 rate_hz: float, relocations: bool = True):
         super().__init__()
         starts = np.asarray(starts, dtype=float).reshape(len(robot_names), 3)
         self._n = len(robot_names)
@@ -75,16 +79,19 @@ class UnicycleRobots(LeafSystem):
         initial = np.zeros((self._n, ROBOT_STATE_SIZE))
         initial[:, :3] = starts
         state = self.DeclareDiscreteState(initial.ravel())
-        self.DeclareVectorInputPort("commands", ROBOT_COMMAND_SIZE * self._n)
+        self._commands = self.DeclareVectorInputPort("commands", ROBOT_COMMAND_SIZE * self._n)
         self._relocations = self.DeclareAbstractInputPort("relocations",
                                                           Value[object](Relocations()))
-        self._applied = self.DeclareAbstractState(Value[object](_Applied((0,) * self._n)))
+        if relocations:
+            self._applied = self.DeclareAbstractState(
+                Value[object](_Applied((0,) * self._n)))
         self.DeclareStateOutputPort("state", state)
         self.DeclareVectorOutputPort(
             "plant_positions", PLANAR_POSITION_SIZE * self._n, self._calc_plant_positions,
             prerequisites_of_calc={self.xd_ticket()})
         self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._step)
-        self.DeclarePeriodicUnrestrictedUpdateEvent(self._dt, 0.0, self._relocate)
+        if relocations:
+            self.DeclarePeriodicUnrestrictedUpdateEvent(self._dt, 0.0, self._relocate)
 
     @property
     def num_robots(self) -> int:
@@ -97,8 +104,8 @@ class UnicycleRobots(LeafSystem):
     def _step(self, context, discrete_state) -> None:
         p, dt = self._params, self._dt
         x = context.get_discrete_state_vector().value().reshape(self._n, ROBOT_STATE_SIZE)
-        if self.get_input_port(0).HasValue(context):
-            u = self.get_input_port(0).Eval(context).reshape(self._n, ROBOT_COMMAND_SIZE)
+        if self._commands.HasValue(context):
+            u = self._commands.Eval(context).reshape(self._n, ROBOT_COMMAND_SIZE)
         else:
             u = np.zeros((self._n, ROBOT_COMMAND_SIZE))
         discrete_state.set_value(unicycle_step(x, u, p, dt).ravel())

@@ -56,8 +56,11 @@ class LocationConfig:
     ``point`` (intermediate points only). ``exit_node``: the roadway node robots join when
     leaving; ``approach_node``: the roadway node from which robots drive to the queue's tail.
     ``parking``: optional spots [x, y] off the point where a robot that has nothing more to do
-    waits, leaving the point (and the room) free for the next robot. ``point`` may be omitted
-    when the floor plan names a place with this location's ``name``.
+    waits, leaving the point (and the room) free for the next robot. ``overflow``: optional
+    spots [x, y] where robots beyond the last queue slot wait, the first robot beyond it on
+    the first spot (further robots share the last); without them they wait
+    ``overflow_spacing`` apart from the tail slot towards ``approach_node``. ``point`` may be
+    omitted when the floor plan names a place with this location's ``name``.
     """
 
     id: int = -1
@@ -68,6 +71,7 @@ class LocationConfig:
     exit_node: str = ""
     approach_node: str = ""
     parking: list[list[float]] = field(default_factory=list)
+    overflow: list[list[float]] = field(default_factory=list)
 
 
 @dataclass(frozen=True)

@@ -228,7 +228,8 @@ def _kinematic_robots() -> BlockType:
     from mrta_drake.robots.unicycle_robots import UnicycleParams, UnicycleRobots
 
     return BlockType(UnicycleParams, lambda ctx, params: UnicycleRobots(
-        ctx.robot_names, ctx.robot_starts, params, rate_hz=ctx.rates.robots))
+        ctx.robot_names, ctx.robot_starts, params, rate_hz=ctx.rates.robots,
+        relocations=bool(ctx.lifts)))
 
 
 def _physics_robots() -> BlockType:

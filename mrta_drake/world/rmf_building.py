@@ -215,6 +215,18 @@ class _Parser:
     def fail(self, where: str, message: str):
         raise InputError(self.path, where or None, message)
 
+    def check_mapped(self, raw: Mapping[str, Level], moved: Mapping[str, Level],
+                     system: CoordinateSystem) -> None:
+        """Every position of ``moved`` (metres) is finite: a WGS84 latitude beyond the
+        poles, e.g., projects to infinity."""
+        for name, level in moved.items():
+            for kind in ("vertices", "models", "fiducials"):
+                for i, item in enumerate(getattr(level, kind)):
+                    if not all(math.isfinite(c) for c in item.xy):
+                        given = list(getattr(raw[name], kind)[i].xy)
+                        self.fail(f"levels.{name}.{kind}[{i}]", f"{_short(given)} lies "
+                                  f"outside the range of the {system.kind} coordinates")
+
     # --- Values ------------------------------------------------------------------------
 
     def mapping(self, value, where) -> dict:
@@ -292,7 +304,9 @@ class _Parser:
         lifts = {str(k): self.lift(str(k), v, levels) for k, v in raw_lifts.items()}
         self.check_door_names(levels)
         transforms = level_transforms(system, levels, reference, self.path)
-        levels = {k: _moved(level, transforms[k]) for k, level in levels.items()}
+        moved = {k: _moved(level, transforms[k]) for k, level in levels.items()}
+        self.check_mapped(levels, moved, system)
+        levels = moved
         lifts = {k: replace(lift, xy=transforms[lift.reference_floor].point(lift.xy))
                  for k, lift in lifts.items()}
         for level in levels.values():
@@ -431,9 +445,12 @@ class _Parser:
         for door_name, door_raw in self.mapping(lift.get("doors"), f"{where}.doors").items():
             here = f"{where}.doors.{door_name}"
             door = self.mapping(door_raw, here)
+            for key in ("x", "y"):  # the door's place on the cabin's faces
+                if key not in door:
+                    self.fail(here, f"a lift door needs {key}")
             doors[str(door_name)] = LiftDoor(
-                str(door_name), (self.number(door.get("x", 0.0), f"{here}.x"),
-                                 self.number(door.get("y", 0.0), f"{here}.y")),
+                str(door_name), (self.number(door["x"], f"{here}.x"),
+                                 self.number(door["y"], f"{here}.y")),
                 self.number(door.get("width"), f"{here}.width", positive=True),
                 int(self.number(door.get("door_type", 2), f"{here}.door_type")))
         if not doors:

@@ -68,7 +68,8 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
         [(name, level.elevation, worlds[name].bounds) for name, level in
          building.levels.items()], gap)
     floor_plan = combined_floor_plan(building.name, worlds, layout, building.source)
-    nodes, edges, locations, notes, single_file = {}, [], [], [], []
+    nodes, edges, locations, single_file = {}, [], [], []
+    notes = unaligned_levels(building)
     cabin_nodes: dict[tuple[str, str], str] = {}
     for name, level in building.levels.items():
         navigation = level_navigation(building, name, worlds[name],
@@ -109,6 +110,24 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
     return BuildingLevels(layout, floor_plan, locations, roadways, tuple(lifts), notes)
 
 
+def unaligned_levels(building: Building) -> list[str]:
+    """A note for each level of a ``reference_image`` building that shares fewer than two
+    fiducials with the reference level: it is taken as drawn in that level's frame
+    (``rmf_coordinates``), which is right only if it was; lifts and stairs may not line
+    up."""
+    if building.coordinate_system.kind != "reference_image":
+        return []
+    reference = {f.name for f in building.levels[building.reference_level].fiducials}
+    notes = []
+    for name, level in building.levels.items():
+        shared = len(reference & {f.name for f in level.fiducials})
+        if name != building.reference_level and shared < 2:
+            notes.append(f"{name}: {shared} fiducial(s) shared with the reference level "
+                         f"{building.reference_level}: taken as drawn in its frame, not "
+                         "aligned")
+    return notes
+
+
 def _stop(lift, level: str, elevation: float, node: str, nodes, layout: LevelLayout
           ) -> LiftStop:
     """``lift``'s stop on ``level``: its cabin ``node``, centre and (first) door there, in
@@ -138,4 +157,5 @@ def _shifted(location: LocationConfig, new_id: int, level: str, layout: LevelLay
         id=new_id, name=f"{level}/{location.name}",
         point=list(layout.to_world(level, location.point)), queue=moved(location.queue),
         entry=moved(location.entry), exit_node=f"{level}/{location.exit_node}",
-        approach_node=f"{level}/{location.approach_node}", parking=moved(location.parking))
+        approach_node=f"{level}/{location.approach_node}", parking=moved(location.parking),
+        overflow=moved(location.overflow))

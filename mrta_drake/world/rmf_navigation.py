@@ -29,6 +29,10 @@ locations with their queues, entries and parking spots.
   walls by ``slot_clearance``, at least ``parking_lane_gap`` m from every lane,
   ``slot_spacing`` from the points, slots and spots placed before, and in line of sight of
   the point.
+- **Waiting spots beyond the queue** (``overflow``): where those of the waypoint generator
+  (1 m apart from the tail slot towards the approach node) come nearer than
+  ``slot_clearance`` to a wall or a piece of furniture, the location lists its own: those
+  spots, each too near one moved off the lanes or dropped (``_overflow``).
 
 Metres, world frame (x east, y north).
 """
@@ -81,17 +85,21 @@ class BuildingNavigationParams:
     # place; where none fits beside the single-file lanes, they stand on them
     serve_reach: float = 1.5  # m: a location on a passage is served beside its lanes, at
     # most this far from its vertex
+    overflow_spots: int = 5  # waiting spots beyond the tail slot that are checked: the
+    # import's default fleet of 6 less the room's holder
+    overflow_reach: float = 2.0  # m: a waiting spot too near an obstacle moves at most this far
 
     def __post_init__(self):
         if self.graph < 0:
             raise InputError(None, "graph", f"must be >= 0, got {self.graph}")
         if self.queue_slots < 1:
             raise InputError(None, "queue_slots", f"must be >= 1, got {self.queue_slots}")
-        if self.parking_spots < 0:
-            raise InputError(None, "parking_spots", f"must be >= 0, got {self.parking_spots}")
+        for name in ("parking_spots", "overflow_spots"):
+            if getattr(self, name) < 0:
+                raise InputError(None, name, f"must be >= 0, got {getattr(self, name)}")
         require_positive(self, "slot_spacing", "head_gap", "slot_clearance", "parking_distance",
                          "parking_lane_gap", "zone_length", "slot_lane_gap", "queue_reach",
-                         "serve_reach", unit=" m")
+                         "serve_reach", "overflow_reach", unit=" m")
 
 
 @dataclass(frozen=True)
@@ -124,7 +132,8 @@ class BuildingNavigation:
             "locations": [
                 {"id": loc.id, "name": loc.name, "point": loc.point, "queue": loc.queue,
                  "entry": loc.entry, "exit_node": loc.exit_node,
-                 "approach_node": loc.approach_node, "parking": loc.parking}
+                 "approach_node": loc.approach_node, "parking": loc.parking,
+                 "overflow": loc.overflow}
                 for loc in self.locations],
             "roadways": {"nodes": dict(self.roadways.nodes),
                          "edges": [list(e) for e in self.roadways.edges],
@@ -261,7 +270,7 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
             points[k] = _beside(points[k], _Aside(segments, points[:k] + points[k + 1:]),
                                 floor_plan, params)
     taken = list(points)
-    locations = []
+    locations, moved, dropped = [], 0, 0
     for location_id, (i, point) in enumerate(zip(candidates, points, strict=True)):
         node = lines.vertex_node[i]
         queue, entry, approach, zone = _queue(graph, node, holding, single, floor_plan,
@@ -271,10 +280,16 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
             entry = []  # from a head slot beside the lanes straight to the point
         parking = [] if zone else _parking(point, segments, floor_plan, taken + queue,
                                            params)
-        taken += queue + parking
+        overflow, moves, drops = _overflow(queue[-1], roadways.nodes[approach], floor_plan,
+                                           _Aside(segments, taken + queue + parking), params)
+        moved, dropped = moved + moves, dropped + drops
+        taken += queue + parking + overflow
         locations.append(LocationConfig(
             id=location_id, name=node, point=_listed(point), queue=queue, entry=entry,
-            exit_node=node, approach_node=approach, parking=parking))
+            exit_node=node, approach_node=approach, parking=parking, overflow=overflow))
+    if moved or dropped:
+        notes.append(f"waiting spots beyond the queues too near walls or furniture: {moved} "
+                     f"moved, {dropped} dropped")
     return BuildingNavigation(roadways, locations, lines, lanes.single_file, notes)
 
 
@@ -568,6 +583,61 @@ def _parking(point: np.ndarray, lanes: np.ndarray, floor_plan: FloorPlan, taken:
         if len(chosen) == params.parking_spots:
             break
     return chosen
+
+
+def _overflow(tail, approach, floor_plan: FloorPlan, aside: _Aside,
+              params: BuildingNavigationParams) -> tuple[list[list[float]], int, int]:
+    """Where robots beyond the last queue slot wait, and how many spots were moved and
+    dropped: [] where the waypoint generator's own spots (``WaypointPolicy._queue_spot``:
+    ``slot_spacing`` apart from the ``tail`` slot towards the ``approach`` node, at most as
+    far as it; the first ``overflow_spots``) keep ``slot_clearance`` from obstacles (walls
+    and furniture), else those spots: each one too near an obstacle moved to the nearest
+    place within ``overflow_reach`` that keeps it, ``slot_lane_gap`` from every lane and
+    in sight of the tail, or dropped where there is none; a spot nearer than
+    ``slot_spacing`` to the tail, the approach node, ``aside.taken`` or the spots before is
+    dropped too. The approach node itself, on the lanes, is kept as it is (the last spot
+    where the spots reach it), and is the one spot where all others were dropped. The
+    office's coe: its one slot stands in an aisle beside the corridor, a cubicle between
+    it and the approach node; the first two spots on that line lay 0.34 and 0.17 m inside
+    the cubicle, goals the planner cannot reach."""
+    tail, approach = np.asarray(tail, dtype=float), np.asarray(approach, dtype=float)
+    length = float(np.linalg.norm(approach - tail))
+    if length == 0.0 or params.overflow_spots == 0:
+        return [], 0, 0
+    backs = list(dict.fromkeys(min(k * params.slot_spacing, length)
+                               for k in range(1, params.overflow_spots + 1)))
+    spots = [tail + (approach - tail) * (back / length) for back in backs]
+    sd = floor_plan.obstacles.signed_distance
+    near = [back < length and sd([spot])[0] < params.slot_clearance
+            for spot, back in zip(spots, backs, strict=True)]
+    if not any(near):
+        return [], 0, 0
+    radii = np.arange(0.05, params.overflow_reach + 1e-9, 0.05)
+    angles = np.arange(32) * (2 * math.pi / 32)
+    ring = np.stack([np.outer(radii, np.cos(angles)), np.outer(radii, np.sin(angles))],
+                    axis=-1).reshape(-1, 2)
+    chosen: list[list[float]] = []
+    moved = 0
+    for spot, back, too_near in zip(spots, backs, near, strict=True):
+        if back >= length:
+            chosen.append(_listed(spot))
+            continue
+        taken = np.asarray(aside.taken + chosen + [list(tail)] + [list(approach)] * int(
+            backs[-1] >= length), dtype=float).reshape(-1, 2)
+        around = spot + ring if too_near else spot[None]
+        ok = np.linalg.norm(around[:, None] - taken[None], axis=2).min(axis=1) \
+            >= params.slot_spacing - 1e-9
+        if too_near:
+            ok &= ((sd(around) >= params.slot_clearance)
+                   & (_off_lanes(around, aside.lanes) >= params.slot_lane_gap - 1e-9))
+        for place in around[ok]:
+            line = tail + np.linspace(0.0, 1.0, 24)[:, None] * (place - tail)
+            if not too_near or sd(line).min() >= params.slot_clearance - 0.2:
+                chosen.append(_listed(place))
+                moved += int(too_near)
+                break
+    dropped = len(spots) - len(chosen)
+    return chosen or [_listed(approach)], moved, dropped
 
 
 def _listed(xy) -> list[float]:

@@ -379,3 +379,30 @@ def test_an_order_without_blockers_ends_when_its_robot_gets_there():
     simulator.AdvanceTo(17.0)
     orders = watchdog.GetOutputPort("back_offs").Eval(context)
     assert orders.active == () and len(orders.history) == 1
+
+
+@pytest.mark.parametrize("stood", [20.0, 30.0])
+def test_with_no_spot_off_the_ways_a_stalled_robot_backs_off_along_its_corridor(stood):
+    # Nose to nose in a 2 m corridor, each driving on through the other: every spot
+    # within reach is on the other's way. Once they have stood twice standstill_time,
+    # r1 (yielding first) backs off anyway, at least back_off_distance east, back along
+    # the corridor it came by; before that, and on main for good, no order.
+    obstacles = Obstacles((Box("south", (10.0, -1.1), (22.0, 0.2)),
+                           Box("north", (10.0, 1.1), (22.0, 0.2))))
+    bounds = (-1.0, 21.0, -1.5, 1.5)
+    watchdog = DeadlockWatchdog(NAMES, [RADIUS, RADIUS],
+                                Costmap.from_obstacles(obstacles, bounds), rate_hz=2.0)
+    context = watchdog.CreateDefaultContext()
+    states = np.array([[10.0, 0.0, 0.0, 0.0], [10.6, 0.0, math.pi, 0.0]])
+    targets = [WaypointTarget("r0", True, (19.0, 0.0), None, True),
+               WaypointTarget("r1", True, (1.0, 0.0), None, True)]
+    now = 100.0
+    anchors = [Anchor((float(x), float(y)), now - stood) for x, y in states[:, :2]]
+    order = watchdog._order((0, 1), np.array([True, True]), anchors, states, targets,
+                            context, now, ())
+    if stood < 2 * WatchdogParams().standstill_time:
+        assert order is None
+    else:
+        assert order.robot == "r1" and order.blockers == ("r0",)
+        assert order.point[0] - 10.6 >= WatchdogParams().back_off_distance - 1e-9
+        assert abs(order.point[1]) < 0.3

@@ -183,6 +183,30 @@ def test_segments_are_granted_all_or_nothing_one_way_at_a_time():
     assert state.holds_segments("b", ((1, False), (2, True))) and not state.segments[1].forward
 
 
+def test_robots_standing_together_in_a_segment_turn_when_they_all_want_out():
+    # a and b drove into a dead-end segment one after the other and stand there; both now
+    # want out, the other way: they turn together (each waited for the other before,
+    # their hold keeping the way in: office seeds 1, 3, 5 at a charger). With one of them
+    # still naming the way in, the hold keeps it and the other waits.
+    bench = SegmentBench(["a", "b", "c"])
+    bench.want("a", (0, True), stops=(0,))
+    bench.want("b", (0, True), stops=(0,))
+    bench.step()
+    bench.want("a", (0, False), (1, True))
+    bench.step()
+    state = bench.state()
+    assert state.segments[0] == SegmentHold(("a", "b"), True)
+    assert state.segment_waiting == ("a",)
+    bench.want("b", (0, False), (1, True))
+    bench.want("c", (0, True))  # outside, the way in: waits for them to leave
+    bench.step()
+    state = bench.state()
+    assert state.segments[0] == SegmentHold(("a", "b"), False)
+    assert state.holds_segments("a", ((0, False), (1, True)))
+    assert state.holds_segments("b", ((0, False), (1, True)))
+    assert state.segment_waiting == ("c",)
+
+
 def test_a_robot_waiting_first_keeps_its_turn():
     bench = SegmentBench(["a", "b", "c"])
     bench.want("a", (0, True))

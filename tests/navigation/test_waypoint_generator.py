@@ -39,11 +39,12 @@ from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig
 A, B, C = 0, 1, 2
 
 
-def loop_world(parking: bool = False) -> Roadways:
+def loop_world(parking: bool = False, overflow=()) -> Roadways:
     """As in test_roadways: an eastbound lane at y = 0 and a westbound one at y = 1.5 joined
     at x = 0 and 30; rooms A, B, C at x = 5, 15, 25, point at y = 5, door at y = 2.5, three
     queue slots east of the door on the westbound lane; with ``parking``, a parking spot 2 m
-    east of each point."""
+    east of each point; ``overflow``: each location's overflow spots, (dx, y) m from its
+    point's x."""
     xs = (0, 10, 20, 30)
     nodes = {f"S{x}": [x, 0.0] for x in xs} | {f"N{x}": [x, 1.5] for x in xs}
     edges = [["S0", "S10"], ["S10", "S20"], ["S20", "S30"], ["S30", "N30"],
@@ -53,6 +54,7 @@ def loop_world(parking: bool = False) -> Roadways:
             id=i, point=[x, 5.0], queue=[[x + 1.0, 1.5], [x + 2.0, 1.5], [x + 3.0, 1.5]],
             entry=[[x, 2.5]], exit_node=f"N{x - 5}", approach_node=f"N{x + 5}",
             parking=[[x + 2.0, 5.0], [x + 2.0, 6.5]] if parking else [],
+            overflow=[[x + dx, y] for dx, y in overflow],
         )
         for i, x in enumerate((5, 15, 25))
     ]
@@ -111,11 +113,11 @@ class World:
     """Robots ``r0, r1, ...`` starting on the points of ``starts`` (location ids)."""
 
     def __init__(self, starts, plan_source, start_known=True, params=None, parking=False,
-                 homes=None, at=None):
+                 homes=None, at=None, overflow=()):
         """``homes``: start spots (x, y) off the locations instead, one per robot (each
         robot's home; all of them its spots); ``at``: where the robots stand at first (x, y)
-        if not there."""
-        self.roadways = roadways = loop_world(parking)
+        if not there; ``overflow``: as ``loop_world``'s."""
+        self.roadways = roadways = loop_world(parking, overflow)
         self.robots = [f"r{i}" for i in range(len(starts))]
         builder = DiagramBuilder()
         plan = builder.AddSystem(plan_source)
@@ -223,6 +225,20 @@ def test_more_robots_than_slots_wait_back_from_the_tail_slot():
     # (N20, 2 m east of it), not on the third robot at the tail slot.
     assert slots == [tuple(map(float, place.queue[k])) for k in (0, 1)] + [
         tail, (tail[0] + 1.0, tail[1])]
+
+
+def test_more_robots_than_slots_wait_on_the_overflow_spots_where_given():
+    # The importer gives a location overflow spots where those on the line to the approach
+    # node would stand in an obstacle: the fourth robot waits on the first, not on the line.
+    world = World([C] * 5, fixed(*[[B]] * 5), overflow=[(3.0, 3.5)])
+    world.run(until=70)
+    place = world.roadways.place(B)
+    full = [(q, targets) for _, state, _, targets in world.log
+            if len((q := state.room(B)).waiting) == 4]
+    assert full
+    queue, targets = full[-1]
+    slots = [targets[int(robot[1:])].current for robot in queue.waiting]
+    assert slots == [tuple(map(float, place.queue[k])) for k in (0, 1, 2)] + [(18.0, 3.5)]
 
 
 def plan(*stops) -> FleetPlan:
@@ -709,3 +725,68 @@ def test_a_robot_held_back_whose_missing_segments_are_free_keeps_those_it_holds(
         queues = QueueState(segments=tuple(SegmentHold(("r0",) if k == held else (), False)
                                            for k in range(3)))
         assert policy.update(s, _Inputs(10.0, queues, [[13.5, 1.5, 0.0, 0.0]])).lanes == whole
+
+
+def test_a_robot_never_given_a_stop_drives_back_to_its_start_spot_off_the_lanes():
+    # r0 starts between the two lanes, off the locations, with nothing to do, and stands
+    # 2 m from its start spot (as when a robot driving past pushes it away): it drives
+    # back (before, idle with its target inactive, it stood where it was pushed: triple_H
+    # seed 1, onto a corridor's lane). r1, whose start spot is on a lane, stays idle where
+    # it stands, off that lane.
+    homes = [(10.0, 0.75), (20.0, 0.0)]
+    world = World([None, None], fixed([], []), start_known=False, homes=homes,
+                  at=[(12.0, 1.5), (20.0, -1.0)])
+    world.run(until=5.0)
+    _, _, positions, targets = world.log[-1]
+    assert targets[0].active and targets[0].stop_at_current and targets[0].current == homes[0]
+    np.testing.assert_allclose(positions[0], homes[0], atol=0.05)
+    assert not targets[1].active
+    np.testing.assert_allclose(positions[1], (20.0, -1.0))
+
+
+def test_a_start_spot_on_a_lane_is_within_on_lane_of_it():
+    roadways = loop_world()
+    assert roadways.distance_to_lanes((10.0, 0.75)) == pytest.approx(0.75)
+    assert roadways.distance_to_lanes((12.0, 0.0)) == 0.0
+    assert roadways.distance_to_lanes((-1.0, -1.0)) == pytest.approx(math.sqrt(2.0))
+    with pytest.raises(InputError, match="on_lane"):
+        WaypointParams(on_lane=0.0)
+
+
+def test_a_robot_held_back_keeps_the_segment_it_holds_and_stands_in_off_its_route():
+    # r0, 1 m up the spur J-S (segment 2, which it holds northbound-out: S -> J), given a
+    # way west from J that it counts as begun (driving to W); x holds W-J. Held back, it
+    # keeps the spur it stands in: before, it asked for W-J alone, gave the spur up, and
+    # a robot granted it drove in head-on (office seed 9: five robots stood ~180 s).
+    policy = WaypointPolicy(["r0"], 0, spur_world(), None, WaypointParams())
+    s = _Drive(phase=RobotMode.HOME, route=((10.0, 0.0), (0.0, 0.0)), index=1)
+    queues = QueueState(segments=(SegmentHold(("x",), True), SegmentHold(),
+                                  SegmentHold(("r0",), False)))
+    held_back = policy.update(s, _Inputs(10.0, queues, [[10.0, 1.0, -math.pi / 2, 0.0]]))
+    assert held_back.lanes == Need(((0, False), (2, False)), hold=True, stops=(0,))
+    # At J, where the segments meet, only its route's, as before.
+    at_j = policy.update(s, _Inputs(10.0, queues, [[10.0, 0.3, -math.pi / 2, 0.0]]))
+    assert at_j.lanes == Need(((0, False),), hold=True, stops=(0,))
+    # Not holding the spur, it does not ask for it (it waits for W-J as before).
+    free = QueueState(segments=(SegmentHold(("x",), True), SegmentHold(), SegmentHold()))
+    waiting = policy.update(s, _Inputs(10.0, free, [[10.0, 1.0, -math.pi / 2, 0.0]]))
+    assert waiting.lanes == Need(((0, False),), hold=True, stops=(0,))
+
+
+def test_where_a_robot_waits_is_kept_per_roadways_and_place_not_mixed_across_closures():
+    # ``_home_spot``'s lanes searches are kept per roadways (by their closures) and place:
+    # a closure that cuts the way home gives another answer, each time it is asked.
+    roadways = loop_world(parking=True)
+    home = (20.0, 0.0)
+
+    def policy():
+        return WaypointPolicy(["r0", "r1"], 0, roadways, B, home=home,
+                              spots=[home, (0.0, 0.0)])
+
+    closed = roadways.closed([(16.0, 18.0, -0.5, 0.5)])  # the eastbound lane S10-S20
+    kept = policy()
+    answers = [kept._spots_reached(roadways.place(place), lanes)
+               for place in (B, A) for lanes in (roadways, closed, roadways, closed)]
+    assert answers == [policy()._spots_reached(roadways.place(place), lanes)
+                       for place in (B, A) for lanes in (roadways, closed, roadways, closed)]
+    assert answers[0] == (True, ()) and not answers[1][0] and answers[1][1]

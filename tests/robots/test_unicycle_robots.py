@@ -7,10 +7,11 @@ from pydrake.systems.primitives import ConstantVectorSource
 from mrta_drake.robots.unicycle_robots import UnicycleParams, UnicycleRobots, unicycle_step
 
 
-def _run(starts, commands, duration, params=None):
+def _run(starts, commands, duration, params=None, relocations=True):
     builder = DiagramBuilder()
     robots = builder.AddSystem(UnicycleRobots([f"r{i}" for i in range(len(starts))], starts,
-                                              params or UnicycleParams(), rate_hz=20.0))
+                                              params or UnicycleParams(), rate_hz=20.0,
+                                              relocations=relocations))
     source = builder.AddSystem(ConstantVectorSource(np.ravel(commands)))
     builder.Connect(source.get_output_port(), robots.GetInputPort("commands"))
     diagram = builder.Build()
@@ -90,3 +91,20 @@ def test_a_relocation_is_applied_once_when_its_sequence_number_is_new():
     simulator.AdvanceTo(2.1)
     x, y = robots.GetOutputPort("state").Eval(context).reshape(-1, 4)[1, :2]
     assert 7.0 <= x <= 7.15 and y == pytest.approx(7.0)  # moved there, then drove on
+
+
+def test_without_relocations_the_robots_have_no_relocation_update_and_step_alike(
+        monkeypatch):
+    # A run without lifts: no relocation update (its dispatch costs at every step) and no
+    # state for it, the same steps.
+    calls = []
+    relocate = UnicycleRobots._relocate
+    monkeypatch.setattr(UnicycleRobots, "_relocate",
+                        lambda self, *args: calls.append(1) or relocate(self, *args))
+    robots = UnicycleRobots(["a"], [[0.0, 0.0, 0.0]], rate_hz=20.0, relocations=False)
+    assert robots.num_abstract_states() == 0
+    starts, commands = [[0.0, 0.0, 0.0], [5.0, 5.0, 1.0]], [[1.0, 0.3], [0.5, -0.2]]
+    without = _run(starts, commands, 3.0, relocations=False)
+    assert not calls
+    np.testing.assert_array_equal(without, _run(starts, commands, 3.0))
+    assert calls  # the default block has the update

@@ -9,7 +9,7 @@ from mrta_drake.navigation.lift_bank import LiftParams, expected_ride_time, ride
 from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.world.levels import MIN_LEVEL_GAP, LevelLayout
 from mrta_drake.world.rmf_building import load_building
-from mrta_drake.world.rmf_levels import building_levels
+from mrta_drake.world.rmf_levels import building_levels, unaligned_levels
 
 TWO_LEVELS = Path(__file__).parents[1] / "data" / "buildings" / "two_levels.building.yaml"
 
@@ -79,3 +79,15 @@ def test_every_levels_single_file_segments_but_those_through_a_cabin():
         assert not cabins.intersection(segment)
     roadways = levels.roadways_with_lifts(LiftParams(), 0.6)
     assert Roadways(roadways, levels.locations, building.source).segment_count == len(segments)
+
+
+def test_a_level_without_two_shared_fiducials_is_named(tmp_path):
+    # Taken as drawn in the reference level's frame (as Open-RMF's generator does): right
+    # only if it was, so the import says so.
+    assert unaligned_levels(load_building(TWO_LEVELS)) == []
+    renamed = tmp_path / "renamed.building.yaml"
+    renamed.write_text(TWO_LEVELS.read_text().replace("85.0, B]", "85.0, X]")
+                       .replace("85.0, C]", "85.0, Y]"))
+    assert unaligned_levels(load_building(renamed)) == [
+        "L2: 1 fiducial(s) shared with the reference level L1: taken as drawn in its frame, "
+        "not aligned"]

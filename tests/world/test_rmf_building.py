@@ -212,3 +212,14 @@ def test_broken_building_gives_one_clear_line(path, capsys):
     assert main(["import", str(path), "--out", str(path.parent / "never")]) == 2
     assert capsys.readouterr().err == f"error: {expected}\n"
     assert not (path.parent / "never").exists()
+
+
+def test_a_wgs84_position_beyond_the_poles_is_one_line(tmp_path):
+    pytest.importorskip("pyproj")
+    path = tmp_path / "pole.building.yaml"
+    path.write_text((BUILDINGS / "wgs84.building.yaml").read_text().replace(
+        "[103.7810, 1.3000, 0, hall]", "[103.7810, 123.0, 0, hall]"))
+    with pytest.raises(InputError) as info:
+        load_building(path)
+    assert str(info.value) == (f"{path}: levels.L1.vertices[2]: [103.781, 123.0] lies "
+                               "outside the range of the wgs84 coordinates")

@@ -8,6 +8,7 @@ import pytest
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.single_file import SingleFileParams
+from mrta_drake.world.obstacles import Obstacles
 from mrta_drake.world.rmf_building import load_building
 from mrta_drake.world.rmf_navigation import (
     BuildingNavigationParams,
@@ -246,3 +247,32 @@ def test_the_roadways_carry_their_single_file_segments():
     assert navigation.roadways.single_file == [list(s.nodes) for s in navigation.single_file]
     assert Roadways(navigation.roadways, navigation.locations).segment_count == len(
         navigation.single_file)
+
+
+def test_waiting_spots_beyond_a_queue_keep_clear_of_furniture():
+    # printer's one slot stands in an aisle between desks; the waypoint generator's own
+    # spots beyond it, 1 m apart on the line to the approach node, start inside a desk.
+    # The spots written instead keep clear of walls and furniture, off the lanes, 1 m
+    # apart, and end on the approach node (which is where those spots end too).
+    _, floor_plan, navigation = derived("aisle", "ground")
+    printer = navigation.locations[0]
+    assert printer.name == "printer" and len(printer.queue) == 1
+    tail = np.array(printer.queue[-1])
+    approach = np.array(navigation.roadways.nodes[printer.approach_node])
+    towards = (approach - tail) / np.linalg.norm(approach - tail)
+    line = tail + towards * PARAMS.slot_spacing
+    furniture = Obstacles(tuple(b for b in floor_plan.obstacles.boxes
+                                if b.name.startswith("desk_")))
+    assert furniture.signed_distance([line])[0] < 0.0
+    spots = np.array(printer.overflow)
+    assert np.allclose(spots[-1], approach)
+    assert floor_plan.obstacles.signed_distance(spots[:-1]).min() >= PARAMS.slot_clearance
+    assert (_off_lanes(navigation, spots[:-1]) >= PARAMS.slot_lane_gap - 1e-3).all()
+    placed = np.vstack([tail, spots])
+    gaps = np.linalg.norm(placed[:, None] - placed[None], axis=2)
+    assert gaps[np.triu_indices(len(placed), 1)].min() >= PARAMS.slot_spacing - 1e-3
+    assert any(note.startswith("waiting spots beyond the queues too near walls or furniture")
+               for note in navigation.notes)
+    # Where the line is clear, no spots are written: the waypoint generator's own apply.
+    _, floor_plan, navigation = derived("one_level", "L1")
+    assert all(not location.overflow for location in navigation.locations)
