@@ -1,6 +1,7 @@
 """Safe control of a fleet of dynamic unicycles with clustered CBF-QPs (the paper's controller)."""
 
 import dataclasses
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -329,25 +330,28 @@ class ClusterCbfController(LeafSystem):
             if u_nominal is None and not plan.qps.needs_solver[g]:
                 continue
             members = list(plan.qps.groups[g])
+            # With a standing robot, rows that cannot all be met are solved with its turn
+            # fixed (TickQps.turns_fixed): where the active set finds so, straight away.
+            standing, start = bool(plan.qps.standing[members].any()), time.perf_counter()
             if u_nominal is None:
-                solution = self._qp.solve_loaded(plan.qps.loaded(g))
+                solution = self._qp.solve_loaded(plan.qps.loaded(g), unless_unmet=standing)
             else:
                 nominal, G, b, lower, upper = plan.qps.arrays(g)
-                solution = self._qp.solve(u_nominal[members], G, b, lower, upper)
-            seconds, slack = solution.solve_time, float(solution.slack.max(initial=0.0))
-            if (solution.success and slack > SLACK_IN_USE
-                    and plan.qps.standing[members].any()):  # see TickQps.turns_fixed
+                solution = self._qp.solve(u_nominal[members], G, b, lower, upper,
+                                          unless_unmet=standing)
+            seconds = time.perf_counter() - start if solution is None else solution.solve_time
+            if solution is None or (solution.success and solution.max_slack > SLACK_IN_USE
+                                    and standing):
                 nominal, G, b, lower, upper = plan.qps.arrays(g)
                 if u_nominal is not None:
                     nominal = u_nominal[members]
                 solution = self._qp.solve(nominal, G, b,
                                           *plan.qps.turns_fixed(g, nominal, lower, upper))
                 seconds += solution.solve_time
-                slack = float(solution.slack.max(initial=0.0))
             calls.append((len(members), seconds))
             if solution.success:
                 u[members] = solution.u
-                max_slack = max(max_slack, slack)
+                max_slack = max(max_slack, solution.max_slack)
             else:
                 u[members] = np.stack([plan.qps.lower[members, 0], np.zeros(len(members))],
                                       axis=1)

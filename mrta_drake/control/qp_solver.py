@@ -53,16 +53,18 @@ class QpParams:
 
 @dataclass(frozen=True)
 class QpSolution:
-    """``u`` (k, 2) inputs ``[a, omega]``; ``slack`` (m,) per safety row (scaled units, m/s^2);
-    ``success`` False when the solver failed (``u`` is then meaningless); ``solve_time`` s of
-    wall-clock time (the solver runs on the calling thread); ``solved`` False when the
-    clipped nominal was already optimal (no solver call)."""
+    """``u`` (k, 2) inputs ``[a, omega]``; ``slack`` (m,) per safety row (scaled units, m/s^2)
+    and its largest, ``max_slack`` (0 for none); ``success`` False when the solver failed
+    (``u`` is then meaningless); ``solve_time`` s of wall-clock time (the solver runs on the
+    calling thread); ``solved`` False when the clipped nominal was already optimal (no
+    solver call)."""
 
     u: np.ndarray
     slack: np.ndarray
     success: bool
     solve_time: float
     solved: bool = True
+    max_slack: float = 0.0
 
 
 class _Program:
@@ -125,8 +127,10 @@ class CbfQp:
                 self._options.SetOption(OsqpSolver.id(), name, value)
         self._programs: dict[tuple[int, int], _Program] = {}
 
-    def solve(self, u_nominal, G, b, lower, upper) -> QpSolution:
-        """``u_nominal``, ``lower``, ``upper`` (k, 2); rows ``G`` (m, 2k) u >= ``b`` (m,)."""
+    def solve(self, u_nominal, G, b, lower, upper, *,
+              unless_unmet: bool = False) -> QpSolution | None:
+        """``u_nominal``, ``lower``, ``upper`` (k, 2); rows ``G`` (m, 2k) u >= ``b`` (m,)
+        (``unless_unmet`` as for ``solve_loaded``)."""
         u_nom = np.asarray(u_nominal, dtype=float).reshape(-1)
         lo = np.asarray(lower, dtype=float).reshape(-1)
         hi = np.asarray(upper, dtype=float).reshape(-1)
@@ -138,11 +142,15 @@ class CbfQp:
         if finite and optimal:
             return QpSolution(clipped.reshape(k, 2), np.zeros(m), True,
                               time.perf_counter() - start, solved=False)
-        return self.solve_loaded(LoadedQp(k, m, finite, kept, size, data), start)
+        return self.solve_loaded(LoadedQp(k, m, finite, kept, size, data), start,
+                                 unless_unmet=unless_unmet)
 
-    def solve_loaded(self, qp: LoadedQp, start: float | None = None) -> QpSolution:
+    def solve_loaded(self, qp: LoadedQp, start: float | None = None, *,
+                     unless_unmet: bool = False) -> QpSolution | None:
         """The solution of a QP loaded by ``load_qp`` (its solve time counted from
-        ``start``, a ``time.perf_counter()``; None: now)."""
+        ``start``, a ``time.perf_counter()``; None: now). With ``unless_unmet`` and the
+        ``active_set`` solver: None, without a Clarabel solve, when the active set finds
+        that no input within the bounds meets every row (the slack is in use)."""
         start = time.perf_counter() if start is None else start
         k, size, data = qp.k, qp.size, qp.data
         if not qp.finite:
@@ -156,6 +164,8 @@ class CbfQp:
             if met and largest < self.slack_weight:
                 return QpSolution(np.minimum(np.maximum(x, lo), hi).reshape(k, 2),
                                   np.zeros(qp.m), True, time.perf_counter() - start)
+            if unless_unmet and not met:
+                return None
         program = self._programs.get((k, size))
         if program is None:
             program = self._programs[(k, size)] = _Program(k, size, self.slack_weight)
@@ -172,7 +182,7 @@ class CbfQp:
         slack = np.zeros(qp.m)
         slack[qp.kept] = np.maximum(x[n:n + len(qp.kept)], 0.0)
         return QpSolution(np.minimum(np.maximum(x[:n], lo), hi).reshape(k, 2), slack, True,
-                          elapsed)
+                          elapsed, max_slack=float(slack.max(initial=0.0)))
 
 
 @numba.njit(cache=True)

@@ -16,7 +16,13 @@ from mrta_drake.control.qp_solver import (
     padded_rows,
     qp_data_size,
 )
-from mrta_drake.control.safety_rows import SafetyRows, count_rows, empty_rows, fill_rows
+from mrta_drake.control.safety_rows import (
+    SafetyRows,
+    count_rows,
+    empty_rows,
+    far_humans,
+    fill_rows,
+)
 from mrta_drake.control.steering import steer
 from mrta_drake.stack.compiled_helper import compiled_helper
 
@@ -165,38 +171,59 @@ def _group_rows(states, hits, humans, human_velocities, mask, members, group_sta
     group needs its QP solved; ``settled`` gets the others' clipped nominal inputs; and
     what ``TickQps.loaded`` reads for the groups that need a solver (``_load_groups``)."""
     groups = len(group_start) - 1
+    # The box the rows are proven idle against (fill_rows): the bounds and the nominal.
+    box_lower, box_upper = _hull(lower, upper, u_nominal)
+    far = far_humans(states, humans, human_velocities, box_lower, box_upper, params)
     radius2 = params[9] * params[9]
-    row_start = np.zeros(groups + 1, dtype=np.int64)
-    G_start = np.zeros(groups + 1, dtype=np.int64)
+    room = np.zeros(groups + 1, dtype=np.int64)  # each group's place for its rows, ...
+    G_room = np.zeros(groups + 1, dtype=np.int64)  # ... and for its G, at most count_rows
     for g in range(groups):
         index = members[group_start[g]:group_start[g + 1]]
-        m = count_rows(states[index], mask[index], len(humans),
+        m = count_rows(states[index], mask[index], far[index],
                        movers[mover_start[g]:mover_start[g + 1]], radius2)
-        row_start[g + 1] = row_start[g] + m
-        G_start[g + 1] = G_start[g] + m * 2 * len(index)
-    G = np.zeros(G_start[groups])
-    b, kind, h, member, other, normal = empty_rows(row_start[groups], 0)[1:]
+        room[g + 1] = room[g] + m
+        G_room[g + 1] = G_room[g] + m * 2 * len(index)
+    G = np.zeros(G_room[groups])
+    b, kind, h, member, other, normal = empty_rows(room[groups], 0)[1:]
+    row_start = np.zeros(groups + 1, dtype=np.int64)  # where they are once moved together
+    G_start = np.zeros(groups + 1, dtype=np.int64)
     needs_qp = np.zeros(groups, dtype=np.bool_)
     finite = np.ones(groups, dtype=np.bool_)
     for g in range(groups):
         index = members[group_start[g]:group_start[g + 1]]
-        k, r0, r1 = len(index), row_start[g], row_start[g + 1]
-        G_g = G[G_start[g]:G_start[g + 1]].reshape((r1 - r0, 2 * k))
-        group_states = states[index]
-        fill_rows(group_states, hits[index], mask[index], humans, human_velocities,
-                  movers[mover_start[g]:mover_start[g + 1]], params, G_g, b[r0:r1],
-                  kind[r0:r1], h[r0:r1], member[r0:r1], other[r0:r1], normal[r0:r1])
-        u = u_nominal[index]
+        k, r0 = len(index), room[g]
+        u, group_states = u_nominal[index], states[index]
+        lo, hi = lower[index].ravel(), upper[index].ravel()
+        m = fill_rows(group_states, hits[index], mask[index], humans, human_velocities,
+                      far[index], movers[mover_start[g]:mover_start[g + 1]], params,
+                      box_lower[index], box_upper[index],
+                      G[G_room[g]:G_room[g + 1]].reshape((room[g + 1] - r0, 2 * k)), b[r0:],
+                      kind[r0:], h[r0:], member[r0:], other[r0:], normal[r0:])
+        r1 = r0 + m
+        row_start[g + 1], G_start[g + 1] = row_start[g] + m, G_start[g] + m * 2 * k
+        G_g = G[G_room[g]:G_room[g] + m * 2 * k].reshape((m, 2 * k))
         if corner_steering:
             steer(u, group_states, G_g, b[r0:r1], member[r0:r1], other[r0:r1],
                   normal[r0:r1], stall_speed, k_v, k_theta)
         _scatter_rows(u_nominal, index, u)
         flat = u.ravel()
-        clipped = np.minimum(np.maximum(flat, lower[index].ravel()), upper[index].ravel())
+        clipped = np.minimum(np.maximum(flat, lo), hi)
         finite[g], optimal = check_nominal(G_g, b[r0:r1], flat, clipped)
         needs_qp[g] = not (finite[g] and optimal)
         if not needs_qp[g]:
             _scatter_rows(settled, index, clipped.reshape((k, 2)))
+    for g in range(groups):  # the groups' rows together (forwards: never onto unread rows)
+        for j in range(G_start[g + 1] - G_start[g]):
+            G[G_start[g] + j] = G[G_room[g] + j]
+        for row in range(row_start[g + 1] - row_start[g]):
+            source, target = room[g] + row, row_start[g] + row
+            b[target], kind[target], h[target] = b[source], kind[source], h[source]
+            member[target], other[target] = member[source], other[source]
+            normal[target, 0], normal[target, 1] = normal[source, 0], normal[source, 1]
+    rows = row_start[groups]
+    G, b, kind, h, member, other, normal = (G[:G_start[groups]], b[:rows], kind[:rows],
+                                            h[:rows], member[:rows], other[:rows],
+                                            normal[:rows])
     loads = _load_groups(G, G_start, b, row_start, members, group_start, u_nominal, lower,
                          upper, needs_qp, finite)
     return G, G_start, b, kind, h, member, other, normal, row_start, needs_qp, loads
@@ -233,6 +260,17 @@ def _load_groups(G, G_start, b, row_start, members, group_start, u_nominal, lowe
                     lower[index].ravel(), upper[index].ravel(), sizes[g],
                     data[data_start[g]:data_start[g + 1]])
     return finite, kept, kept_count, sizes, data, data_start
+
+
+@compiled_helper
+def _hull(lower, upper, u):
+    """The smallest box (two (N, 2) arrays) that holds the box [``lower``, ``upper``] and
+    ``u`` (N, 2), element by element: numba's 2-D ``np.minimum`` is another compile."""
+    low, high = np.empty_like(lower), np.empty_like(upper)
+    for i in range(len(u)):
+        for c in range(2):
+            low[i, c], high[i, c] = min(lower[i, c], u[i, c]), max(upper[i, c], u[i, c])
+    return low, high
 
 
 @compiled_helper
