@@ -157,9 +157,7 @@ class DeadlockWatchdog(LeafSystem):
        again at the next update; once its stalled robots have stood twice
        ``standstill_time`` with no spot clear of the others' ways, the spots need not be
        (``_order``): the robot backs off wherever it can, in a corridor back along the way
-       it came, rather than the group being tried again for good (office seed 9 on main
-       0071ae6: a robot holding single-file segments and one, 0.85 m ahead of it, waiting
-       for them found no spot clear of each other's ways for 180 s). A stalled robot in
+       it came, rather than the group being tried again for good. A stalled robot in
        no group but with people within ``block_gap`` of it backs off the same way, to a
        spot off their ways (a person waiting for a robot to pass and the robot waiting
        for the person); one with nobody near but nearer a wall than ``wall_clearance``

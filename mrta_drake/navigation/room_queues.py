@@ -55,8 +55,7 @@ class RoomQueues(LeafSystem):
 
     1. Release: a holder that no longer names a segment gives it up. Robots holding a
        segment, alone or together, that all name it one way take that way (they turn in
-       it: office seeds 1, 3 and 5, two robots standing in the dead end to a charger that
-       both wanted out each waited for the other, whose hold kept the way in).
+       it: two robots standing in a dead end that both want out leave it).
     2. Wait: a robot naming a segment it does not hold waits (in the order it first did so;
        new ones in robot order); one that no longer does stops waiting.
     3. Grant: robots that hold some of the segments they name (they stand in them) first,

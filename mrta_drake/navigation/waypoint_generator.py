@@ -422,13 +422,10 @@ class WaypointPolicy:
         """At the start: a robot whose home (its start spot) is off the lanes (farther than
         ``on_lane`` from every lane: a corridor's centre line between its two lanes, a
         spot beside them) starts as one back home, so that pushed off it with nothing to
-        do it drives back (before, it was idle, its target inactive, and stood wherever
-        the others pushed it: triple_H seed 1, robot6, on the centre line of the dead end
-        to a charger, pushed by the robot driving home to that charger onto a lane of the
-        corridor across, where the robots driving round it met head-on for 32 s). A robot
-        starting on a lane stays idle: pushed off it, it stands off the lane, out of the
-        way (driving back, it would block that lane again: on the hospital at scale, robots
-        on lane spots driving back cost CPU, branch ``maps7a``)."""
+        do it drives back rather than standing wherever the others pushed it (onto a lane
+        of the corridor across). A robot starting on a lane stays idle: pushed off it, it
+        stands off the lane, out of the way (driving back, it would block that lane
+        again). docs/worlds.md, "Junction standoffs", has the runs behind the rule."""
         if (self._home is not None and self._params.parking
                 and self._roadways.distance_to_lanes(self._home) > self._params.on_lane):
             return _Drive(phase=RobotMode.HOME, route=(self._home,),
@@ -834,12 +831,9 @@ class WaypointPolicy:
         if not wanted.hold:
             return wanted
         # Held back inside a lane (farther than stand_distance from every roadway node), it
-        # keeps the segments it holds and stands in, whatever its route says (office seed
-        # 9: robot5, given a new stop 0.9 m into segment 7, its new route from the node
-        # ahead, asked only for the segments beyond and gave segment 7 up; the robot
-        # granted it drove in head-on and both stood for good). At a node, where segments
-        # meet, it keeps only those of its route, as before (kept all, robots at their
-        # start spots held more and the office's seeds 3 and 6 served 3 and 6 tasks fewer).
+        # keeps the segments it holds and stands in, whatever its route says: given up, a
+        # robot granted one would drive in head-on. At a node, where segments meet, it
+        # keeps only those of its route (docs/worlds.md, "Office seed 9's gridlock").
         held = self._held(queues)
         here = stands_in(self._roadways, robots.xy, self._params.single_file)
         if here and held and self._between_nodes(robots.xy):
