@@ -326,13 +326,14 @@ class ClusterCbfController(LeafSystem):
         inputs in place of the plan's, for ``groups``."""
         u = plan.qps.settled.copy()
         failures, max_slack, calls = 0, 0.0, []
+        stands = plan.qps.standing.tolist().__getitem__ if groups else None
         for g in groups:
             if u_nominal is None and not plan.qps.needs_solver[g]:
                 continue
             members = list(plan.qps.groups[g])
             # With a standing robot, rows that cannot all be met are solved with its turn
             # fixed (TickQps.turns_fixed): where the active set finds so, straight away.
-            standing, start = bool(plan.qps.standing[members].any()), time.perf_counter()
+            standing, start = any(map(stands, members)), time.perf_counter()
             if u_nominal is None:
                 solution = self._qp.solve_loaded(plan.qps.loaded(g), unless_unmet=standing)
             else:
