@@ -8,7 +8,9 @@ gets farther than that from that place or stops needing to move.
 
 Waiting for a room or a single-file segment is queueing, not being stuck, only while the
 wait leads somewhere: ``stalled_waits`` finds the robots whose waits (for the robots
-holding what they wait for, and so on) reach no robot that moves or serves. Robots standing
+holding what they wait for, and so on) reach no robot that moves or serves; the recorder
+asks that of every robot a wait is for (a robot asking for segments held by a robot that
+moves and by one that stands for good is stuck). Robots standing
 in each other's rooms or segments, each waiting for the other, are a gridlock: the recorder
 counts them as ``DRIVE``, so one lasting ``stuck_time`` is a deadlock.
 
@@ -79,19 +81,25 @@ def find_deadlocks(times, robot_xy, should_move, robot_names, human_xy=None, hum
     return sorted(found, key=lambda d: (d.start, robot_names.index(d.robot)))
 
 
-def stalled_waits(waits_on: Mapping[str, Collection[str]],
-                  live: Collection[str]) -> frozenset[str]:
+def stalled_waits(waits_on: Mapping[str, Collection[str]], live: Collection[str], *,
+                  all_needed: bool = False) -> frozenset[str]:
     """The waiting robots (keys of ``waits_on``: robot -> the robots it waits for) whose
     waits lead to no robot of ``live`` (moving or serving). A robot's wait leads somewhere
     when it waits for nobody (what it waits for is free: it gets it at the next grant), or
-    for a live robot, or for a robot whose own wait leads somewhere."""
+    for a live robot, or for a robot whose own wait leads somewhere: for one of those it
+    waits for, or, with ``all_needed``, for every one of them. The run recorder counts with
+    ``all_needed``: a robot asking for several single-file segments is granted them only
+    when all their holders have let go, so one standing holder stalls it however the others
+    move. The deadlock watchdog acts without: only on waits in which nobody moves."""
     flowing = set(live)
     flowing.update(robot for robot, others in waits_on.items() if not others)
     grew = True
     while grew:
         grew = False
         for robot, others in waits_on.items():
-            if robot not in flowing and not flowing.isdisjoint(others):
+            if robot in flowing:
+                continue
+            if flowing.issuperset(others) if all_needed else not flowing.isdisjoint(others):
                 flowing.add(robot)
                 grew = True
     return frozenset(waits_on).difference(flowing)
