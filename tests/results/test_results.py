@@ -204,6 +204,22 @@ def test_a_parked_robot_is_never_deadlocked_and_a_stuck_one_stays_open_to_the_en
     assert d.end is None and d.duration(100.0) == pytest.approx(80.4, abs=0.11)
 
 
+def test_queueing_between_stalled_waits_neither_ends_nor_counts_towards_a_deadlock():
+    # One robot stands at the origin: its wait stalls from 0 s, it queues from 20 s to
+    # 35 s, stalls again from 35 s: 30 s of stalling add up at 45 s, not before.
+    times = np.round(np.arange(0.0, 45.05, 0.1), 1)
+    xy = np.zeros((len(times), 1, 2))
+    queue = ((times >= 20.0) & (times < 35.0))[:, None]
+    move = ~queue
+    assert find_deadlocks(times[:-1], xy[:-1], move[:-1], ["r0"], waiting=queue[:-1]) == []
+    (d,) = find_deadlocks(times, xy, move, ["r0"], waiting=queue)
+    assert (d.start, d.detected, d.end) == (0.0, 45.0, None)
+    assert find_deadlocks(times, xy, move, ["r0"]) == []  # without, queueing ends it
+    moved = xy.copy()
+    moved[times >= 30.0] = (1.0, 0.0)  # it moves up in the queue: progress
+    assert find_deadlocks(times, moved, move, ["r0"], waiting=queue) == []
+
+
 def test_deadlock_detection_rejects_mismatched_shapes():
     times, xy, move, _ = _synthetic(10.0)
     with pytest.raises(ValueError, match="should_move"):
