@@ -293,7 +293,8 @@ def _disturbances(config, names, times, xy, radii, events) -> list[dict]:
 
 
 def _deadlocks(names, times, xy, modes, humans, human_names) -> dict:
-    found = find_deadlocks(times, xy, modes == RobotMode.DRIVE, names, humans, human_names)
+    found = find_deadlocks(times, xy, modes == RobotMode.DRIVE, names, humans, human_names,
+                           waiting=modes == RobotMode.QUEUE)
     end = float(times[-1]) if len(times) else 0.0
     return {
         "count": len(found),

@@ -204,6 +204,22 @@ def test_a_parked_robot_is_never_deadlocked_and_a_stuck_one_stays_open_to_the_en
     assert d.end is None and d.duration(100.0) == pytest.approx(80.4, abs=0.11)
 
 
+def test_queueing_between_stalled_waits_neither_ends_nor_counts_towards_a_deadlock():
+    # One robot stands at the origin: its wait stalls from 0 s, it queues from 20 s to
+    # 35 s, stalls again from 35 s: 30 s of stalling add up at 45 s, not before.
+    times = np.round(np.arange(0.0, 45.05, 0.1), 1)
+    xy = np.zeros((len(times), 1, 2))
+    queue = ((times >= 20.0) & (times < 35.0))[:, None]
+    move = ~queue
+    assert find_deadlocks(times[:-1], xy[:-1], move[:-1], ["r0"], waiting=queue[:-1]) == []
+    (d,) = find_deadlocks(times, xy, move, ["r0"], waiting=queue)
+    assert (d.start, d.detected, d.end) == (0.0, 45.0, None)
+    assert find_deadlocks(times, xy, move, ["r0"]) == []  # without, queueing ends it
+    moved = xy.copy()
+    moved[times >= 30.0] = (1.0, 0.0)  # it moves up in the queue: progress
+    assert find_deadlocks(times, moved, move, ["r0"], waiting=queue) == []
+
+
 def test_deadlock_detection_rejects_mismatched_shapes():
     times, xy, move, _ = _synthetic(10.0)
     with pytest.raises(ValueError, match="should_move"):
@@ -271,6 +287,11 @@ def test_a_wait_is_stalled_when_it_leads_to_no_moving_or_serving_robot():
     assert stalled_waits(waits, {"e"}) == {"a", "b"}
     assert stalled_waits(waits, {"b"}) == {"c", "d"}  # e stands, waiting for nothing
     assert stalled_waits(waits, set()) == {"a", "b", "c", "d", "g"}
+    # With all_needed a wait leads somewhere only if each robot it waits for does.
+    assert stalled_waits(waits, {"e"}, all_needed=True) == {"a", "b", "g"}
+    assert stalled_waits(waits, {"b"}, all_needed=True) == {"c", "d", "g"}  # e stands
+    assert stalled_waits({"h": {"i", "j"}}, {"i"}, all_needed=True) == {"h"}  # j stands
+    assert stalled_waits({"h": {"i", "j"}}, {"i"}) == frozenset()
 
 
 def _waiting_recorder(queue_state, requests, plan_stops):
@@ -321,6 +342,22 @@ def test_a_robot_waiting_for_segments_queues_only_while_what_it_waits_for_moves(
                         segment_waiting=("a",))
     recorder, context = _waiting_recorder(shared, requests, stops)
     assert [row[0] for row in _modes_at(recorder, context, [(0.0, 0.0, 0.5)])] == [drive]
+
+
+def test_a_robot_waiting_for_segments_one_of_which_a_parked_robot_holds_is_stuck():
+    # a asks for single-file segments 0 and 1: b holds 0 and drives on, c, without a stop
+    # (parked), holds 1 and stands. a gets both only when c leaves: it should move, however
+    # b drives. Once c drives too, a queues.
+    queues = QueueState((), segments=(SegmentHold(("b",)), SegmentHold(("c",))),
+                        segment_waiting=("a",))
+    requests = {"a": QueueRequest("a", segments=((0, True), (1, True))),
+                "b": QueueRequest("b", segments=((0, True),)),
+                "c": QueueRequest("c", segments=((1, True),))}
+    stops = {r: Stop(f"t{i}/pickup", i, PICKUP, i) for i, r in enumerate("ab")}
+    recorder, context = _waiting_recorder(queues, requests, stops)
+    modes = _modes_at(recorder, context, [(0.0, 0.5, 0.0), (0.0, 0.5, 0.5)])
+    assert [row[0] for row in modes] == [RobotMode.DRIVE, RobotMode.QUEUE]
+    assert [row[2] for row in modes] == [RobotMode.IDLE, RobotMode.IDLE]
 
 
 def test_robots_waiting_for_each_others_rooms_are_in_a_gridlock_not_queueing():
