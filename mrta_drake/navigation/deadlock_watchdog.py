@@ -172,8 +172,10 @@ class DeadlockWatchdog(LeafSystem):
     5. Gridlocks of waits, from the facts the run recorder uses (``standstills.waits_for``:
        the robots waiting for a room wait for its holder; those waiting for single-file
        segments for the segments' holders, or the robots before them in the segments'
-       queue): the waiting robots whose waits lead to no robot *live*
-       (``results.deadlocks.stalled_waits``; live: moving faster than
+       queue): the waiting robots whose waits lead to no robot *live*, through every
+       robot each waits for (``results.deadlocks.stalled_waits``: a robot asking for
+       segments of a driving holder and of one standing for good is stalled, as the run
+       recorder counts it; live: moving faster than
        ``ROBOT_STOPPED_SPEED``, at a lift (waiting for it or riding), or holding a room
        and waiting for nothing: serving, entering, or waiting at its door, which
        ``WaypointParams.door_patience`` bounds) are joined with the robots they wait for

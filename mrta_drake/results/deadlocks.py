@@ -97,25 +97,22 @@ def find_deadlocks(times, robot_xy, should_move, robot_names, human_xy=None, hum
     return sorted(found, key=lambda d: (d.start, robot_names.index(d.robot)))
 
 
-def stalled_waits(waits_on: Mapping[str, Collection[str]], live: Collection[str], *,
-                  all_needed: bool = False) -> frozenset[str]:
+def stalled_waits(waits_on: Mapping[str, Collection[str]],
+                  live: Collection[str]) -> frozenset[str]:
     """The waiting robots (keys of ``waits_on``: robot -> the robots it waits for) whose
     waits lead to no robot of ``live`` (moving or serving). A robot's wait leads somewhere
     when it waits for nobody (what it waits for is free: it gets it at the next grant), or
-    for a live robot, or for a robot whose own wait leads somewhere: for one of those it
-    waits for, or, with ``all_needed``, for every one of them. The run recorder counts with
-    ``all_needed``: a robot asking for several single-file segments is granted them only
-    when all their holders have let go, so one standing holder stalls it however the others
-    move. The deadlock watchdog acts without: only on waits in which nobody moves."""
+    when every robot it waits for is live or waits in a way that leads somewhere: a robot
+    asking for several single-file segments is granted them only when all their holders
+    have let go, so one standing holder stalls it however the others move. The run
+    recorder counts by it and the deadlock watchdog acts on it."""
     flowing = set(live)
     flowing.update(robot for robot, others in waits_on.items() if not others)
     grew = True
     while grew:
         grew = False
         for robot, others in waits_on.items():
-            if robot in flowing:
-                continue
-            if flowing.issuperset(others) if all_needed else not flowing.isdisjoint(others):
+            if robot not in flowing and flowing.issuperset(others):
                 flowing.add(robot)
                 grew = True
     return frozenset(waits_on).difference(flowing)

@@ -104,13 +104,12 @@ class RunRecorder(LeafSystem):
     waits in some room's queue or for single-file segments and the wait leads somewhere, or
     for a lift or inside one (per ``lift_state``); ``SERVE`` while it holds its stop's room,
     drives to no waypoint after the current one and is within ``serve_radius`` m of it;
-    ``DRIVE`` otherwise. A wait leads somewhere (``results.deadlocks.stalled_waits`` with
-    ``all_needed``) while each robot it waits for (the room's holder; the holders of the
-    segments it asks for, or else the robots before it asking for one of them) moves
-    (faster than ``ROBOT_STOPPED_SPEED``), serves, is at a lift or waits in a way that
-    leads somewhere. A robot waiting for one that stands (e.g. parked on a segment it
-    holds), or robots waiting for each other with none of them moving (a gridlock), are
-    ``DRIVE``.
+    ``DRIVE`` otherwise. A wait leads somewhere (``results.deadlocks.stalled_waits``)
+    while each robot it waits for (the room's holder; the holders of the segments it asks
+    for, or else the robots before it asking for one of them) moves (faster than
+    ``ROBOT_STOPPED_SPEED``), serves, is at a lift or waits in a way that leads somewhere.
+    A robot waiting for one that stands (e.g. parked on a segment it holds), or robots
+    waiting for each other with none of them moving (a gridlock), are ``DRIVE``.
 
     Inputs: ``robot_state`` (4N), ``telemetry``, ``paths``, ``queue_state``, ``plan``,
     ``progress_<robot>``, ``target_<robot>`` and ``queue_request_<robot>`` per robot (or
@@ -276,8 +275,7 @@ class RunRecorder(LeafSystem):
         moving = (np.abs(states[:, 3]) > ROBOT_STOPPED_SPEED).tolist()
         live = at_lifts.union(name for k, name in enumerate(self.robot_names)
                               if moving[k] or modes[k] == _SERVE)
-        stalled = stalled_waits(waits_for(queues, self._requests.values(context)), live,
-                                all_needed=True)
+        stalled = stalled_waits(waits_for(queues, self._requests.values(context)), live)
         for k, name in enumerate(self.robot_names):
             if modes[k] == _QUEUE and name in stalled:
                 modes[k] = _DRIVE  # a gridlock, not a queue

@@ -284,14 +284,12 @@ def test_a_wait_is_stalled_when_it_leads_to_no_moving_or_serving_robot():
              "c": {"d"}, "d": {"e"},  # c waits for d, which waits for e, which drives
              "f": set(),  # what it waits for is free: it gets it next
              "g": {"a", "e"}}  # one of those it waits for drives
-    assert stalled_waits(waits, {"e"}) == {"a", "b"}
-    assert stalled_waits(waits, {"b"}) == {"c", "d"}  # e stands, waiting for nothing
+    # A wait leads somewhere only if each robot it waits for does (g: a is in a gridlock).
+    assert stalled_waits(waits, {"e"}) == {"a", "b", "g"}
+    assert stalled_waits(waits, {"b"}) == {"c", "d", "g"}  # e stands, waiting for nothing
     assert stalled_waits(waits, set()) == {"a", "b", "c", "d", "g"}
-    # With all_needed a wait leads somewhere only if each robot it waits for does.
-    assert stalled_waits(waits, {"e"}, all_needed=True) == {"a", "b", "g"}
-    assert stalled_waits(waits, {"b"}, all_needed=True) == {"c", "d", "g"}  # e stands
-    assert stalled_waits({"h": {"i", "j"}}, {"i"}, all_needed=True) == {"h"}  # j stands
-    assert stalled_waits({"h": {"i", "j"}}, {"i"}) == frozenset()
+    assert stalled_waits({"h": {"i", "j"}}, {"i"}) == {"h"}  # j stands for good
+    assert stalled_waits({"h": {"i", "j"}}, {"i", "j"}) == frozenset()
 
 
 def _waiting_recorder(queue_state, requests, plan_stops):
