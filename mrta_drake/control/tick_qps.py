@@ -49,9 +49,12 @@ class TickQps:
     solver, what ``CbfQp.solve`` would load into its program (``loaded``): whether the
     rows are ``finite``, the rows kept (``kept[row_start[g]:row_start[g] + kept_count[g]]``),
     their padded count ``sizes[g]`` and the program's data
-    ``data[data_start[g]:data_start[g + 1]]``."""
+    ``data[data_start[g]:data_start[g + 1]]`` (empty for the others). The groups as
+    arrays: group g is ``members[group_start[g]:group_start[g + 1]]``."""
 
     groups: tuple[tuple[int, ...], ...]
+    members: np.ndarray
+    group_start: np.ndarray
     u_nominal: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
@@ -155,8 +158,8 @@ def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocitie
         params.nominal.k_v, params.nominal.k_theta, params.nominal.corner_steering, u_nominal,
         lower, upper, settled)
     standing = np.abs(states[:, 3]) < params.coordination.stall_speed
-    return TickQps(groups, u_nominal, lower, upper, G, G_start, tuple(rows), row_start,
-                   needs_solver, settled, standing, *loads)
+    return TickQps(groups, members, group_start, u_nominal, lower, upper, G, G_start,
+                   tuple(rows), row_start, needs_solver, settled, standing, *loads)
 
 
 @numba.njit(cache=True)
