@@ -317,7 +317,7 @@ class ClusterCbfController(LeafSystem):
                                            disturbances))
 
     def _solve(self, time: float, plan: TickPlan) -> tuple[np.ndarray, ControllerTelemetry]:
-        solved = self._solved(plan, plan.qps.to_solve() if plan.qps.needs_solver.any() else ())
+        solved = self._solved(plan, plan.qps.to_solve())
         return solved.u, _telemetry(time, ((plan, solved),), plan.clusters)
 
     def _solved(self, plan: TickPlan, groups, u_nominal=None) -> SolvedQps:

@@ -2,6 +2,7 @@
 its blocked robots, and whether its clipped nominal already meets its rows (then no solver
 runs), so that only the QPs that need a solver reach Python objects and the solver."""
 
+import itertools
 from dataclasses import dataclass
 
 import numba
@@ -115,7 +116,7 @@ class TickQps:
 
     def to_solve(self) -> tuple[int, ...]:
         """The groups whose QPs need a solver."""
-        return tuple(np.flatnonzero(self.needs_solver).tolist())
+        return tuple(itertools.compress(itertools.count(), self.needs_solver.tolist()))
 
 
 _NO_MOVERS = np.zeros((0, 4))
