@@ -16,6 +16,7 @@ from mrta_drake.navigation.single_file import (
     Need,
     SingleFileParams,
     need,
+    route_runs,
     standing,
     stands_in,
 )
@@ -411,6 +412,7 @@ class WaypointPolicy:
         self._params = params
         self._start_location = start_location
         self._spots_cache: dict[tuple, tuple[bool, tuple]] = {}  # ``_spots_reached``'s
+        self._refuges: tuple | None = None  # ``_refuge``'s candidate spots, made when needed
         # The outputs of the state last read: most updates keep the state object as it is.
         self._last_outputs: _Outputs | None = None
 
@@ -501,7 +503,7 @@ class WaypointPolicy:
                          door_since=None)
         else:
             stops = self._stops(inputs.plan)
-            s = self._follow_plan(s, _first_to_do(stops, s.visits), robots, lanes, t)
+            s = self._follow_plan(s, _first_to_do(stops, s.visits), robots, lanes, queues, t)
             s = self._advance(s, robots, t, queues, stops, lanes, lifts)
         s = _changed(s, release=self._release(s, robots, queues))
         order = inputs.back_offs.of(self._robot) if inputs.back_offs.active else None
@@ -519,8 +521,10 @@ class WaypointPolicy:
         return next((plan.stops for plan in plans if plan.robot == self._robot), ())
 
     def _follow_plan(self, s: _Drive, stop: Stop | None, robots: _Robots, lanes: Roadways,
-                     t: float) -> _Drive:
+                     queues: QueueState, t: float) -> _Drive:
         if stop is None:
+            if lanes.segment_count and (away := self._make_way(s, robots, lanes, queues)):
+                return away
             if s.phase in (RobotMode.PARK, RobotMode.HOME):
                 return self._keep_spot(s, robots, lanes)
             place = None if s.last_location is None else self._roadways.place(s.last_location)
@@ -576,7 +580,7 @@ class WaypointPolicy:
         there, else ``_home_spot``'s; with none, keep the spot."""
         spot = (_point(self._roadways.place(s.last_location).parking[s.index])
                 if s.phase == RobotMode.PARK else _point(s.route[-1]))
-        if spot == self._home:
+        if spot == self._home or s.last_location is None:
             return s
         gaps = np.linalg.norm(robots.states[:, :2] - np.asarray(spot), axis=1)
         mine = (gaps[self._index], self._index)
@@ -594,6 +598,100 @@ class WaypointPolicy:
             return s
         return replace(s, phase=RobotMode.HOME, route=_points(lanes.route_to_spot(robots.xy, new)),
                        index=0, since=None)
+
+    def _make_way(self, s: _Drive, robots: _Robots, lanes: Roadways, queues: QueueState
+                  ) -> _Drive | None:
+        """A robot without a stop standing (idle, or back at the spot it drove to wait at)
+        in a single-file segment that another robot waits for drives out of the way, to
+        ``_refuge``'s spot (phase home: it asks for the segments of its way there as when
+        driving, and keeps waiting there until given a stop); None where it need not or
+        finds no such spot (docs/worlds.md, "Robots without a task in single-file
+        segments")."""
+        xy = robots.xy
+        if s.phase == RobotMode.HOME:
+            if not s.route or _distance(xy, s.route[-1]) > \
+                    self._params.single_file.stand_distance:
+                return None
+        elif s.phase != RobotMode.IDLE:
+            return None
+        wanted = {k for k, hold in enumerate(queues.segments)
+                  if any(robot != self._robot for robot in hold.waiting)}
+        if not wanted or wanted.isdisjoint(stands_in(self._roadways, xy,
+                                                     self._params.single_file)):
+            return None
+        route = self._refuge(xy, robots.states, lanes, queues, wanted)
+        if route is None:
+            return None
+        return replace(s, phase=RobotMode.HOME, stop=None, route=route, index=0, since=None)
+
+    def _refuge(self, xy, states: np.ndarray, lanes: Roadways, queues: QueueState,
+                wanted: set[int]) -> tuple[tuple[float, float], ...] | None:
+        """The shortest way along the lanes (without lift rides) from ``xy`` to a spot
+        where a robot without a stop may wait out of the way (``_refuge_spots``): in none of
+        the single-file segments other robots wait for (``wanted``) or hold, no other robot
+        within ``parking_clearance`` of it, through no segment another robot holds, and
+        passing no other robot nearer than ``parking_clearance`` (but those that near the
+        robot already); leaving by the ends of the segments the robot stands in (or its
+        nearest roadway node). None if there is none."""
+        params = self._params
+        others = np.delete(states[:, :2], self._index, axis=0)
+        ahead = others[np.linalg.norm(others - np.asarray(xy), axis=1) > params.parking_clearance]
+        taken = {k for k, hold in enumerate(queues.segments)
+                 if any(robot != self._robot for robot in hold.holders)}
+        avoid = wanted | taken
+        here = stands_in(self._roadways, xy, params.single_file)
+        starts = {n for n in lanes.graph.nodes
+                  if set(stands_in(self._roadways, lanes.node_position(n), params.single_file))
+                  & set(here)} or {lanes.node_at(lanes.route_to_spot(xy, xy)[0])}
+        spots = [(spot, node) for spot, node, segments in self._refuge_spots(lanes)
+                 if avoid.isdisjoint(segments) and self._free(spot, others)]
+        best, best_length = None, math.inf
+        for start in sorted(starts, key=str):
+            paths = lanes.paths_from(start)
+            for spot, node in spots:
+                if node not in paths:
+                    continue
+                route = (*(_point(lanes.node_position(n)) for n in paths[node]), spot)
+                length = _distance(xy, route[0]) + sum(
+                    _distance(a, b) for a, b in zip(route[:-1], route[1:], strict=True))
+                if length >= best_length:
+                    continue
+                way = np.array([xy, *route], dtype=float)
+                if len(ahead) and distance_to_polyline(ahead, way).min() <= \
+                        params.parking_clearance:
+                    continue
+                runs = route_runs(lanes, route, params.single_file.chain_gap)
+                if any(k in taken for run in runs for k, _ in run.segments):
+                    continue
+                best, best_length = route, length
+        return best
+
+    def _refuge_spots(self, lanes: Roadways) -> tuple:
+        """Where a robot without a stop may wait out of the way (``_refuge``): the roadway
+        nodes but those of lift cabins, the start spots and the parking spots, less those
+        within ``reach_tolerance`` of a location's point or ``parking_clearance`` of its
+        queue slots or overflow spots; each as (spot, its nearest roadway node, the
+        single-file segments it stands in). Made once, when first needed."""
+        if self._refuges is None:
+            roadways, params = self._roadways, self._params
+            cabins = {n for a, b, lift in roadways.graph.edges(data="lift") if lift
+                      for n in (a, b)}
+            nodes = [n for n in roadways.graph.nodes if n not in cabins]
+            spots = [_point(roadways.node_position(n)) for n in nodes]
+            spots += [spot for spot in (*self._starts, *self._parking) if spot not in spots]
+            places = [roadways.place(i) for i in roadways.location_ids]
+            points = np.array([place.point for place in places], dtype=float).reshape(-1, 2)
+            slots = np.array([xy for place in places for xy in (*place.queue,
+                                                                  *place.overflow)],
+                             dtype=float).reshape(-1, 2)
+            keep = ((_nearest(np.array(spots), points) > params.reach_tolerance)
+                    & (_nearest(np.array(spots), slots) > params.parking_clearance))
+            positions = np.array([roadways.node_position(n) for n in nodes], dtype=float)
+            self._refuges = tuple(
+                (spot, nodes[int(np.argmin(np.linalg.norm(positions - spot, axis=1)))],
+                 stands_in(roadways, spot, params.single_file))
+                for spot, ok in zip(spots, keep, strict=True) if ok)
+        return self._refuges
 
     def _home_spot(self, place, lanes: Roadways, others: np.ndarray
                    ) -> tuple[float, float] | None:
@@ -822,6 +920,8 @@ class WaypointPolicy:
         elif s.phase == RobotMode.HOME and s.route and _distance(
                 robots.xy, s.route[-1]) <= self._params.single_file.stand_distance:
             spot = s.route[-1]
+        elif s.phase == RobotMode.IDLE and self._index not in robots.broken:
+            spot = robots.xy
         if spot is not None:
             return standing(self._roadways, robots.xy, spot, self._held(queues),
                             self._params.single_file)
