@@ -17,6 +17,7 @@ from mrta_drake.navigation.single_file import (
     SingleFileParams,
     need,
     route_runs,
+    segment_lanes,
     standing,
     stands_in,
 )
@@ -602,7 +603,8 @@ class WaypointPolicy:
     def _make_way(self, s: _Drive, robots: _Robots, lanes: Roadways, queues: QueueState
                   ) -> _Drive | None:
         """A robot without a stop standing (idle, or back at the spot it drove to wait at)
-        in a single-file segment that another robot waits for drives out of the way, to
+        in a single-file segment that another robot waits for or holds (to drive through
+        it) drives out of the way, to
         ``_refuge``'s spot (phase home: it asks for the segments of its way there as when
         driving, and keeps waiting there until given a stop); None where it need not or
         finds no such spot (docs/worlds.md, "Robots without a task in single-file
@@ -615,24 +617,30 @@ class WaypointPolicy:
         elif s.phase != RobotMode.IDLE:
             return None
         wanted = {k for k, hold in enumerate(queues.segments)
-                  if any(robot != self._robot for robot in hold.waiting)}
-        if not wanted or wanted.isdisjoint(stands_in(self._roadways, xy,
-                                                     self._params.single_file)):
+                  if any(robot != self._robot for robot in (*hold.waiting, *hold.holders))}
+        here = stands_in(self._roadways, xy, self._params.single_file)
+        if not wanted or wanted.isdisjoint(here):
             return None
-        route = self._refuge(xy, robots.states, lanes, queues, wanted)
+        askers = {robot for k in wanted.intersection(here) for robot in
+                  (*queues.segments[k].waiting, *queues.segments[k].holders)} - {self._robot}
+        route = self._refuge(xy, robots.states, lanes, queues, wanted,
+                             robots.states[[self._names.index(r) for r in sorted(askers)], :2])
         if route is None:
             return None
         return replace(s, phase=RobotMode.HOME, stop=None, route=route, index=0, since=None)
 
     def _refuge(self, xy, states: np.ndarray, lanes: Roadways, queues: QueueState,
-                wanted: set[int]) -> tuple[tuple[float, float], ...] | None:
+                wanted: set[int], askers: np.ndarray) -> tuple[tuple[float, float], ...] | None:
         """The shortest way along the lanes (without lift rides) from ``xy`` to a spot
         where a robot without a stop may wait out of the way (``_refuge_spots``): in none of
-        the single-file segments other robots wait for (``wanted``) or hold, no other robot
-        within ``parking_clearance`` of it, through no segment another robot holds, and
+        the single-file segments other robots wait for or hold (``wanted``), no other robot
+        within ``parking_clearance`` of it, through no segment another robot holds but those
+        the robot stands in (it leaves them the way their holders drive), and
         passing no other robot nearer than ``parking_clearance`` (but those that near the
-        robot already); leaving by the ends of the segments the robot stands in (or its
-        nearest roadway node). None if there is none."""
+        robot already); leaving by an end of the segments the robot stands in (or its
+        nearest roadway node) nearer it than every robot that holds or waits for those of
+        them it must leave (``askers``, (n, 2), m): out of the end away from them. None if
+        there is none."""
         params = self._params
         others = np.delete(states[:, :2], self._index, axis=0)
         ahead = others[np.linalg.norm(others - np.asarray(xy), axis=1) > params.parking_clearance]
@@ -647,11 +655,15 @@ class WaypointPolicy:
                  if avoid.isdisjoint(segments) and self._free(spot, others)]
         best, best_length = None, math.inf
         for start in sorted(starts, key=str):
+            end = lanes.node_position(start)
+            if len(askers) and np.linalg.norm(askers - end, axis=1).min() <= _distance(xy, end):
+                continue
             paths = lanes.paths_from(start)
             for spot, node in spots:
                 if node not in paths:
                     continue
-                route = (*(_point(lanes.node_position(n)) for n in paths[node]), spot)
+                route = tuple(_point(lanes.node_position(n)) for n in paths[node])
+                route += () if route[-1] == spot else (spot,)
                 length = _distance(xy, route[0]) + sum(
                     _distance(a, b) for a, b in zip(route[:-1], route[1:], strict=True))
                 if length >= best_length:
@@ -661,7 +673,7 @@ class WaypointPolicy:
                         params.parking_clearance:
                     continue
                 runs = route_runs(lanes, route, params.single_file.chain_gap)
-                if any(k in taken for run in runs for k, _ in run.segments):
+                if any(k in taken and k not in here for run in runs for k, _ in run.segments):
                     continue
                 best, best_length = route, length
         return best
@@ -928,6 +940,11 @@ class WaypointPolicy:
         if s.phase not in (RobotMode.DRIVE, RobotMode.ENTER, RobotMode.HOME):
             return NOTHING
         wanted = need(self._roadways, s.route, s.index, robots.xy, self._params.single_file)
+        if s.phase == RobotMode.HOME and s.index == 0:
+            out = self._leaving(robots.xy, s.route[0], queues)
+            if out:
+                wanted = Need(tuple(sorted((out | dict(wanted.segments)).items())),
+                              wanted.hold, wanted.stops)
         if not wanted.hold:
             return wanted
         # Held back inside a lane (farther than stand_distance from every roadway node), it
@@ -956,6 +973,25 @@ class WaypointPolicy:
         if dropped:
             return wanted.without(dropped)
         return wanted
+
+    def _leaving(self, xy, first, queues: QueueState) -> dict[int, bool]:
+        """Setting off to wait elsewhere (phase home) from inside single-file segments it
+        holds, farther than ``single_file.stand_distance`` from the route's first point
+        ``first`` (a roadway node): those segments, each the way it drives along them to
+        ``first`` (index -> forward), kept until it is there (its route begins at that
+        node: without them it would give up the segment it drives out of, and a robot
+        granted it would drive in head-on)."""
+        reach = self._params.single_file.stand_distance
+        held = self._held(queues)
+        if not held or _distance(xy, first) <= reach:
+            return {}
+        out = {}
+        for k in stands_in(self._roadways, xy, self._params.single_file):
+            for a, b in segment_lanes(self._roadways, k) if k in held else ():
+                if b == first and distance_to_polyline(
+                        np.array([xy], dtype=float), np.array([a, b], dtype=float))[0] <= reach:
+                    out[k] = self._roadways.segment_of(a, b)[1]
+        return out
 
     def _between_nodes(self, xy) -> bool:
         """Whether ``xy`` is farther than ``single_file.stand_distance`` from every roadway
