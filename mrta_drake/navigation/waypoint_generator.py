@@ -360,6 +360,11 @@ class WaypointPolicy:
     (docs/worlds.md, "Unseen seeds 3-7 of airport_terminal, battle_royale and campus").
     A parked robot given a stop starts it as if standing on the location's point. A robot
     whose start spot is off the lanes starts as one back home (``initial_state``).
+    Idle, or back at the spot it drove to wait at, a robot holds the single-file segments
+    it stands in; once another robot waits for one of them or holds it (to drive through
+    it), it drives out of the way (``_make_way``): out of the segment's end away from that
+    robot, to the nearest spot in no segment another robot waits for or holds
+    (``_refuge``), keeping the segment it drives out of until out of it (``_leaving``).
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
     current stop is elsewhere and it is more than ``release_distance`` from the room's
