@@ -586,8 +586,8 @@ class WaypointPolicy:
         there, else ``_home_spot``'s; with none, keep the spot."""
         spot = (_point(self._roadways.place(s.last_location).parking[s.index])
                 if s.phase == RobotMode.PARK else _point(s.route[-1]))
-        if spot == self._home or s.last_location is None:
-            return s
+        if spot == self._home or s.last_location is None:  # None: a spot it drove to from
+            return s  # standing away from any location, out of other robots' way (_make_way)
         gaps = np.linalg.norm(robots.states[:, :2] - np.asarray(spot), axis=1)
         mine = (gaps[self._index], self._index)
         if not any(gap <= self._params.parking_clearance and (gap, j) < mine
@@ -609,11 +609,10 @@ class WaypointPolicy:
                   ) -> _Drive | None:
         """A robot without a stop standing (idle, or back at the spot it drove to wait at)
         in a single-file segment that another robot waits for or holds (to drive through
-        it) drives out of the way, to
-        ``_refuge``'s spot (phase home: it asks for the segments of its way there as when
-        driving, and keeps waiting there until given a stop); None where it need not or
-        finds no such spot (docs/worlds.md, "Robots without a task in single-file
-        segments")."""
+        it) drives out of the way to ``_refuge``'s spot (phase home: it asks for the
+        segments of its way there as when driving, and waits there until given a stop);
+        None where it need not or finds no such spot (docs/worlds.md, "Robots without a
+        task in single-file segments")."""
         xy = robots.xy
         if s.phase == RobotMode.HOME:
             if not s.route or _distance(xy, s.route[-1]) > \
@@ -628,35 +627,34 @@ class WaypointPolicy:
             return None
         askers = {robot for k in wanted.intersection(here) for robot in
                   (*queues.segments[k].waiting, *queues.segments[k].holders)} - {self._robot}
-        route = self._refuge(xy, robots.states, lanes, queues, wanted,
+        route = self._refuge(xy, here, robots.states, lanes, queues, wanted,
                              robots.states[[self._names.index(r) for r in sorted(askers)], :2])
         if route is None:
             return None
         return replace(s, phase=RobotMode.HOME, stop=None, route=route, index=0, since=None)
 
-    def _refuge(self, xy, states: np.ndarray, lanes: Roadways, queues: QueueState,
-                wanted: set[int], askers: np.ndarray) -> tuple[tuple[float, float], ...] | None:
-        """The shortest way along the lanes (without lift rides) from ``xy`` to a spot
+    def _refuge(self, xy, here: tuple[int, ...], states: np.ndarray, lanes: Roadways,
+                queues: QueueState, wanted: set[int], askers: np.ndarray
+                ) -> tuple[tuple[float, float], ...] | None:
+        """The shortest way along the lanes (without lift rides) from ``xy``, standing in
+        the single-file segments ``here``, to a spot
         where a robot without a stop may wait out of the way (``_refuge_spots``): in none of
         the single-file segments other robots wait for or hold (``wanted``), no other robot
         within ``parking_clearance`` of it, through no segment another robot holds but those
         the robot stands in (it leaves them the way their holders drive), and
         passing no other robot nearer than ``parking_clearance`` (but those that near the
-        robot already); leaving by an end of the segments the robot stands in (or its
-        nearest roadway node) nearer it than every robot that holds or waits for those of
-        them it must leave (``askers``, (n, 2), m): out of the end away from them. None if
-        there is none."""
+        robot already); leaving by an end node of the segments the robot stands in that is
+        nearer it than every robot that holds or waits for those of them it must leave
+        (``askers``, (n, 2), m): out of the end away from them. None if there is none."""
         params = self._params
         others = np.delete(states[:, :2], self._index, axis=0)
         ahead = others[np.linalg.norm(others - np.asarray(xy), axis=1) > params.parking_clearance]
         taken = {k for k, hold in enumerate(queues.segments)
                  if any(robot != self._robot for robot in hold.holders)}
         avoid = wanted | taken
-        here = stands_in(self._roadways, xy, params.single_file)
-        starts = {n for n in lanes.graph.nodes
-                  if set(stands_in(self._roadways, lanes.node_position(n), params.single_file))
-                  & set(here)} or {lanes.node_at(lanes.route_to_spot(xy, xy)[0])}
-        spots = [(spot, node) for spot, node, segments in self._refuge_spots(lanes)
+        starts = {n for n in lanes.graph.nodes if not set(here).isdisjoint(
+            stands_in(self._roadways, lanes.node_position(n), params.single_file))}
+        spots = [(spot, node) for spot, node, segments in self._refuge_spots()
                  if avoid.isdisjoint(segments) and self._free(spot, others)]
         best, best_length = None, math.inf
         for start in sorted(starts, key=str):
@@ -683,7 +681,7 @@ class WaypointPolicy:
                 best, best_length = route, length
         return best
 
-    def _refuge_spots(self, lanes: Roadways) -> tuple:
+    def _refuge_spots(self) -> tuple:
         """Where a robot without a stop may wait out of the way (``_refuge``): the roadway
         nodes but those of lift cabins, the start spots and the parking spots, less those
         within ``reach_tolerance`` of a location's point or ``parking_clearance`` of its
