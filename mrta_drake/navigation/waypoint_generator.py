@@ -653,7 +653,7 @@ class WaypointPolicy:
                  if any(robot != self._robot for robot in hold.holders)}
         avoid = wanted | taken
         starts = {n for n in lanes.graph.nodes if not set(here).isdisjoint(
-            stands_in(self._roadways, lanes.node_position(n), params.single_file))}
+            stands_in(self._roadways, self._roadways.node_position(n), params.single_file))}
         spots = [(spot, node) for spot, node, segments in self._refuge_spots()
                  if avoid.isdisjoint(segments) and self._free(spot, others)]
         best, best_length = None, math.inf
