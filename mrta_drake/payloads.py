@@ -194,10 +194,12 @@ class RoomQueue:
 @dataclass(frozen=True)
 class SegmentHold:
     """Who drives through one single-file segment: ``holders`` (robots, all one way), and
-    that way, ``forward`` (along its nodes' order)."""
+    that way, ``forward`` (along its nodes' order); ``waiting``: the robots waiting for
+    segments that name this one, first come first."""
 
     holders: tuple[str, ...] = ()
     forward: bool = True
+    waiting: tuple[str, ...] = ()
 
 
 FREE_SEGMENT = SegmentHold()

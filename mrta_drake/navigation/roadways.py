@@ -425,7 +425,7 @@ class Roadways:
         return _without_repeats(self._to_spot(self._nearest(self.graph.nodes, at), xy))
 
     def _to_spot(self, node: str, xy) -> list:
-        reached = self._without_lifts(node)
+        reached = self.paths_from(node)
         return [*(self.node_position(n) for n in reached[self._nearest(reached, xy)]),
                 np.asarray(xy, dtype=float)]
 
@@ -433,13 +433,13 @@ class Roadways:
         """Of ``spots`` ((x, y) m each), in their order, those whose nearest roadway node is
         reached from ``from_location``'s exit node along the lanes without lift rides: for a
         building's levels side by side, the spots on the location's level."""
-        reached = self._without_lifts(self.place(from_location).exit_node)
+        reached = self.paths_from(self.place(from_location).exit_node)
         return [spot for spot in spots
                 if self._nearest(reached, spot) == self._nearest(self.graph.nodes, spot)]
 
-    def _without_lifts(self, node: str) -> dict:
-        """The shortest paths (node lists) from ``node`` to every node it reaches along the
-        lanes without lift rides, by node."""
+    def paths_from(self, node: str) -> dict:
+        """The shortest paths (node lists) from roadway node ``node`` to every node it
+        reaches along the lanes without lift rides, by node."""
         graph = self.graph
         ground = nx.subgraph_view(graph, filter_edge=lambda a, b: not graph.edges[a, b].get(
             "lift", False))

@@ -72,6 +72,8 @@ class RoomQueues(LeafSystem):
        keeps, for the holder of the room it queues for (office seed 3: a room's holder,
        leaving away from its queue, kept behind a robot that waited for the segment in
        which the robot at the room's head slot stood: a gridlock).
+    4. Each segment names the robots still waiting that name it (``SegmentHold.waiting``):
+       a robot without a task standing in one drives out of the way (``WaypointPolicy``).
 
     All or nothing, so a robot that asks for every segment of a single-file stretch at its
     start never holds one part of it while waiting for another part; robots driving one way
@@ -187,6 +189,8 @@ class RoomQueues(LeafSystem):
                 waits_for[robot] = waits_for.get(robot, set()) | turns
                 for k in wanted[robot]:
                     named.setdefault(k, []).append(robot)
+        for k, robots in named.items():
+            holds[k] = dataclasses.replace(holds[k], waiting=tuple(robots))
         return tuple(holds), tuple(waiting)
 
     def _changes_anything(self, old: QueueState, requests: Sequence[QueueRequest]) -> bool:

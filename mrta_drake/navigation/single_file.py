@@ -206,6 +206,15 @@ def segment_lanes(roadways: Roadways, segment: int
 
 def _near(roadways: Roadways, xy, distance: float) -> tuple[int, ...]:
     """The segments (sorted indices) with a lane within ``distance`` (m) of point ``xy``."""
+    return _near_point(roadways, float(xy[0]), float(xy[1]), distance)
+
+
+@functools.lru_cache(maxsize=4096)
+def _near_point(roadways: Roadways, x: float, y: float, distance: float
+                ) -> tuple[int, ...]:
+    """``_near`` of the point (``x``, ``y``), kept per point: robots standing still (idle,
+    queueing) ask for the same point at every update."""
+    xy = (x, y)
     found = set()
     for k, (ax, ay), (bx, by) in _segment_lanes(roadways):
         if k in found:

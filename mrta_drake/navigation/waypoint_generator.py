@@ -16,6 +16,8 @@ from mrta_drake.navigation.single_file import (
     Need,
     SingleFileParams,
     need,
+    route_runs,
+    segment_lanes,
     standing,
     stands_in,
 )
@@ -358,6 +360,11 @@ class WaypointPolicy:
     (docs/worlds.md, "Unseen seeds 3-7 of airport_terminal, battle_royale and campus").
     A parked robot given a stop starts it as if standing on the location's point. A robot
     whose start spot is off the lanes starts as one back home (``initial_state``).
+    Idle, or back at the spot it drove to wait at, a robot holds the single-file segments
+    it stands in; once another robot waits for one of them or holds it (to drive through
+    it), it drives out of the way (``_make_way``): out of the segment's end away from that
+    robot, to the nearest spot in no segment another robot waits for or holds
+    (``_refuge``), keeping the segment it drives out of until out of it (``_leaving``).
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
     current stop is elsewhere and it is more than ``release_distance`` from the room's
@@ -411,6 +418,7 @@ class WaypointPolicy:
         self._params = params
         self._start_location = start_location
         self._spots_cache: dict[tuple, tuple[bool, tuple]] = {}  # ``_spots_reached``'s
+        self._refuges: tuple | None = None  # ``_refuge``'s candidate spots, made when needed
         # The outputs of the state last read: most updates keep the state object as it is.
         self._last_outputs: _Outputs | None = None
 
@@ -501,7 +509,7 @@ class WaypointPolicy:
                          door_since=None)
         else:
             stops = self._stops(inputs.plan)
-            s = self._follow_plan(s, _first_to_do(stops, s.visits), robots, lanes, t)
+            s = self._follow_plan(s, _first_to_do(stops, s.visits), robots, lanes, queues, t)
             s = self._advance(s, robots, t, queues, stops, lanes, lifts)
         s = _changed(s, release=self._release(s, robots, queues))
         order = inputs.back_offs.of(self._robot) if inputs.back_offs.active else None
@@ -519,8 +527,10 @@ class WaypointPolicy:
         return next((plan.stops for plan in plans if plan.robot == self._robot), ())
 
     def _follow_plan(self, s: _Drive, stop: Stop | None, robots: _Robots, lanes: Roadways,
-                     t: float) -> _Drive:
+                     queues: QueueState, t: float) -> _Drive:
         if stop is None:
+            if lanes.segment_count and (away := self._make_way(s, robots, lanes, queues)):
+                return away
             if s.phase in (RobotMode.PARK, RobotMode.HOME):
                 return self._keep_spot(s, robots, lanes)
             place = None if s.last_location is None else self._roadways.place(s.last_location)
@@ -576,8 +586,8 @@ class WaypointPolicy:
         there, else ``_home_spot``'s; with none, keep the spot."""
         spot = (_point(self._roadways.place(s.last_location).parking[s.index])
                 if s.phase == RobotMode.PARK else _point(s.route[-1]))
-        if spot == self._home:
-            return s
+        if spot == self._home or s.last_location is None:  # None: a spot it drove to from
+            return s  # standing away from any location, out of other robots' way (_make_way)
         gaps = np.linalg.norm(robots.states[:, :2] - np.asarray(spot), axis=1)
         mine = (gaps[self._index], self._index)
         if not any(gap <= self._params.parking_clearance and (gap, j) < mine
@@ -594,6 +604,109 @@ class WaypointPolicy:
             return s
         return replace(s, phase=RobotMode.HOME, route=_points(lanes.route_to_spot(robots.xy, new)),
                        index=0, since=None)
+
+    def _make_way(self, s: _Drive, robots: _Robots, lanes: Roadways, queues: QueueState
+                  ) -> _Drive | None:
+        """A robot without a stop standing (idle, or back at the spot it drove to wait at)
+        in a single-file segment that another robot waits for or holds (to drive through
+        it) drives out of the way to ``_refuge``'s spot (phase home: it asks for the
+        segments of its way there as when driving, and waits there until given a stop);
+        None where it need not or finds no such spot (docs/worlds.md, "Robots without a
+        task in single-file segments")."""
+        xy = robots.xy
+        if s.phase == RobotMode.HOME:
+            if not s.route or _distance(xy, s.route[-1]) > \
+                    self._params.single_file.stand_distance:
+                return None
+        elif s.phase != RobotMode.IDLE:
+            return None
+        wanted = {k for k, hold in enumerate(queues.segments)
+                  if any(robot != self._robot for robot in (*hold.waiting, *hold.holders))}
+        here = stands_in(self._roadways, xy, self._params.single_file)
+        if not wanted or wanted.isdisjoint(here):
+            return None
+        askers = {robot for k in wanted.intersection(here) for robot in
+                  (*queues.segments[k].waiting, *queues.segments[k].holders)} - {self._robot}
+        route = self._refuge(xy, here, robots.states, lanes, queues, wanted,
+                             robots.states[[self._names.index(r) for r in sorted(askers)], :2])
+        if route is None:
+            return None
+        return replace(s, phase=RobotMode.HOME, stop=None, route=route, index=0, since=None)
+
+    def _refuge(self, xy, here: tuple[int, ...], states: np.ndarray, lanes: Roadways,
+                queues: QueueState, wanted: set[int], askers: np.ndarray
+                ) -> tuple[tuple[float, float], ...] | None:
+        """The shortest way along the lanes (without lift rides) from ``xy``, standing in
+        the single-file segments ``here``, to a spot
+        where a robot without a stop may wait out of the way (``_refuge_spots``): in none of
+        the single-file segments other robots wait for or hold (``wanted``), no other robot
+        within ``parking_clearance`` of it, through no segment another robot holds but those
+        the robot stands in (it leaves them the way their holders drive), and
+        passing no other robot nearer than ``parking_clearance`` (but those that near the
+        robot already); leaving by an end node of the segments the robot stands in that is
+        nearer it than every robot that holds or waits for those of them it must leave
+        (``askers``, (n, 2), m): out of the end away from them. None if there is none."""
+        params = self._params
+        others = np.delete(states[:, :2], self._index, axis=0)
+        ahead = others[np.linalg.norm(others - np.asarray(xy), axis=1) > params.parking_clearance]
+        taken = {k for k, hold in enumerate(queues.segments)
+                 if any(robot != self._robot for robot in hold.holders)}
+        avoid = wanted | taken
+        starts = {n for n in lanes.graph.nodes if not set(here).isdisjoint(
+            stands_in(self._roadways, self._roadways.node_position(n), params.single_file))}
+        spots = [(spot, node) for spot, node, segments in self._refuge_spots()
+                 if avoid.isdisjoint(segments) and self._free(spot, others)]
+        best, best_length = None, math.inf
+        for start in sorted(starts, key=str):
+            end = lanes.node_position(start)
+            if len(askers) and np.linalg.norm(askers - end, axis=1).min() <= _distance(xy, end):
+                continue
+            paths = lanes.paths_from(start)
+            for spot, node in spots:
+                if node not in paths:
+                    continue
+                route = tuple(_point(lanes.node_position(n)) for n in paths[node])
+                route += () if route[-1] == spot else (spot,)
+                length = _distance(xy, route[0]) + sum(
+                    _distance(a, b) for a, b in zip(route[:-1], route[1:], strict=True))
+                if length >= best_length:
+                    continue
+                way = np.array([xy, *route], dtype=float)
+                if len(ahead) and distance_to_polyline(ahead, way).min() <= \
+                        params.parking_clearance:
+                    continue
+                runs = route_runs(lanes, route, params.single_file.chain_gap)
+                if any(k in taken and k not in here for run in runs for k, _ in run.segments):
+                    continue
+                best, best_length = route, length
+        return best
+
+    def _refuge_spots(self) -> tuple:
+        """Where a robot without a stop may wait out of the way (``_refuge``): the roadway
+        nodes but those of lift cabins, the start spots and the parking spots, less those
+        within ``reach_tolerance`` of a location's point or ``parking_clearance`` of its
+        queue slots or overflow spots; each as (spot, its nearest roadway node, the
+        single-file segments it stands in). Made once, when first needed."""
+        if self._refuges is None:
+            roadways, params = self._roadways, self._params
+            cabins = {n for a, b, lift in roadways.graph.edges(data="lift") if lift
+                      for n in (a, b)}
+            nodes = [n for n in roadways.graph.nodes if n not in cabins]
+            spots = [_point(roadways.node_position(n)) for n in nodes]
+            spots += [spot for spot in (*self._starts, *self._parking) if spot not in spots]
+            places = [roadways.place(i) for i in roadways.location_ids]
+            points = np.array([place.point for place in places], dtype=float).reshape(-1, 2)
+            slots = np.array([xy for place in places for xy in (*place.queue,
+                                                                  *place.overflow)],
+                             dtype=float).reshape(-1, 2)
+            keep = ((_nearest(np.array(spots), points) > params.reach_tolerance)
+                    & (_nearest(np.array(spots), slots) > params.parking_clearance))
+            positions = np.array([roadways.node_position(n) for n in nodes], dtype=float)
+            self._refuges = tuple(
+                (spot, nodes[int(np.argmin(np.linalg.norm(positions - spot, axis=1)))],
+                 stands_in(roadways, spot, params.single_file))
+                for spot, ok in zip(spots, keep, strict=True) if ok)
+        return self._refuges
 
     def _home_spot(self, place, lanes: Roadways, others: np.ndarray
                    ) -> tuple[float, float] | None:
@@ -822,12 +935,19 @@ class WaypointPolicy:
         elif s.phase == RobotMode.HOME and s.route and _distance(
                 robots.xy, s.route[-1]) <= self._params.single_file.stand_distance:
             spot = s.route[-1]
+        elif s.phase == RobotMode.IDLE and self._index not in robots.broken:
+            spot = robots.xy
         if spot is not None:
             return standing(self._roadways, robots.xy, spot, self._held(queues),
                             self._params.single_file)
         if s.phase not in (RobotMode.DRIVE, RobotMode.ENTER, RobotMode.HOME):
             return NOTHING
         wanted = need(self._roadways, s.route, s.index, robots.xy, self._params.single_file)
+        if s.phase == RobotMode.HOME and s.index == 0:
+            out = self._leaving(robots.xy, s.route[0], queues)
+            if out:
+                wanted = Need(tuple(sorted((out | dict(wanted.segments)).items())),
+                              wanted.hold, wanted.stops)
         if not wanted.hold:
             return wanted
         # Held back inside a lane (farther than stand_distance from every roadway node), it
@@ -856,6 +976,25 @@ class WaypointPolicy:
         if dropped:
             return wanted.without(dropped)
         return wanted
+
+    def _leaving(self, xy, first, queues: QueueState) -> dict[int, bool]:
+        """Setting off to wait elsewhere (phase home) from inside single-file segments it
+        holds, farther than ``single_file.stand_distance`` from the route's first point
+        ``first`` (a roadway node): those segments, each the way it drives along them to
+        ``first`` (index -> forward), kept until it is there (its route begins at that
+        node: without them it would give up the segment it drives out of, and a robot
+        granted it would drive in head-on)."""
+        reach = self._params.single_file.stand_distance
+        held = self._held(queues)
+        if not held or _distance(xy, first) <= reach:
+            return {}
+        out = {}
+        for k in stands_in(self._roadways, xy, self._params.single_file):
+            for a, b in segment_lanes(self._roadways, k) if k in held else ():
+                if b == first and distance_to_polyline(
+                        np.array([xy], dtype=float), np.array([a, b], dtype=float))[0] <= reach:
+                    out[k] = self._roadways.segment_of(a, b)[1]
+        return out
 
     def _between_nodes(self, xy) -> bool:
         """Whether ``xy`` is farther than ``single_file.stand_distance`` from every roadway

@@ -195,13 +195,13 @@ def test_robots_standing_together_in_a_segment_turn_when_they_all_want_out():
     bench.want("a", (0, False), (1, True))
     bench.step()
     state = bench.state()
-    assert state.segments[0] == SegmentHold(("a", "b"), True)
+    assert state.segments[0] == SegmentHold(("a", "b"), True, ("a",))
     assert state.segment_waiting == ("a",)
     bench.want("b", (0, False), (1, True))
     bench.want("c", (0, True))  # outside, the way in: waits for them to leave
     bench.step()
     state = bench.state()
-    assert state.segments[0] == SegmentHold(("a", "b"), False)
+    assert state.segments[0] == SegmentHold(("a", "b"), False, ("c",))
     assert state.holds_segments("a", ((0, False), (1, True)))
     assert state.holds_segments("b", ((0, False), (1, True)))
     assert state.segment_waiting == ("c",)
@@ -216,6 +216,7 @@ def test_a_robot_waiting_first_keeps_its_turn():
     bench.want("c", (0, True))  # could follow a in, but b waits for 0 first
     bench.step()
     assert bench.state().segment_waiting == ("b", "c")
+    assert bench.state().segments[0].waiting == ("b", "c")  # both name it
     bench.want("a")
     bench.step()
     state = bench.state()
@@ -233,7 +234,8 @@ def test_a_segment_where_robots_stop_is_held_by_one_robot_at_a_time():
     bench.want("a", (0, False), stops=(0,))  # a, alone in it, turns
     bench.step()
     state = bench.state()
-    assert state.segments[0] == SegmentHold(("a",), False) and state.segment_waiting == ("b",)
+    assert state.segments[0] == SegmentHold(("a",), False, ("b",))
+    assert state.segment_waiting == ("b",)
     bench.want("a")
     bench.step()
     assert bench.state().segments[0].holders == ("b",)

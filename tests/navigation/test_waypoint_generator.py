@@ -691,6 +691,44 @@ def test_a_robot_back_home_holds_only_the_segment_it_stands_in():
     assert home.lanes == Need(((2, True),), stops=(2,))  # it stands in it
 
 
+def test_a_robot_without_a_stop_holds_the_segment_it_stands_in():
+    policy = WaypointPolicy(["r0"], 0, spur_world(), None, WaypointParams())
+    idle = policy.update(policy.initial_state(),
+                         _Inputs(1.0, QueueState(segments=(SegmentHold(),) * 3),
+                                 [[10.0, 4.0, 0.0, 0.0]]))
+    assert idle.phase == RobotMode.IDLE and idle.lanes == Need(((2, True),), stops=(2,))
+
+
+def test_a_robot_without_a_stop_leaves_a_segment_another_robot_waits_for_away_from_it():
+    # r0 stands idle in the spur J-S, which r1, at W, waits for: r0 drives out of the spur
+    # and on to E, the one spot in no segment r1 waits for or another robot holds (W, by
+    # r1, is taken). With r1 at E instead, r0 leaves for W.
+    policy = WaypointPolicy(["r0", "r1"], 0, spur_world(), None, WaypointParams())
+    wanted = QueueState(segments=(SegmentHold(), SegmentHold(),
+                                  SegmentHold(("r0",), True, ("r1",))))
+    s = policy.initial_state()
+    east = policy.update(s, _Inputs(1.0, wanted, [[10.0, 4.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]]))
+    assert east.phase == RobotMode.HOME and east.route == ((10.0, 0.0), (20.0, 0.0))
+    # It asks for J-E and keeps the spur it drives out of, the way out, until at J.
+    assert east.lanes.segments == ((1, True), (2, False))
+    west = policy.update(s, _Inputs(1.0, wanted, [[10.0, 4.0, 0.0, 0.0], [20.0, 0.0, 0.0, 0.0]]))
+    assert west.route == ((10.0, 0.0), (0.0, 0.0))
+    # Nobody waits: it stays.
+    free = QueueState(segments=(SegmentHold(),) * 2 + (SegmentHold(("r0",), True),))
+    assert policy.update(s, _Inputs(1.0, free, [[10.0, 4.0, 0.0, 0.0],
+                                                 [0.0, 0.0, 0.0, 0.0]])).phase == RobotMode.IDLE
+
+
+def test_a_robot_without_a_stop_does_not_leave_towards_the_robot_that_needs_its_segment():
+    # r0 idle in the corridor W-J, 2 m from J; r1, holding W-J, drives in from W: r0
+    # leaves by J, away from r1 (to S, the nearest spot off W-J), not by W.
+    policy = WaypointPolicy(["r0", "r1"], 0, spur_world(), None, WaypointParams())
+    held = QueueState(segments=(SegmentHold(("r1",), True), SegmentHold(), SegmentHold()))
+    s = policy.update(policy.initial_state(),
+                      _Inputs(1.0, held, [[8.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.5]]))
+    assert s.phase == RobotMode.HOME and s.route == ((10.0, 0.0), (10.0, 5.0))
+
+
 def test_a_robot_held_back_gives_up_the_segments_of_its_run_it_does_not_stand_in():
     # r0 drives from beside the corridor (A's point) onto J-E at E, then E - J - W: one
     # run, J-E and W-J. Holding J-E (kept from serving at A) but not W-J (x holds it), it
