@@ -810,7 +810,7 @@ class WaypointPolicy:
         all; queueing or serving, or back home (within ``single_file.stand_distance`` of
         the home route's end), those it stands in (``single_file.standing``): a robot home
         keeps no segment of the way it came by from the robots that need it."""
-        if not self._roadways.segment_count:
+        if not self._roadways.reserved_count:
             return NOTHING
         if s.phase == RobotMode.SERVE and s.waiting:
             return NOTHING  # on the point without its room: the holder comes (docstring)

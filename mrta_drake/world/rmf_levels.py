@@ -40,7 +40,7 @@ class BuildingLevels:
     """A building's levels in one plane: their ``layout``, the combined ``floor_plan``, the
     per-level navigations shifted and renamed, joined into ``locations`` and ``roadways``
     (without lift rides: ``roadways_with_lifts`` adds them; with the levels' single-file
-    segments but those through a lift cabin, whose doors the lift bank rules), the ``lifts``
+    segments and junctions but those through a lift cabin, whose doors the lift bank rules), the ``lifts``
     with a stop on at least two levels, and ``notes`` on what was left out."""
 
     layout: LevelLayout
@@ -68,7 +68,7 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
         [(name, level.elevation, worlds[name].bounds) for name, level in
          building.levels.items()], gap)
     floor_plan = combined_floor_plan(building.name, worlds, layout, building.source)
-    nodes, edges, locations, single_file = {}, [], [], []
+    nodes, edges, locations, single_file, junctions = {}, [], [], [], []
     notes = unaligned_levels(building)
     cabin_nodes: dict[tuple[str, str], str] = {}
     for name, level in building.levels.items():
@@ -91,6 +91,9 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
         single_file += [[f"{name}/{node}" for node in segment.nodes]
                         for segment in navigation.single_file
                         if not level_cabins.intersection(segment.nodes)]
+        junctions += [[f"{name}/{node}" for node in loop]
+                      for loop in navigation.roadways.junctions
+                      if not level_cabins.intersection(loop)]
     lifts = []
     for lift in building.lifts.values():
         stops = tuple(_stop(lift, name, building.levels[name].elevation,
@@ -106,7 +109,8 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
     if len(building.levels) > 1 and not lifts:
         raise InputError(building.source, "lifts", f"no lift joins two levels on lanes of "
                          f"graph {graph}: robots could not leave their level")
-    roadways = RoadwaysConfig(nodes=nodes, edges=edges, single_file=single_file)
+    roadways = RoadwaysConfig(nodes=nodes, edges=edges, single_file=single_file,
+                              junctions=junctions)
     return BuildingLevels(layout, floor_plan, locations, roadways, tuple(lifts), notes)
 
 
