@@ -208,6 +208,9 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
         elif index == run.last + 2 and math.dist(xy, route[run.last + 1]) \
                 < params.clear_distance:  # just out
             wanted.update(dict(run.segments))
+            # Past a junction's node only by the waypoints' reach (pushed near it while
+            # held back), it still holds back until it holds the junction.
+            hold = hold or any(k >= roadways.segment_count for k, _ in run.segments)
     if not wanted:
         return NOTHING
     return Need(tuple(sorted(wanted.items())), hold, tuple(k for k in stops if k in wanted))
