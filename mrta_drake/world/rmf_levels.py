@@ -40,8 +40,9 @@ class BuildingLevels:
     """A building's levels in one plane: their ``layout``, the combined ``floor_plan``, the
     per-level navigations shifted and renamed, joined into ``locations`` and ``roadways``
     (without lift rides: ``roadways_with_lifts`` adds them; with the levels' single-file
-    segments and junctions but those through a lift cabin, whose doors the lift bank rules), the ``lifts``
-    with a stop on at least two levels, and ``notes`` on what was left out."""
+    segments and junctions but those through a lift cabin, whose doors the lift bank
+    rules), the ``lifts`` with a stop on at least two levels, and ``notes`` on what was
+    left out."""
 
     layout: LevelLayout
     floor_plan: FloorPlan
