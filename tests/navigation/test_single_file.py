@@ -118,6 +118,8 @@ def test_params_check_themselves():
         SingleFileParams(hold_distance=0.0)
     with pytest.raises(InputError, match="request_distance"):
         SingleFileParams(request_distance=1.0, hold_distance=2.0)
+    with pytest.raises(InputError, match="junction_request_distance"):
+        SingleFileParams(junction_request_distance=1.0)
 
 
 def test_a_route_ending_where_segments_meet_asks_for_them_all_before_it_drives_in():
@@ -155,7 +157,8 @@ def test_a_junction_turned_at_one_node_is_held_until_clear_of_it():
     route = EAST[1:4]  # A10, A20, A30: through node A20 only
     (run,) = route_runs(roadways, route, PARAMS.chain_gap)
     assert (run.first, run.last, run.segments) == (1, 0, ((0, True),))
-    assert need(roadways, route, 1, (17.0, 0.0), PARAMS) == Need(((0, True),), False)
+    assert need(roadways, route, 1, (17.0, 0.0), PARAMS) == Need()  # asked for from 2 m
+    assert need(roadways, route, 1, (18.0, 0.0), PARAMS) == Need(((0, True),), False)
     assert need(roadways, route, 1, (19.0, 0.0), PARAMS) == Need(((0, True),), True)
     # Past the node (within the waypoints' reach) it still holds back until it holds it.
     assert need(roadways, route, 2, (20.5, 0.0), PARAMS) == Need(((0, True),), True)
