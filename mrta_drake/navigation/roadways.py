@@ -180,15 +180,18 @@ class Roadways:
                      for n in (hop.from_node, hop.to_node))
         self._lift_edges[ends] = hop
 
-    def _add_single_file(self, k: int, names: Sequence[str]) -> None:
-        """Segment ``k``: every lane between two of its nodes ``names``."""
-        field = f"roadways.single_file[{k}]"
+    def _node_list(self, field: str, names) -> None:
+        """Checks ``names`` (the value of ``field``): a list of 2 or more roadway nodes."""
         if not isinstance(names, list | tuple) or len(names) < 2:
             raise InputError(self._file, field,
                              f"expected a list of 2 or more roadway nodes, got {names!r}")
         for name in names:
             if not isinstance(name, str | int) or name not in self.graph:
                 raise InputError(self._file, field, f"unknown node {name!r}")
+
+    def _add_single_file(self, k: int, names: Sequence[str]) -> None:
+        """Segment ``k``: every lane between two of its nodes ``names``."""
+        self._node_list(f"roadways.single_file[{k}]", names)
         order = {name: i for i, name in enumerate(names)}
         for a, b in self.graph.subgraph(order).edges:
             ends = tuple(tuple(float(v) for v in self.node_position(n)) for n in (a, b))
@@ -197,12 +200,8 @@ class Roadways:
     def _add_junction(self, k: int, names: Sequence[str]) -> None:
         """Junction ``k`` (numbered after the single-file segments): its nodes ``names``."""
         field = f"roadways.junctions[{k - self.segment_count}]"
-        if not isinstance(names, list | tuple) or len(names) < 2:
-            raise InputError(self._file, field,
-                             f"expected a list of 2 or more roadway nodes, got {names!r}")
+        self._node_list(field, names)
         for name in names:
-            if not isinstance(name, str | int) or name not in self.graph:
-                raise InputError(self._file, field, f"unknown node {name!r}")
             if name in self._junction_of:
                 raise InputError(self._file, field, f"node {name!r} is in two junctions")
             self._junction_of[name] = k
