@@ -19,7 +19,8 @@ following another into it could not pass it where it stops.
 A junction (``Roadways.junction_at``: the small loop where lanes of different directions
 meet, ``lane_derivation``) is held like a segment where robots stop, by one robot at a time:
 a route's pass through it, from the first of its nodes to the last, is a run of its own
-(joined with the single-file runs near it), asked for and held as they are. Robots that
+(joined with the single-file runs near it), held as they are and asked for from
+``junction_request_distance`` where it holds junctions alone. Robots that
 stand in a junction (queueing, serving, home) do not hold it: nobody would then drive
 through to free them.
 
