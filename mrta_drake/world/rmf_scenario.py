@@ -120,7 +120,8 @@ def with_building_navigation(scenario: Scenario) -> Scenario:
         roadways=scenario.roadways if scenario.roadways.nodes else dataclasses.replace(
             navigation.roadways, nodes=dict(navigation.roadways.nodes),
             edges=list(navigation.roadways.edges),
-            single_file=[list(nodes) for nodes in navigation.roadways.single_file]))
+            single_file=[list(nodes) for nodes in navigation.roadways.single_file],
+            junctions=[list(nodes) for nodes in navigation.roadways.junctions]))
 
 
 def _version(path: str) -> tuple[float, int]:
