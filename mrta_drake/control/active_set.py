@@ -26,7 +26,54 @@ _EPS = 2.220446049250313e-16  # float64 machine epsilon
 _MAX_STEPS = 1000  # more: answer infeasible (Clarabel then solves the QP)
 
 
+# What ``solve_qps`` found of each QP (``status``).
+NOT_LOADED = 0  # no block: not solved
+SOLVED = 1  # every row met, no multiplier outweighs the slack: u holds its answer
+HEAVY = 2  # every row met, but a multiplier outweighs the slack weight: needs the slack QP
+UNMET = 3  # no u within the bounds meets every row: needs the slack QP
+
+
 @numba.njit(cache=True)
+def solve_qps(data, data_start, kept_count, sizes, members, group_start, slack_weight, u,
+              status):
+    """Every QP whose block (``qp_solver.load_qp``) is ``data[data_start[g]:data_start[g +
+    1]]`` (QPs with an empty block are ``NOT_LOADED``), over the robots ``members[
+    group_start[g]:group_start[g + 1]]``, with ``kept_count[g]`` real rows padded to
+    ``sizes[g]``, in one call: ``dual_active_set`` on each, and where it is ``SOLVED``
+    (the slack-free optimum is the QP's while no multiplier reaches ``slack_weight``) its
+    answer clipped to the bounds (as ``np.minimum(np.maximum(x, lo), hi)``) goes to the
+    members' rows of ``u`` (N, 2) ``[a, omega]``; ``status[g]`` says what was found."""
+    for g in range(len(data_start) - 1):
+        if data_start[g + 1] == data_start[g]:
+            status[g] = NOT_LOADED
+            continue
+        n = 2 * (group_start[g + 1] - group_start[g])
+        block = data[data_start[g]:data_start[g + 1]]
+        x, met, largest = dual_active_set(block, n, sizes[g], kept_count[g])
+        if not met:
+            status[g] = UNMET
+        elif not largest < slack_weight:
+            status[g] = HEAVY
+        else:
+            status[g] = SOLVED
+            for j in range(n):
+                u[members[group_start[g] + j // 2], j % 2] = _numpy_clip(x[j], block[n + j],
+                                                                   block[2 * n + j])
+
+
+@compiled_helper
+def _numpy_clip(x, lo, hi):
+    """``np.minimum(np.maximum(x, lo), hi)`` for numbers to the bit: a NaN propagates, and
+    of two equal numbers (0.0 and -0.0) numpy returns the second."""
+    if x != x or lo != lo:
+        return x if x != x else lo
+    low = x if x > lo else lo
+    if hi != hi:
+        return hi
+    return low if low < hi else hi
+
+
+@compiled_helper
 def dual_active_set(data, columns, size, kept):
     """The QP loaded in ``data`` (``qp_solver.load_qp``'s block for ``columns`` = 2k inputs
     and ``size`` padded rows, the first ``kept`` of them real) without slack: the optimum u

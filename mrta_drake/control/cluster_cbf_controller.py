@@ -8,6 +8,7 @@ import numpy as np
 from pydrake.common.value import Value
 from pydrake.systems.framework import LeafSystem
 
+from mrta_drake.control.active_set import NOT_LOADED, SOLVED, UNMET
 from mrta_drake.control.cbf_params import CbfParams
 from mrta_drake.control.cluster_views import cluster_of, cut_off, group_of, views_disagree
 from mrta_drake.control.clusters import LEADER_RULES, LeaderRule, clusters_of, stall_times_of
@@ -316,45 +317,64 @@ class ClusterCbfController(LeafSystem):
                                            disturbances))
 
     def _solve(self, time: float, plan: TickPlan) -> tuple[np.ndarray, ControllerTelemetry]:
-        solved = self._solved(plan, plan.qps.to_solve() if plan.qps.needs_solver.any() else ())
+        solved = self._solved(plan, plan.qps.to_solve())
         return solved.u, _telemetry(time, ((plan, solved),), plan.clusters)
 
     def _solved(self, plan: TickPlan, groups, u_nominal=None) -> SolvedQps:
         """Every robot's input from ``plan``: its group's solution for ``groups`` (indices
         of ``plan.qps.groups``), the settled input otherwise. Only QPs whose clipped nominal
         breaks a row reach the solver (the rest are settled). ``u_nominal`` (N, 2): nominal
-        inputs in place of the plan's, for ``groups``."""
-        u = plan.qps.settled.copy()
+        inputs in place of the plan's, for ``groups``.
+
+        With the plan's nominal inputs the QPs are first solved in one compiled call
+        (``CbfQp.solve_all``, each QP timed as an equal share of it); only those whose rows
+        need the slack go on to Clarabel, one by one."""
+        qps = plan.qps
+        u = qps.settled.copy()
         failures, max_slack, calls = 0, 0.0, []
-        stands = plan.qps.standing.tolist().__getitem__ if groups else None
+        stands = qps.standing.tolist().__getitem__ if groups else None
+        status, share = None, 0.0
+        if u_nominal is None and groups:
+            start = time.perf_counter()
+            status = self._qp.solve_all(qps.data, qps.data_start, qps.kept_count, qps.sizes,
+                                        qps.members, qps.group_start, u)
+            share = (time.perf_counter() - start) / len(groups)
+            status = None if status is None else status.tolist()
         for g in groups:
-            if u_nominal is None and not plan.qps.needs_solver[g]:
+            if u_nominal is None and not qps.needs_solver[g]:
                 continue
-            members = list(plan.qps.groups[g])
+            members = list(qps.groups[g])
+            if status is not None and status[g] == SOLVED:  # u holds its answer
+                calls.append((len(members), share))
+                continue
             # With a standing robot, rows that cannot all be met are solved with its turn
             # fixed (TickQps.turns_fixed): where the active set finds so, straight away.
             standing, start = any(map(stands, members)), time.perf_counter()
-            if u_nominal is None:
-                solution = self._qp.solve_loaded(plan.qps.loaded(g), unless_unmet=standing)
+            if status is not None and status[g] != NOT_LOADED:  # the active set tried it
+                solution = (None if standing and status[g] == UNMET
+                            else self._qp.solve_with_slack(qps.loaded(g), start))
+            elif u_nominal is None:
+                solution = self._qp.solve_loaded(qps.loaded(g), unless_unmet=standing)
             else:
-                nominal, G, b, lower, upper = plan.qps.arrays(g)
+                nominal, G, b, lower, upper = qps.arrays(g)
                 solution = self._qp.solve(u_nominal[members], G, b, lower, upper,
                                           unless_unmet=standing)
-            seconds = time.perf_counter() - start if solution is None else solution.solve_time
+            seconds = share + (time.perf_counter() - start if solution is None
+                               else solution.solve_time)
             if solution is None or (solution.success and solution.max_slack > SLACK_IN_USE
                                     and standing):
-                nominal, G, b, lower, upper = plan.qps.arrays(g)
+                nominal, G, b, lower, upper = qps.arrays(g)
                 if u_nominal is not None:
                     nominal = u_nominal[members]
                 solution = self._qp.solve(nominal, G, b,
-                                          *plan.qps.turns_fixed(g, nominal, lower, upper))
+                                          *qps.turns_fixed(g, nominal, lower, upper))
                 seconds += solution.solve_time
             calls.append((len(members), seconds))
             if solution.success:
                 u[members] = solution.u
                 max_slack = max(max_slack, solution.max_slack)
             else:
-                u[members] = np.stack([plan.qps.lower[members, 0], np.zeros(len(members))],
+                u[members] = np.stack([qps.lower[members, 0], np.zeros(len(members))],
                                       axis=1)
                 failures += len(members)
         return SolvedQps(u, failures, max_slack, tuple(calls))

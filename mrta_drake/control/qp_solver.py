@@ -24,7 +24,7 @@ import numba
 import numpy as np
 from pydrake.solvers import ClarabelSolver, MathematicalProgram, OsqpSolver, SolverOptions
 
-from mrta_drake.control.active_set import dual_active_set
+from mrta_drake.control.active_set import SOLVED, UNMET, solve_qps
 from mrta_drake.errors import require_choice, require_positive
 from mrta_drake.stack.compiled_helper import compiled_helper
 
@@ -152,20 +152,41 @@ class CbfQp:
         ``active_set`` solver: None, without a Clarabel solve, when the active set finds
         that no input within the bounds meets every row (the slack is in use)."""
         start = time.perf_counter() if start is None else start
-        k, size, data = qp.k, qp.size, qp.data
+        k = qp.k
         if not qp.finite:
             return QpSolution(np.zeros((k, 2)), np.zeros(qp.m), False,
                               time.perf_counter() - start)
+        if self._active_set:
+            u, status = np.empty((k, 2)), np.empty(1, np.int64)
+            solve_qps(qp.data, np.array([0, len(qp.data)]), np.array([len(qp.kept)]),
+                      np.array([qp.size]), np.arange(k), np.array([0, k]), self.slack_weight,
+                      u, status)
+            if status[0] == SOLVED:
+                return QpSolution(u, np.zeros(qp.m), True, time.perf_counter() - start)
+            if unless_unmet and status[0] == UNMET:
+                return None
+        return self.solve_with_slack(qp, start)
+
+    def solve_all(self, data, data_start, kept_count, sizes, members, group_start,
+                  u) -> np.ndarray | None:
+        """With the ``active_set`` solver, the loaded QPs ``data[data_start[g]:data_start[g +
+        1]]`` (as ``TickQps`` holds them) in one compiled call (``active_set.solve_qps``):
+        each ``SOLVED`` one's answer written to its robots' rows of ``u`` (N, 2), the same
+        as ``solve_loaded`` returns; the QPs' ``status`` (G,) (``active_set.NOT_LOADED``
+        ... ``UNMET``). None with another solver (nothing done)."""
+        if not self._active_set:
+            return None
+        status = np.empty(len(data_start) - 1, np.int64)
+        solve_qps(data, data_start, kept_count, sizes, members, group_start,
+                  self.slack_weight, u, status)
+        return status
+
+    def solve_with_slack(self, qp: LoadedQp, start: float) -> QpSolution:
+        """The QP loaded in ``qp`` with its slack, by Clarabel or OSQP (the ``active_set``
+        solver's QPs that need the slack: Clarabel); solve time counted from ``start``."""
+        k, size, data = qp.k, qp.size, qp.data
         n = 2 * k
         lo, hi = data[n:2 * n], data[2 * n:3 * n]
-        if self._active_set:
-            x, met, largest = dual_active_set(data, n, size, len(qp.kept))
-            # The slack-free optimum is the QP's while no multiplier outweighs the slack.
-            if met and largest < self.slack_weight:
-                return QpSolution(np.minimum(np.maximum(x, lo), hi).reshape(k, 2),
-                                  np.zeros(qp.m), True, time.perf_counter() - start)
-            if unless_unmet and not met:
-                return None
         program = self._programs.get((k, size))
         if program is None:
             program = self._programs[(k, size)] = _Program(k, size, self.slack_weight)

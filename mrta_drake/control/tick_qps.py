@@ -2,6 +2,7 @@
 its blocked robots, and whether its clipped nominal already meets its rows (then no solver
 runs), so that only the QPs that need a solver reach Python objects and the solver."""
 
+import itertools
 from dataclasses import dataclass
 
 import numba
@@ -49,9 +50,12 @@ class TickQps:
     solver, what ``CbfQp.solve`` would load into its program (``loaded``): whether the
     rows are ``finite``, the rows kept (``kept[row_start[g]:row_start[g] + kept_count[g]]``),
     their padded count ``sizes[g]`` and the program's data
-    ``data[data_start[g]:data_start[g + 1]]``."""
+    ``data[data_start[g]:data_start[g + 1]]`` (empty for the others). The groups as
+    arrays: group g is ``members[group_start[g]:group_start[g + 1]]``."""
 
     groups: tuple[tuple[int, ...], ...]
+    members: np.ndarray
+    group_start: np.ndarray
     u_nominal: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
@@ -112,7 +116,7 @@ class TickQps:
 
     def to_solve(self) -> tuple[int, ...]:
         """The groups whose QPs need a solver."""
-        return tuple(np.flatnonzero(self.needs_solver).tolist())
+        return tuple(itertools.compress(itertools.count(), self.needs_solver.tolist()))
 
 
 _NO_MOVERS = np.zeros((0, 4))
@@ -155,8 +159,8 @@ def qp_problems(groups, states, hits, hit_mask, human_positions, human_velocitie
         params.nominal.k_v, params.nominal.k_theta, params.nominal.corner_steering, u_nominal,
         lower, upper, settled)
     standing = np.abs(states[:, 3]) < params.coordination.stall_speed
-    return TickQps(groups, u_nominal, lower, upper, G, G_start, tuple(rows), row_start,
-                   needs_solver, settled, standing, *loads)
+    return TickQps(groups, members, group_start, u_nominal, lower, upper, G, G_start,
+                   tuple(rows), row_start, needs_solver, settled, standing, *loads)
 
 
 @numba.njit(cache=True)

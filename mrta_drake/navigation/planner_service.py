@@ -25,6 +25,7 @@ from mrta_drake.payloads import (
     BackOffOrders,
     Disturbances,
     FleetPaths,
+    Relocations,
     RobotPath,
     WaypointTarget,
     frozen_array,
@@ -52,13 +53,17 @@ class PlannerServiceParams:
 @dataclass(frozen=True)
 class _ServiceState:
     """The block's abstract state: the paths it outputs, the targets they were planned
-    for, the time (s) of the next periodic re-plan, and what they were planned around
-    (``PlannerService._closures``)."""
+    for, the time (s) of the next periodic re-plan, what they were planned around
+    (``PlannerService._closures``), per robot the sequence number of the last relocation
+    seen (() for none yet) and the indices of the robots whose target predates their
+    relocation (``stale``)."""
 
     paths: FleetPaths
     targets: tuple[WaypointTarget | None, ...]
     next_replan: float
     closed: tuple = ()
+    relocated: tuple[int, ...] = ()
+    stale: frozenset[int] = frozenset()
 
     def __deepcopy__(self, memo):
         # Everything in here is immutable, so Drake's per-update copy can share it.
@@ -77,6 +82,7 @@ class PlannerService(LeafSystem):
         - fleet_targets (optional)
         - disturbances (optional)
         - back_offs (optional)
+        - relocations (optional)
         output_ports:
         - paths
 
@@ -115,6 +121,13 @@ class PlannerService(LeafSystem):
     robot ordered to back off is planned to its spot, to stop there, instead of to its
     target, until the order ends; its path is marked ``yielding`` (the controller lets it
     lead its cluster).
+
+    Optional input ``relocations`` (abstract ``Relocations``, the lift bank's): a robot
+    whose relocation (a lift ride's end, to the cabin on another level) is new is planned
+    for at the next check tick; while its target is the one it had before that relocation
+    (set where it stood before, on the level it left: a path from where it stands now to
+    it would fail) its path is idle, no failure, and it stands until its waypoint generator
+    gives it a new target.
     """
 
     def __init__(self, planner: GridPlanner, robot_names: Sequence[str], *,
@@ -140,6 +153,8 @@ class PlannerService(LeafSystem):
             "disturbances", Value[object](Disturbances()))
         self._back_offs = self.DeclareAbstractInputPort(
             "back_offs", Value[object](BackOffOrders()))
+        self._relocations = self.DeclareAbstractInputPort(
+            "relocations", Value[object](Relocations()))
         self.DeclareAbstractOutputPort(
             "paths",
             lambda: Value[object](initial.paths),
@@ -188,8 +203,11 @@ class PlannerService(LeafSystem):
         closed = self._closures(context, disturbances, targets, old.closed, periodic)
         replan_all = periodic or closed != old.closed
         # ``is`` first: an unchanged target is mostly the very same object.
-        due = [k for k, (target, was) in enumerate(zip(targets, old.targets, strict=True))
-               if replan_all or (target is not was and target != was)]
+        changed = {k for k, (target, was) in enumerate(zip(targets, old.targets, strict=True))
+                   if target is not was and target != was}
+        relocated, moved = self._relocated(context, old.relocated)
+        stale = (old.stale | (moved - changed)) - changed
+        due = [k for k in range(len(targets)) if replan_all or k in changed or k in moved]
         if not due:
             return EventStatus.DidNothing()
         self._close(disturbances.blockages, closed)
@@ -197,6 +215,9 @@ class PlannerService(LeafSystem):
         paths = list(old.paths.paths)
         failures = old.paths.failures
         for k in due:
+            if k in stale:
+                paths[k] = RobotPath(self._robots[k], PATH_IDLE, _NO_POINTS, planned_at=now)
+                continue
             xy = robot_state[ROBOT_STATE_SIZE * k:ROBOT_STATE_SIZE * k + 2]
             paths[k], failed = self._plan(self._robots[k], xy, targets[k], now)
             if self._robots[k] in backing:
@@ -207,8 +228,21 @@ class PlannerService(LeafSystem):
             # Keep the period's phase, but never fall behind the clock.
             next_replan = max(next_replan + self._replan_period, now + 0.5 * self._replan_period)
         state.get_mutable_abstract_state(self._state_index).set_value(
-            _ServiceState(FleetPaths(tuple(paths), failures), targets, next_replan, closed))
+            _ServiceState(FleetPaths(tuple(paths), failures), targets, next_replan, closed,
+                          relocated, frozenset(stale)))
         return EventStatus.Succeeded()
+
+    def _relocated(self, context, seen: tuple[int, ...]) -> tuple[tuple[int, ...], set[int]]:
+        """Per robot the sequence number of its last relocation (``seen``: those known
+        before, () for none), and the indices of the robots relocated since."""
+        if not self._relocations.HasValue(context):
+            return seen, set()
+        moves = self._relocations.Eval(context).moves
+        if not any(moves):
+            return seen, set()
+        known = seen or (0,) * len(self._robots)
+        now = tuple(known[k] if move is None else move[0] for k, move in enumerate(moves))
+        return now, {k for k, (a, b) in enumerate(zip(now, known, strict=True)) if a > b}
 
     def _targets_now(self, context) -> tuple[tuple[WaypointTarget, ...], frozenset[str]]:
         """Each robot's target: its waypoint generator's, or its back-off spot while the

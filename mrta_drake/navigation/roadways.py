@@ -12,7 +12,7 @@ edges: each corridor has one lane per direction).
 
 import copy
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import networkx as nx
@@ -99,11 +99,16 @@ def _shortest(graph, source: str, target: str) -> list[str] | None:
 
 
 def _without_repeats(points: list[np.ndarray]) -> np.ndarray:
-    kept = [points[0]]
-    for point in points[1:]:
-        if not np.array_equal(point, kept[-1]):
-            kept.append(point)
-    return frozen_array(kept, shape=(len(kept), 2))
+    """``points`` (x, y) as a frozen (k, 2) array, each point equal to the one before it
+    left out."""
+    stacked = np.array(points, dtype=float).reshape(-1, 2)
+    changed = np.empty(len(stacked), dtype=bool)
+    changed[0] = True
+    np.logical_or(stacked[1:, 0] != stacked[:-1, 0], stacked[1:, 1] != stacked[:-1, 1],
+                  out=changed[1:])
+    kept = stacked[changed]
+    kept.flags.writeable = False
+    return kept
 
 
 class Roadways:
@@ -213,11 +218,15 @@ class Roadways:
         )
 
     def _check_reachable(self, locations: Sequence[LocationConfig]) -> None:
+        reached: dict[str, set] = {}  # by exit node: the nodes the lanes lead to from it
         for j, target in enumerate(locations):
             for source in locations:
                 if source.id == target.id:
                     continue
-                if not nx.has_path(self.graph, source.exit_node, target.approach_node):
+                node = source.exit_node
+                if node not in reached:
+                    reached[node] = nx.descendants(self.graph, node) | {node}
+                if target.approach_node not in reached[node]:
                     raise InputError(
                         self._file, f"locations[{j}].approach_node",
                         f"node {target.approach_node!r} of location {target.id} cannot be "
@@ -328,6 +337,33 @@ class Roadways:
                 [*self.way_out(start), *route])
         return self._legs[key]
 
+    def legs_from(self, from_location: int) -> Iterator[tuple[int, np.ndarray | None]]:
+        """``(to_location, leg)`` for every other location in ``location_ids`` order: the
+        legs out of ``from_location`` from one search of the lanes for all of them, for
+        all-pairs uses (``travel_time_estimate``) of large buildings. Each is
+        ``leg(from_location, to_location)``, or where two ways are equally short possibly
+        the other one; not cached."""
+        start = self.place(from_location)
+        avoid = self._past_queue(start)
+        out = np.array(self.way_out(start), dtype=float).reshape(-1, 2)
+        row = {n: k for k, n in enumerate(self.graph.nodes)}
+        xy = np.array([self.node_position(n) for n in self.graph.nodes], dtype=float)
+        around = {} if avoid is None else nx.single_source_dijkstra_path(
+            nx.restricted_view(self.graph, [], [avoid]), start.exit_node, weight="length")
+        anyway = None
+        for to_location in self.location_ids:
+            if to_location == from_location:
+                continue
+            target = self.place(to_location)
+            names = around.get(target.approach_node)
+            if names is None:
+                if anyway is None:
+                    anyway = nx.single_source_dijkstra_path(self.graph, start.exit_node,
+                                                            weight="length")
+                names = anyway.get(target.approach_node)
+            yield to_location, None if names is None else _without_repeats(np.concatenate(
+                [out, xy[[row[n] for n in names]], target.tail[None]]))
+
     def leg_length(self, from_location: int, to_location: int) -> float:
         """Length of ``leg(from_location, to_location)``, m; 0 from a location to itself."""
         if from_location == to_location:
@@ -436,9 +472,10 @@ class Roadways:
         if speed <= 0:
             raise ValueError(f"speed must be positive, got {speed}")
         ids = self.location_ids
+        column = {b: j for j, b in enumerate(ids)}
         times = np.zeros((len(ids), len(ids)), dtype=int)
         for i, a in enumerate(ids):
-            for j, b in enumerate(ids):
-                times[i, j] = math.ceil(self.leg_length(a, b) / speed)
+            for b, leg in self.legs_from(a):
+                times[i, column[b]] = math.ceil(self.route_length(leg) / speed)
         times.flags.writeable = False
         return times

@@ -141,8 +141,8 @@ def add_stack(builder: DiagramBuilder, scenario: Scenario, *, meshcat: Meshcat |
     per_robot("target", planner, "target", "targets")
     per_robot("queue_request", queues, "request", "queue_requests")
     per_robot("progress", allocator, "progress", "progress")
-    lifts = (_add_lifts(builder, ctx, make, robots, generators, waypoints("lift_request"))
-             if ctx.lifts else None)
+    lifts = (_add_lifts(builder, ctx, make, robots, planner, generators,
+                        waypoints("lift_request")) if ctx.lifts else None)
     if humans is not None:
         builder.Connect(state, humans.GetInputPort("robot_state"))
         builder.Connect(humans.GetOutputPort("human_states"),
@@ -246,9 +246,11 @@ def _add_network(builder: DiagramBuilder, make, state, controller: LeafSystem,
 
 
 def _add_lifts(builder: DiagramBuilder, ctx: BuildContext, make, robots: LeafSystem,
-               generators: list[LeafSystem], requests: list[OutputPort]) -> LeafSystem:
+               planner: LeafSystem, generators: list[LeafSystem],
+               requests: list[OutputPort]) -> LeafSystem:
     """The lift bank, between the waypoints block (its systems ``generators``, each
-    robot's ``lift_request`` output in ``requests``) and the robots block."""
+    robot's ``lift_request`` output in ``requests``) and the robots block; its relocations
+    also go to the planner (a swapped-in planner without that input ignores them)."""
     if not robots.HasInputPort("relocations"):
         raise InputError(ctx.scenario.source, "blocks.robots.kind",
                          f"{ctx.scenario.blocks.robots.kind!r} robots cannot ride lifts "
@@ -257,6 +259,8 @@ def _add_lifts(builder: DiagramBuilder, ctx: BuildContext, make, robots: LeafSys
     bank = builder.AddNamedSystem("lift_bank", make("lifts"))
     builder.Connect(robots.GetOutputPort("state"), bank.GetInputPort("robot_state"))
     builder.Connect(bank.GetOutputPort("relocations"), robots.GetInputPort("relocations"))
+    if planner.HasInputPort("relocations"):
+        builder.Connect(bank.GetOutputPort("relocations"), planner.GetInputPort("relocations"))
     for name, request in zip(ctx.robot_names, requests, strict=True):
         builder.Connect(request, bank.GetInputPort(f"request_{name}"))
     for generator in generators:

@@ -38,6 +38,7 @@ from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig, TasksConf
 from mrta_drake.scenario.stream_sizing import BATCH_SIZE, LEG_SHARE, StreamSize, size_stream
 from mrta_drake.world.floor_plan import FloorPlan
 from mrta_drake.world.rmf_building import Building, Level
+from mrta_drake.world.rmf_levels import laned_levels
 from mrta_drake.world.rmf_navigation import BuildingNavigation
 from mrta_drake.world.rmf_scenario import (
     building_at,
@@ -106,6 +107,12 @@ def import_building(path: str, out_dir: str, options: ImportOptions = ImportOpti
     if options.level or len(building.levels) == 1:
         level = chosen_level(building, options.level)
         _write_level(building, level, out_dir, options, report)
+        return report
+    laned = laned_levels(building, options.graph)
+    if len(laned) == 1:
+        report.lines += [f"{name}: left out, no lanes of graph {options.graph}"
+                         for name in building.levels if name not in laned]
+        _write_level(building, laned[0], out_dir, options, report)
         return report
     from mrta_drake.tools.levels_import import write_all_levels
 
@@ -232,10 +239,8 @@ def _legs_passing(navigation: BuildingNavigation, points: np.ndarray) -> np.ndar
     ``points`` (k, 2), m."""
     roadways = Roadways(navigation.roadways, navigation.locations)
     counts = np.zeros(len(points), dtype=int)
-    ids = roadways.location_ids
-    for a in ids:
-        for b in ids:
-            leg = None if a == b else roadways.leg(a, b)
+    for a in roadways.location_ids:
+        for _, leg in roadways.legs_from(a):
             if leg is None or len(leg) < 2 or not len(points):
                 continue
             counts += distance_to_polyline(points, leg) <= ROUTE_BERTH

@@ -62,16 +62,19 @@ class BuildingLevels:
 
 def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_GAP
                     ) -> BuildingLevels:
-    """All levels of ``building`` with the navigation of ``graph``, ``gap`` m apart."""
-    worlds = {name: level_world(building, name, graph).floor_plan for name in building.levels}
+    """The levels of ``building`` with lanes of ``graph`` (``laned_levels``), with their
+    navigation, ``gap`` m apart."""
+    names = laned_levels(building, graph)
+    worlds = {name: level_world(building, name, graph).floor_plan for name in names}
     layout = LevelLayout.side_by_side(
-        [(name, level.elevation, worlds[name].bounds) for name, level in
-         building.levels.items()], gap)
+        [(name, building.levels[name].elevation, worlds[name].bounds) for name in names], gap)
     floor_plan = combined_floor_plan(building.name, worlds, layout, building.source)
     nodes, edges, locations, single_file = {}, [], [], []
-    notes = unaligned_levels(building)
+    notes = unaligned_levels(building) + [f"{name}: left out, no lanes of graph {graph}"
+                                          for name in building.levels if name not in names]
     cabin_nodes: dict[tuple[str, str], str] = {}
-    for name, level in building.levels.items():
+    for name in names:
+        level = building.levels[name]
         navigation = level_navigation(building, name, worlds[name],
                                       BuildingNavigationParams(graph=graph, through_lifts=True))
         notes += [f"{name}: {note}" for note in navigation.notes]
@@ -95,7 +98,7 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
     for lift in building.lifts.values():
         stops = tuple(_stop(lift, name, building.levels[name].elevation,
                             cabin_nodes[lift.name, name], nodes, layout)
-                      for name in building.levels if (lift.name, name) in cabin_nodes)
+                      for name in names if (lift.name, name) in cabin_nodes)
         if len(stops) < 2:
             notes.append(f"lift {lift.name}: left out, its cabin is on lanes of graph {graph} "
                          f"on {len(stops)} level(s)")
@@ -103,11 +106,22 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
         initial = lift.initial_floor if any(s.level == lift.initial_floor for s in stops) \
             else stops[0].level
         lifts.append(LiftSpec(lift.name, stops, initial, lift.width, lift.depth, lift.yaw))
-    if len(building.levels) > 1 and not lifts:
+    if len(names) > 1 and not lifts:
         raise InputError(building.source, "lifts", f"no lift joins two levels on lanes of "
-                         f"graph {graph}: robots could not leave their level")
+                         f"graph {graph}: robots could not leave their level (import one "
+                         f"level with --level)")
     roadways = RoadwaysConfig(nodes=nodes, edges=edges, single_file=single_file)
     return BuildingLevels(layout, floor_plan, locations, roadways, tuple(lifts), notes)
+
+
+def laned_levels(building: Building, graph: int) -> list[str]:
+    """The names of ``building``'s levels that have lanes of navigation ``graph``, in the
+    file's order (a level without them, e.g. drawn but not yet given lanes, has nowhere
+    for robots to drive); InputError when none has."""
+    names = [name for name, level in building.levels.items() if graph in level.graphs()]
+    if not names:
+        raise InputError(building.source, "levels", f"no level has lanes of graph {graph}")
+    return names
 
 
 def unaligned_levels(building: Building) -> list[str]:

@@ -418,8 +418,12 @@ def _beside(vertex: np.ndarray, aside: "_Aside", floor_plan: FloorPlan,
     spots = (vertex + np.stack([np.outer(radii, np.cos(angles)),
                                 np.outer(radii, np.sin(angles))], axis=-1)).reshape(-1, 2)
     sd = floor_plan.obstacles.signed_distance
-    ok = ((sd(spots) >= params.slot_clearance)
-          & (_off_lanes(spots, aside.lanes) >= params.slot_lane_gap - 1e-9))
+    # Lanes farther than serve_reach + slot_lane_gap from the vertex clear every spot.
+    near = _lane_distances(vertex[None], aside.lanes)[0] <= (
+        params.serve_reach + params.slot_lane_gap)
+    ok = sd(spots) >= params.slot_clearance
+    if near.any():
+        ok &= _off_lanes(spots, aside.lanes[near]) >= params.slot_lane_gap - 1e-9
     if aside.taken:
         gaps = np.linalg.norm(spots[:, None, :] - np.asarray(aside.taken)[None], axis=2)
         ok &= gaps.min(axis=1) >= params.slot_spacing - 1e-9
@@ -646,7 +650,12 @@ def _listed(xy) -> list[float]:
 
 def _off_lanes(points: np.ndarray, lanes: np.ndarray) -> np.ndarray:
     """Each of ``points`` (k, 2)'s distance to the nearest of ``lanes`` (m, 2, 2), m."""
+    return _lane_distances(points, lanes).min(axis=1)
+
+
+def _lane_distances(points: np.ndarray, lanes: np.ndarray) -> np.ndarray:
+    """The distances (k, m) from each of ``points`` (k, 2) to each of ``lanes`` (m, 2, 2), m."""
     a, d = lanes[:, 0], lanes[:, 1] - lanes[:, 0]
     rel = points[:, None, :] - a[None]
     t = np.clip((rel * d).sum(axis=2) / np.maximum((d * d).sum(axis=1), 1e-18), 0.0, 1.0)
-    return np.linalg.norm(rel - t[..., None] * d, axis=2).min(axis=1)
+    return np.linalg.norm(rel - t[..., None] * d, axis=2)

@@ -117,3 +117,13 @@ def test_active_set_meets_clarabel_and_hands_it_the_qps_that_need_slack():
             relaxed += 1
             np.testing.assert_array_equal(b.u, a.u)
     assert exact >= 5 and relaxed >= 5
+
+
+def test_active_set_answers_are_clipped_to_the_bit_as_numpy_clips():
+    """Of two equal bounds numpy's clip returns the second: the acceleration bounds 0.0 and
+    -0.0 leave -0.0, the sign a command carries on."""
+    lower, upper = np.array([[0.0, -2.0]]), np.array([[-0.0, 2.0]])
+    solution = CbfQp("active_set").solve([[0.0, 0.0]], [[0.0, 1.0]], [0.5], lower, upper)
+    assert solution.solved and solution.u[0, 1] == pytest.approx(0.5)
+    expected = np.minimum(np.maximum(0.0, lower[0, 0]), upper[0, 0])
+    assert np.signbit(solution.u[0, 0]) == np.signbit(expected) == np.True_

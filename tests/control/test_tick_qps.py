@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from mrta_drake.control.active_set import NOT_LOADED, SOLVED, UNMET
 from mrta_drake.control.cbf_params import CbfParams
 from mrta_drake.control.input_limits import input_bounds
 from mrta_drake.control.qp_solver import CbfQp
@@ -71,3 +72,30 @@ def test_rows_left_out_change_no_answer(seed):
         full = {(tuple(G), b) for G, b in zip(rows.G, rows.b, strict=True)}
         assert all((tuple(G), b) in full for G, b in zip(kept.G, kept.b, strict=True))
     assert 0 < kept_human_rows < human_rows / 2
+
+
+def test_a_tick_solved_in_one_call_is_each_qp_solved_alone():
+    """``CbfQp.solve_all`` writes each QP's answer to its own robots, the answer
+    ``solve_loaded`` gives that QP alone, and hands on the QPs that need the slack."""
+    params = CbfParams()
+    solver, counts = CbfQp("active_set"), np.zeros(4, dtype=int)
+    for seed in range(12):
+        groups, states, hits, mask, humans, walking, u_nominal, lower, upper = _random_tick(
+            np.random.default_rng(seed), params)
+        u_nominal[:, 0] *= 0.2  # gentler than _random_tick's: most rows can all be met
+        qps = qp_problems(groups, states, hits, mask, humans, walking, None, u_nominal,
+                          lower, upper, params)
+        u = qps.settled.copy()
+        status = solver.solve_all(qps.data, qps.data_start, qps.kept_count, qps.sizes,
+                                  qps.members, qps.group_start, u)
+        for g, group in enumerate(groups):
+            index, counts[status[g]] = list(group), counts[status[g]] + 1
+            if status[g] == SOLVED:
+                np.testing.assert_array_equal(u[index], solver.solve_loaded(qps.loaded(g)).u)
+            else:
+                np.testing.assert_array_equal(u[index], qps.settled[index])
+                assert (status[g] == NOT_LOADED) == (not qps.needs_solver[g]
+                                                     or not qps.finite[g])
+    assert counts[SOLVED] >= 3 and counts[UNMET] >= 3, counts
+    assert CbfQp("clarabel").solve_all(qps.data, qps.data_start, qps.kept_count, qps.sizes,
+                                       qps.members, qps.group_start, u) is None

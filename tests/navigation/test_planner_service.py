@@ -14,7 +14,14 @@ from mrta_drake.control.cluster_cbf_controller import ClusterCbfController
 from mrta_drake.navigation.costmap import Costmap
 from mrta_drake.navigation.grid_planner import GridPlanner
 from mrta_drake.navigation.planner_service import PlannerService, PlannerServiceParams
-from mrta_drake.payloads import PATH_FAILED, PATH_IDLE, PATH_OK, FleetPaths, WaypointTarget
+from mrta_drake.payloads import (
+    PATH_FAILED,
+    PATH_IDLE,
+    PATH_OK,
+    FleetPaths,
+    Relocations,
+    WaypointTarget,
+)
 from mrta_drake.robots.unicycle_robots import UnicycleRobots
 from mrta_drake.world.obstacles import Box, Obstacles
 
@@ -149,6 +156,59 @@ def test_paths_go_around_robots_standing_in_the_way(planner):
     # Switched off (the paper's static map), the standing robots are no obstacle either.
     r0, r1, _ = paths_with(0.0, True, cost_resting_robots=False)
     assert closest(r0, (2.5, 2.0)) < 0.1 and closest(r1, (1.5, 2.0)) < 0.1
+
+
+class SwitchingState(LeafSystem):
+    """Outputs robot state vector ``before`` until ``switch_time`` (s), then ``after``."""
+
+    def __init__(self, before, after, switch_time: float):
+        super().__init__()
+        self.DeclareVectorOutputPort(
+            "state", len(before),
+            lambda context, out: out.SetFromVector(before if context.get_time() < switch_time
+                                                   else after))
+
+
+def test_a_relocated_robot_stands_without_failing_until_its_target_changes():
+    # Regression (the hotel's lift rides): a robot relocated by a lift ride to another
+    # level kept, until its waypoint generator's next tick, the target it had on the level
+    # it left; a re-plan in between failed ("goal unreachable") and was counted. Here two
+    # rooms with no way between them stand for two levels: r0 jumps at 0.22 s from the west
+    # room to the east one (relocation 1), its target moves there at 0.62 s.
+    rooms = Obstacles(boxes=(
+        Box("south", (4.0, 0.05), (8.0, 0.1)), Box("north", (4.0, 3.95), (8.0, 0.1)),
+        Box("west", (0.05, 2.0), (0.1, 4.0)), Box("east", (7.95, 2.0), (0.1, 4.0)),
+        Box("split", (4.0, 2.0), (0.4, 4.0))))
+    west = WaypointTarget("r0", True, current=(3.0, 3.0))
+    east = WaypointTarget("r0", True, current=(7.0, 1.0))
+    builder = DiagramBuilder()
+    service = builder.AddSystem(PlannerService(
+        GridPlanner(Costmap.from_obstacles(rooms, BOUNDS)), ("r0",), replan_rate_hz=2.0,
+        target_check_rate_hz=10.0))
+    state = builder.AddSystem(SwitchingState([1.0, 1.0, 0.0, 0.0], [5.0, 3.0, 0.0, 0.0], 0.22))
+    moved = builder.AddSystem(SwitchingTarget(Relocations((None,)),
+                                              Relocations(((1, (5.0, 3.0, 0.0)),)), 0.22))
+    target = builder.AddSystem(SwitchingTarget(west, east, 0.62))
+    builder.Connect(state.get_output_port(), service.GetInputPort("robot_state"))
+    builder.Connect(moved.get_output_port(), service.GetInputPort("relocations"))
+    builder.Connect(target.get_output_port(), service.get_target_input_port("r0"))
+    simulator = Simulator(builder.Build())
+    context = service.GetMyContextFromRoot(simulator.get_mutable_context())
+
+    def path_at(t):
+        simulator.AdvanceTo(t)
+        paths = service.GetOutputPort("paths").Eval(context)
+        return paths.paths[0], paths.failures
+
+    path, failures = path_at(0.25)
+    assert path.status == PATH_OK and path.planned_at == 0.0
+    # Seen at the next check tick, and again at the periodic re-plan (0.5 s): it stands.
+    for t, planned in ((0.35, 0.3), (0.55, 0.5)):
+        path, failures = path_at(t)
+        assert (path.status, path.planned_at, failures) == (PATH_IDLE, pytest.approx(planned), 0)
+    path, failures = path_at(0.75)
+    assert path.status == PATH_OK and failures == 0
+    np.testing.assert_allclose(path.points[[0, -1]], [(5.0, 3.0), (7.0, 1.0)])
 
 
 def test_from_obstacles_builds_the_costmap_and_planner():

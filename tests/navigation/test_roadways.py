@@ -123,6 +123,22 @@ def test_hospital_navigation_has_every_leg():
                 leg = roadways.leg(a, b)
                 assert len(leg) >= 2 and roadways.leg_length(a, b) > 0
                 np.testing.assert_array_equal(leg[-1], roadways.place(b).tail)
+        # One search for all legs out of a location: where two ways are equally short
+        # (the hospital's corridors make many), possibly the other one.
+        legs = dict(roadways.legs_from(a))
+        assert sorted(legs) == [b for b in ids if b != a]
+        for b, leg in legs.items():
+            np.testing.assert_array_equal(leg[[0, -1]], roadways.leg(a, b)[[0, -1]])
+            assert roadways.route_length(leg) == pytest.approx(roadways.leg_length(a, b),
+                                                               rel=1e-12)
+
+
+def test_legs_from_keep_off_the_lane_past_the_own_queue():
+    config, locations = loop_world()
+    roadways = Roadways(replace(config, single_file=[["N20", "N10"]]), locations)
+    for a in roadways.location_ids:
+        for b, leg in roadways.legs_from(a):
+            np.testing.assert_array_equal(leg, roadways.leg(a, b))
 
 
 def test_single_file_segments_map_their_lanes_both_ways():

@@ -37,6 +37,9 @@ def test_tasks_across_floors_complete_through_the_lifts_and_rerun_identically():
     safety = summary["safety"]
     assert safety["robot_robot_contacts"] == 0 and safety["robot_wall_contacts"] == 0
     assert summary["deadlocks"]["count"] == 0
+    # Regression: a rider re-planned between its relocation and its waypoint generator's next
+    # target was planned back to the berth on the level it left (2 failures here).
+    assert summary["planner_failures"] == 0
     again = simulate(scenario, duration=240.0, plots=False)
     assert np.array_equal(first.robot_states, again.robot_states)
     assert _without_wall_clock(first.events) == _without_wall_clock(again.events)

@@ -154,7 +154,25 @@ def test_a_building_with_several_levels_and_no_lift_between_them_is_one_line(tmp
         load_scenario(tmp_path / "scenario.yaml")
     assert str(info.value) == (
         f"{tmp_path / 'no_lift.building.yaml'}: lifts: no lift joins two levels on lanes of "
-        "graph 0: robots could not leave their level")
+        "graph 0: robots could not leave their level (import one level with --level)")
+
+
+def test_a_level_without_lanes_is_left_out(tmp_path):
+    building = yaml.safe_load(TWO_LEVELS.read_text())
+    building["levels"]["L2"]["lanes"] = []  # drawn, not yet given lanes
+    building["lifts"] = {}
+    path = tmp_path / "drawn.building.yaml"
+    path.write_text(yaml.safe_dump(building))
+    report = import_building(str(path), str(tmp_path / "out"), ImportOptions(robots=2))
+    assert "L2: left out, no lanes of graph 0" in report.lines
+    scenario = load_scenario(tmp_path / "out" / "scenario.yaml")
+    assert scenario.world.level == "L1"
+    assert [loc.name for loc in scenario.locations] == ["l1_desk", "l1_store"]
+    building["levels"]["L1"]["lanes"] = []
+    path.write_text(yaml.safe_dump(building))
+    with pytest.raises(InputError, match=r"drawn.building.yaml: levels: no level has lanes "
+                       r"of graph 0$"):
+        import_building(str(path), str(tmp_path / "none"), ImportOptions(robots=2))
 
 
 def test_too_many_robots_is_one_line():

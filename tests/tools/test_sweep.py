@@ -8,7 +8,6 @@ import sys
 import pytest
 
 from mrta_drake.errors import InputError
-from mrta_drake.stack import blocks
 from mrta_drake.tools.cli import main
 from mrta_drake.tools.sweep import load_sweep, sweep_scenario
 
@@ -151,10 +150,9 @@ register_block("controller", "plugin_go_to_goal", block_type("controller", "go_t
 """
 
 
-def test_plugins_register_kinds_for_the_spec_and_for_every_worker(tmp_path, monkeypatch):
-    # The plugin registers its kind in this process too: on a copy of the controllers'
-    # registry, so later tests (the scenario reference) see the project's kinds only.
-    monkeypatch.setitem(blocks._REGISTRY, "controller", dict(blocks._REGISTRY["controller"]))
+def test_plugins_register_kinds_for_the_spec_and_for_every_worker(tmp_path):
+    # The plugin registers its kind in this process too (on a copy of the registry:
+    # tests/conftest.py).
     (tmp_path / "my_blocks.py").write_text(PLUGIN)
     spec = tmp_path / "spec.yaml"
     spec.write_text(f"""
