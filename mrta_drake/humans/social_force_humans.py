@@ -131,6 +131,8 @@ class SocialForceHumans(LeafSystem):
         self._frozen_radii = frozen_array(self._radii)
         self._speeds = np.array([p.desired_speed for p in self._people], dtype=float)
         self._entry = np.array([p.entry_time for p in self._people], dtype=float)
+        self._late = bool(np.any(self._entry > 0.0))  # else everyone is present from the start
+        self._all_present = np.ones(m)
         self._starts = np.array([p.start for p in self._people], dtype=float).reshape(m, 2)
         self._counts = np.array([len(p.waypoints) for p in self._people], dtype=int)
         self._waypoints = np.zeros((m, max(self._counts, default=1), 2))
@@ -213,6 +215,9 @@ class SocialForceHumans(LeafSystem):
                                               x[5 * m: 6 * m]]).reshape(-1))
 
     def _calc_active(self, context, output):
+        if not self._late:
+            output.SetFromVector(self._all_present)
+            return
         output.SetFromVector((self._state(context)[6 * len(self._names):] > 0.5).astype(float))
 
     # --- update ------------------------------------------------------------------------------
@@ -230,7 +235,7 @@ class SocialForceHumans(LeafSystem):
         out[:] = x
         robots, cos, sin, robot_r = self._robots(context)
         time, m = context.get_time(), len(self._names)
-        if np.any((x[6 * m:] <= 0.5) & (self._entry <= time + 1e-9)):
+        if self._late and np.any((x[6 * m:] <= 0.5) & (self._entry <= time + 1e-9)):
             _enter(time, out, robots, robot_r, self._radii, self._entry, self._starts)
         _step_people(out, robots, cos, sin, robot_r, self._radii, self._speeds, self._counts,
                      self._waypoints, self._obstacles.compiled, self._constants)

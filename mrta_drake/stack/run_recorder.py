@@ -177,6 +177,8 @@ class RunRecorder(LeafSystem):
         self._last_failures = 0
         self._allocator_events = ()
         self._back_offs_seen = 0
+        self._last_time: float | None = None  # the last two samples' times (s)
+        self._previous_time: float | None = None
         self._timeline = None
         self._event_file = None
 
@@ -201,8 +203,9 @@ class RunRecorder(LeafSystem):
 
     def _sample(self, context) -> None:
         t = context.get_time()
-        if self.times and t <= self.times[-1]:
+        if self._last_time is not None and t <= self._last_time:
             return  # the forced publish at the end of a run repeats the last periodic one
+        self._previous_time, self._last_time = self._last_time, t
         if self._out_dir is not None and self._timeline is None:
             self._open_files()
         states = self._ports["robot_state"].Eval(context).reshape(self._n, -1)  # Eval copies
@@ -252,14 +255,15 @@ class RunRecorder(LeafSystem):
         holders = {queue.room: queue.holder for queue in queues.rooms}
         modes = [_IDLE] * self._n  # plain ints: numpy scalars and IntEnum members are slow
         targets = self._targets.values(context)
-        for k, name in enumerate(self.robot_names):
-            stop = progress[k].current_stop
+        segment_waiting = queues.segment_waiting
+        for k, (name, robot, target) in enumerate(zip(self.robot_names, progress, targets,
+                                                      strict=True)):
+            stop = robot.current_stop
             if stop is None:
                 continue
-            if name in queues.segment_waiting:  # holding back for a single-file stretch
+            if name in segment_waiting:  # holding back for a single-file stretch
                 modes[k] = _QUEUE
                 continue
-            target = targets[k]
             if not target.active:
                 continue
             if name in waiting:
@@ -292,7 +296,7 @@ class RunRecorder(LeafSystem):
             for p in plan.plans}})
 
     def _note_progress(self, progresses: tuple[RobotProgress, ...], t: float) -> None:
-        previous = self.times[-2] if len(self.times) > 1 else t
+        previous = t if self._previous_time is None else self._previous_time
         for k, (name, progress) in enumerate(zip(self.robot_names, progresses, strict=True)):
             if progress is self._last_progress[k]:
                 continue  # immutable: nothing new since the last sample
@@ -349,7 +353,7 @@ class RunRecorder(LeafSystem):
             return
         events = tuple(port.Eval(context))
         seen = self._allocator_events
-        if events == seen:
+        if events is seen or events == seen:
             return
         # A growing log gets its new tail noted; anything else is noted whole.
         new = events[len(seen):] if events[:len(seen)] == seen else events
@@ -372,6 +376,8 @@ class RunRecorder(LeafSystem):
         if not port.HasValue(context):
             return
         history = port.Eval(context).history
+        if len(history) == self._back_offs_seen:
+            return  # nothing new (the history only grows)
         for order in history[self._back_offs_seen:]:
             self._event({"time": t, "type": "back_off", "robot": order.robot,
                          "point": list(order.point), "at": order.issued, "until": order.until,

@@ -3,6 +3,7 @@ sample, so an hour-long run's memory grows by its numbers alone (``RunRecorder``
 
 from collections.abc import Sequence
 from dataclasses import fields
+from operator import attrgetter
 
 import numpy as np
 
@@ -54,6 +55,7 @@ class RowLog(Sequence):
 
 _SCALARS = tuple(f.name for f in fields(ControllerTelemetry)
                  if f.name not in ("clusters", "qp_calls"))
+_scalars_of = attrgetter(*_SCALARS)  # a telemetry's scalar fields, in ``_SCALARS`` order
 _INTEGERS = {"failures": int, "stale_commands": int, "leader_disagreement": bool}
 
 
@@ -73,7 +75,7 @@ class TelemetryLog(Sequence):
     def append(self, telemetry: ControllerTelemetry) -> None:
         """Append one sample's telemetry."""
         sample = len(self._scalars)
-        self._scalars.append([getattr(telemetry, name) for name in _SCALARS])
+        self._scalars.append(_scalars_of(telemetry))
         self._clusters.append(self._distinct.setdefault(telemetry.clusters,
                                                         telemetry.clusters))
         for robots, seconds in telemetry.qp_calls:
