@@ -83,6 +83,8 @@ class BuildingNavigationParams:
     # lane, so robots pass it (two 0.22 m robots and 0.26 m between them)
     queue_reach: float = 5.0  # m: slots lie at most this far back beyond the head slot's
     # place; where none fits beside the single-file lanes, they stand on them
+    queue_step: float = 2.0  # m: a slot lies at most this far back along the lanes from the
+    # one before (the queue ends there: robots moving up stay by their slots)
     serve_reach: float = 1.5  # m: a location on a passage is served beside its lanes, at
     # most this far from its vertex
     overflow_spots: int = 5  # waiting spots beyond the tail slot that are checked: the
@@ -99,7 +101,7 @@ class BuildingNavigationParams:
                 raise InputError(None, name, f"must be >= 0, got {getattr(self, name)}")
         require_positive(self, "slot_spacing", "head_gap", "slot_clearance", "parking_distance",
                          "parking_lane_gap", "zone_length", "slot_lane_gap", "queue_reach",
-                         "serve_reach", "overflow_reach", unit=" m")
+                         "queue_step", "serve_reach", "overflow_reach", unit=" m")
 
 
 @dataclass(frozen=True)
@@ -263,6 +265,8 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
                         dtype=float)
     single = {(a, b) for segment in lanes.single_file
               for a in segment.nodes for b in segment.nodes if graph.has_edge(a, b)}
+    single_lanes = np.array([[roadways.nodes[a], roadways.nodes[b]] for a, b in single],
+                            dtype=float).reshape(-1, 2, 2)
     points = [np.asarray(roadways.nodes[lines.vertex_node[i]], dtype=float)
               for i in candidates]
     for k, i in enumerate(candidates):  # on a passage: served beside it where there is room
@@ -270,7 +274,7 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
             points[k] = _beside(points[k], _Aside(segments, points[:k] + points[k + 1:]),
                                 floor_plan, params)
     taken = list(points)
-    locations, moved, dropped = [], 0, 0
+    locations = []
     for location_id, (i, point) in enumerate(zip(candidates, points, strict=True)):
         node = lines.vertex_node[i]
         queue, entry, approach, zone = _queue(graph, node, holding, single, floor_plan,
@@ -280,13 +284,18 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
             entry = []  # from a head slot beside the lanes straight to the point
         parking = [] if zone else _parking(point, segments, floor_plan, taken + queue,
                                            params)
-        overflow, moves, drops = _overflow(queue[-1], roadways.nodes[approach], floor_plan,
-                                           _Aside(segments, taken + queue + parking), params)
-        moved, dropped = moved + moves, dropped + drops
-        taken += queue + parking + overflow
+        taken += queue + parking
         locations.append(LocationConfig(
             id=location_id, name=node, point=_listed(point), queue=queue, entry=entry,
-            exit_node=node, approach_node=approach, parking=parking, overflow=overflow))
+            exit_node=node, approach_node=approach, parking=parking))
+    moved = dropped = 0
+    for k, location in enumerate(locations):  # once every slot and spot is placed
+        overflow, moves, drops = _overflow(location.queue[-1],
+                                           roadways.nodes[location.approach_node], floor_plan,
+                                           _Aside(segments, taken), single_lanes, params)
+        moved, dropped = moved + moves, dropped + drops
+        taken += overflow
+        locations[k] = dataclasses.replace(location, overflow=overflow)
     if moved or dropped:
         notes.append(f"waiting spots beyond the queues too near walls or furniture: {moved} "
                      f"moved, {dropped} dropped")
@@ -388,15 +397,17 @@ def _queue(graph: nx.DiGraph, node: str, holding: set[str], single: set[tuple[st
 def _slots(path, positions, along, head: float, single: set[tuple[str, str]],
            floor_plan: FloorPlan, aside: "_Aside", params: BuildingNavigationParams):
     """Up to ``queue_slots`` slots (``_slot_at``) from ``head`` m back along ``path``,
-    ``slot_spacing`` apart or more, within ``queue_reach`` beyond ``head``; and their
-    distances along ``path``."""
+    ``slot_spacing`` apart or more, within ``queue_reach`` beyond ``head`` and each within
+    ``queue_step`` of the one before (else the queue ends there); and their distances
+    along ``path``."""
     slots, distances = [], []
     end = min(along[-1], head + params.queue_reach)
     for k in range(params.queue_slots):
         distance = head + k * params.slot_spacing
         if distances and distance <= distances[-1]:
             distance = distances[-1] + params.slot_spacing
-        while distance <= end:
+        last = end if not distances else min(end, distances[-1] + params.queue_step)
+        while distance <= last:
             xy = _slot_at(path, positions, along, distance, single, floor_plan,
                           _Aside(aside.lanes, aside.taken + slots), params)
             if xy is not None:
@@ -585,7 +596,7 @@ def _parking(point: np.ndarray, lanes: np.ndarray, floor_plan: FloorPlan, taken:
     return chosen
 
 
-def _overflow(tail, approach, floor_plan: FloorPlan, aside: _Aside,
+def _overflow(tail, approach, floor_plan: FloorPlan, aside: _Aside, single: np.ndarray,
               params: BuildingNavigationParams) -> tuple[list[list[float]], int, int]:
     """Where robots beyond the last queue slot wait, and how many spots were moved and
     dropped: [] where the waypoint generator's own spots (``WaypointPolicy._queue_spot``:
@@ -608,9 +619,15 @@ def _overflow(tail, approach, floor_plan: FloorPlan, aside: _Aside,
                                for k in range(1, params.overflow_spots + 1)))
     spots = [tail + (approach - tail) * (back / length) for back in backs]
     sd = floor_plan.obstacles.signed_distance
-    near = [back < length and sd([spot])[0] < params.slot_clearance
+
+    def in_single_file(xy) -> bool:
+        return bool(len(single)) and _off_lanes(np.asarray(xy, dtype=float).reshape(-1, 2),
+                                                single)[0] < params.slot_lane_gap - 1e-9
+
+    near = [back < length and (sd([spot])[0] < params.slot_clearance or in_single_file(spot))
             for spot, back in zip(spots, backs, strict=True)]
-    if not any(near):
+    keep_approach = not in_single_file(approach)
+    if not any(near) and (keep_approach or backs[-1] < length):
         return [], 0, 0
     radii = np.arange(0.05, params.overflow_reach + 1e-9, 0.05)
     angles = np.arange(32) * (2 * math.pi / 32)
@@ -620,7 +637,8 @@ def _overflow(tail, approach, floor_plan: FloorPlan, aside: _Aside,
     moved = 0
     for spot, back, too_near in zip(spots, backs, near, strict=True):
         if back >= length:
-            chosen.append(_listed(spot))
+            if keep_approach:
+                chosen.append(_listed(spot))
             continue
         taken = np.asarray(aside.taken + chosen + [list(tail)] + [list(approach)] * int(
             backs[-1] >= length), dtype=float).reshape(-1, 2)
@@ -637,7 +655,7 @@ def _overflow(tail, approach, floor_plan: FloorPlan, aside: _Aside,
                 moved += int(too_near)
                 break
     dropped = len(spots) - len(chosen)
-    return chosen or [_listed(approach)], moved, dropped
+    return chosen or [_listed(approach if keep_approach else tail)], moved, dropped
 
 
 def _listed(xy) -> list[float]:
