@@ -83,6 +83,8 @@ class BuildingNavigationParams:
     # lane, so robots pass it (two 0.22 m robots and 0.26 m between them)
     queue_reach: float = 5.0  # m: slots lie at most this far back beyond the head slot's
     # place; where none fits beside the single-file lanes, they stand on them
+    way_gap: float = 0.6  # m: a slot's way to its lane passes this far from the points,
+    # slots and spots placed before (the controller's robot safety distance)
     queue_step: float = 2.0  # m: a slot lies at most this far back along the lanes from the
     # one before (the queue ends there: robots moving up stay by their slots)
     serve_reach: float = 1.5  # m: a location on a passage is served beside its lanes, at
@@ -101,7 +103,7 @@ class BuildingNavigationParams:
                 raise InputError(None, name, f"must be >= 0, got {getattr(self, name)}")
         require_positive(self, "slot_spacing", "head_gap", "slot_clearance", "parking_distance",
                          "parking_lane_gap", "zone_length", "slot_lane_gap", "queue_reach",
-                         "queue_step", "serve_reach", "overflow_reach", unit=" m")
+                         "way_gap", "queue_step", "serve_reach", "overflow_reach", unit=" m")
 
 
 @dataclass(frozen=True)
@@ -387,8 +389,13 @@ def _queue(graph: nx.DiGraph, node: str, holding: set[str], single: set[tuple[st
     if not slots:  # the lanes end right here: one slot between the point and its neighbour
         distances = [0.5 * along[-1]]
         slots = [_at(positions, along, distances[0])]
-    beyond = int(np.searchsorted(along, distances[-1], side="right"))
-    approach = path[min(beyond, len(path) - 1)]
+    beyond = min(int(np.searchsorted(along, distances[-1], side="right")), len(path) - 1)
+    before = beyond - 1  # the node the tail slot lies just past, beside a single-file lane
+    if (before >= 1 and distances[-1] - along[before] <= 0.5 * params.slot_spacing
+            and (path[beyond], path[before]) in single
+            and _off_lanes(np.array(slots[-1:]), aside.lanes)[0] >= params.slot_lane_gap - 0.01):
+        beyond = before  # robots come to it from either side, not past it and back
+    approach = path[beyond]
     entry = [_listed(positions[k]) for k in range(1, len(path))
              if along[k] < distances[0]][::-1]
     return [_listed(s) for s in slots], entry, approach, zone
@@ -461,7 +468,7 @@ def _slot_at(path, positions, along, distance: float, single: set[tuple[str, str
     ``slot_clearance`` from walls; beside a single-file lane the nearest spot at least
     ``slot_lane_gap`` from every lane (up to 1.5 m more), in sight of the lane, clear of
     walls and ``slot_spacing`` from ``aside.taken`` (points, slots and spots placed
-    before)."""
+    before), whose way to the lane passes ``way_gap`` from them (``_way_clear``)."""
     on = _at(positions, along, distance)
     sd = floor_plan.obstacles.signed_distance
     k = min(int(np.searchsorted(along, distance, side="right")) - 1, len(path) - 2)
@@ -480,9 +487,19 @@ def _slot_at(path, positions, along, distance: float, single: set[tuple[str, str
         ok &= gaps.min(axis=1) >= params.slot_spacing - 1e-9
     for spot in spots[ok]:
         line = on + np.linspace(0.0, 1.0, 12)[:, None] * (spot - on)
-        if sd(line).min() >= params.slot_clearance - 0.2:
+        if sd(line).min() >= params.slot_clearance - 0.2 and _way_clear(
+                spot, on, taken, params.way_gap):
             return spot
     return None
+
+
+def _way_clear(spot: np.ndarray, on: np.ndarray, taken: np.ndarray, gap: float) -> bool:
+    """Whether a robot's way from ``spot`` to ``on`` (its lane) passes ``gap`` m from every
+    place ``taken`` (k, 2): a robot waiting there would block it (the office: patrol_A1's
+    slot in a dead-end aisle behind coe's, the robot granted patrol_A1 boxed in by the one
+    waiting for coe)."""
+    return not len(taken) or bool(_off_lanes(taken, np.array([[on, spot]])).min()
+                                  >= gap - 1e-9)
 
 
 def _door_path(graph: nx.DiGraph, node: str, single: set[tuple[str, str]],
@@ -602,15 +619,21 @@ def _overflow(tail, approach, floor_plan: FloorPlan, aside: _Aside, single: np.n
     dropped: [] where the waypoint generator's own spots (``WaypointPolicy._queue_spot``:
     ``slot_spacing`` apart from the ``tail`` slot towards the ``approach`` node, at most as
     far as it; the first ``overflow_spots``) keep ``slot_clearance`` from obstacles (walls
-    and furniture), else those spots: each one too near an obstacle moved to the nearest
-    place within ``overflow_reach`` that keeps it, ``slot_lane_gap`` from every lane and
-    in sight of the tail, or dropped where there is none; a spot nearer than
-    ``slot_spacing`` to the tail, the approach node, ``aside.taken`` or the spots before is
-    dropped too. The approach node itself, on the lanes, is kept as it is (the last spot
-    where the spots reach it), and is the one spot where all others were dropped. The
-    office's coe: its one slot stands in an aisle beside the corridor, a cubicle between
-    it and the approach node; the first two spots on that line lay 0.34 and 0.17 m inside
-    the cubicle, goals the planner cannot reach."""
+    and furniture) and ``slot_lane_gap`` from the lanes of the single-file segments
+    (``single``, (m, 2, 2)), else those spots: each one too near either moved to the
+    nearest place within ``overflow_reach`` that keeps ``slot_clearance`` from obstacles,
+    ``slot_lane_gap`` from every lane and is in sight of the tail, or dropped where there
+    is none; a spot nearer than ``slot_spacing`` to the tail, the approach node,
+    ``aside.taken`` or the spots before is dropped too. The approach node itself, on the
+    lanes, is kept as it is (the last spot where the spots reach it) unless it is on a
+    single-file segment (then it is moved as the others), and is the one spot where all
+    others were dropped; where it is on such a segment, the tail slot is (robots beyond
+    it wait behind the robot there, not in the segment). The office's coe: its one slot
+    stands in an aisle beside the corridor, a cubicle between it and the approach node;
+    the first two spots on that line lay 0.34 and 0.17 m inside the cubicle, goals the
+    planner cannot reach. Its approach node, the last spot, stood in the corridor's
+    single-file segment: a robot waiting there held it from the robot granted the room
+    (seed 6, patrol_A1's third robot at v61, 296-337 s)."""
     tail, approach = np.asarray(tail, dtype=float), np.asarray(approach, dtype=float)
     length = float(np.linalg.norm(approach - tail))
     if length == 0.0 or params.overflow_spots == 0:
@@ -630,16 +653,16 @@ def _overflow(tail, approach, floor_plan: FloorPlan, aside: _Aside, single: np.n
     if not any(near) and (keep_approach or backs[-1] < length):
         return [], 0, 0
     radii = np.arange(0.05, params.overflow_reach + 1e-9, 0.05)
-    angles = np.arange(32) * (2 * math.pi / 32)
+    angles = np.arange(64) * (2 * math.pi / 64)
     ring = np.stack([np.outer(radii, np.cos(angles)), np.outer(radii, np.sin(angles))],
                     axis=-1).reshape(-1, 2)
     chosen: list[list[float]] = []
     moved = 0
     for spot, back, too_near in zip(spots, backs, near, strict=True):
-        if back >= length:
-            if keep_approach:
-                chosen.append(_listed(spot))
+        if back >= length and keep_approach:
+            chosen.append(_listed(spot))
             continue
+        too_near = too_near or back >= length  # the approach node in a single-file segment
         taken = np.asarray(aside.taken + chosen + [list(tail)] + [list(approach)] * int(
             backs[-1] >= length), dtype=float).reshape(-1, 2)
         around = spot + ring if too_near else spot[None]

@@ -311,3 +311,20 @@ def test_queue_slots_follow_each_other_within_a_queue_step():
             assert (gaps <= PARAMS.queue_step + 1e-9).all(), (name, location.name)
     _, _, navigation = derived("passage", "ground", BuildingNavigationParams(queue_step=0.5))
     assert all(len(location.queue) == 1 for location in navigation.locations)
+
+
+def test_a_queue_slot_is_not_behind_another_on_its_way_to_the_lanes():
+    # b's queue goes back east along the corridor, which has room beside its lane only in
+    # the dead-end aisle, where a's slot stands already (without waiting spots beyond a's
+    # slot, which would fill the aisle first). A slot for b deeper in the aisle would have
+    # the robot granted b boxed in by the one waiting for a (the office's patrol_A1 and
+    # coe). Its way to the lane passes way_gap from a's slot, or it is not there.
+    params = BuildingNavigationParams(overflow_spots=0)
+    _, _, navigation = derived("dead_end_aisle", "ground", params)
+    a, b = navigation.locations[:2]
+    assert (a.name, b.name) == ("a", "b")
+    assert 9.0 < a.queue[0][0] < 10.2 and a.queue[0][1] < -0.5  # in the aisle
+    for slot in b.queue:
+        foot = np.array([slot[0], 0.0])  # on the corridor's lane, y = 0
+        way = np.linspace(np.array(slot), foot, 50)
+        assert np.linalg.norm(way - np.array(a.queue[0]), axis=1).min() >= params.way_gap - 1e-3
