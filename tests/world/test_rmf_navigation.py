@@ -328,3 +328,13 @@ def test_a_queue_slot_is_not_behind_another_on_its_way_to_the_lanes():
         foot = np.array([slot[0], 0.0])  # on the corridor's lane, y = 0
         way = np.linspace(np.array(slot), foot, 50)
         assert np.linalg.norm(way - np.array(a.queue[0]), axis=1).min() >= params.way_gap - 1e-3
+
+
+def test_robots_come_to_a_slot_beside_a_single_file_lane_from_the_node_just_before_it():
+    # a's slot stands in the aisle, 0.1 m past the lane's node at x 9.8 (back from a). The
+    # approach node is that node, not the next one back (b, at x 6): robots coming from
+    # the east would otherwise drive past the aisle to b and back along the corridor.
+    _, _, navigation = derived("dead_end_aisle", "ground")
+    a = navigation.locations[0]
+    assert a.name == "a" and len(a.queue) == 1
+    assert list(navigation.roadways.nodes[a.approach_node]) == [9.8, 0.0]
