@@ -21,18 +21,23 @@ locations with their queues, entries and parking spots.
   length), then ``queue_slots`` slots ``slot_spacing`` m apart, continuing along the lanes
   feeding it; a slot nearer a wall than ``slot_clearance`` moves on back. By a
   single-file lane a slot stands aside, ``slot_lane_gap`` from every lane (a robot waiting
-  on it would block everyone driving through), and moves on back where there is no room
-  aside. The node beyond the tail is the approach node, the point's own node the exit
-  node, the nodes between the head slot and the point the entry. On offset lanes the queue
-  lies along the lane arriving, robots leave by the other.
+  on it would block everyone driving through), its way to the lane ``way_gap`` from the
+  places before, and moves on back where there is no room aside; each slot at most
+  ``queue_step`` back from the one before, else the queue ends. The node beyond the tail
+  is the approach node (the node just before it where the tail stands beside a
+  single-file lane within half a spacing past it), the point's own node the exit node, the
+  nodes between the head slot and the point the entry. On offset lanes the queue lies
+  along the lane arriving, robots leave by the other.
 - **Parking**: up to ``parking_spots`` spots ``parking_distance`` m from the point, clear of
   walls by ``slot_clearance``, at least ``parking_lane_gap`` m from every lane,
   ``slot_spacing`` from the points, slots and spots placed before, and in line of sight of
   the point.
 - **Waiting spots beyond the queue** (``overflow``): where those of the waypoint generator
   (1 m apart from the tail slot towards the approach node) come nearer than
-  ``slot_clearance`` to a wall or a piece of furniture, the location lists its own: those
-  spots, each too near one moved off the lanes or dropped (``_overflow``).
+  ``slot_clearance`` to a wall or a piece of furniture or ``slot_lane_gap`` to a
+  single-file lane, or end on a single-file segment, the location lists its own: those
+  spots, each too near one moved off the lanes or dropped, else the tail slot
+  (``_overflow``); placed after every location's slots and parking spots.
 
 Metres, world frame (x east, y north).
 """
@@ -299,8 +304,8 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
         taken += overflow
         locations[k] = dataclasses.replace(location, overflow=overflow)
     if moved or dropped:
-        notes.append(f"waiting spots beyond the queues too near walls or furniture: {moved} "
-                     f"moved, {dropped} dropped")
+        notes.append(f"waiting spots beyond the queues too near walls, furniture or "
+                     f"single-file lanes: {moved} moved, {dropped} dropped")
     return BuildingNavigation(roadways, locations, lines, lanes.single_file, notes)
 
 

@@ -272,7 +272,7 @@ def test_waiting_spots_beyond_a_queue_keep_clear_of_furniture():
     placed = np.vstack([tail, spots])
     gaps = np.linalg.norm(placed[:, None] - placed[None], axis=2)
     assert gaps[np.triu_indices(len(placed), 1)].min() >= PARAMS.slot_spacing - 1e-3
-    assert any(note.startswith("waiting spots beyond the queues too near walls or furniture")
+    assert any(note.startswith("waiting spots beyond the queues too near walls, furniture")
                for note in navigation.notes)
     # Where the line is clear, no spots are written: the waypoint generator's own apply.
     # (reception's line ends on the node where lab's single-file door begins.)
