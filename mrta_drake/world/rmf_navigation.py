@@ -88,8 +88,8 @@ class BuildingNavigationParams:
     # lane, so robots pass it (two 0.22 m robots and 0.26 m between them)
     queue_reach: float = 5.0  # m: slots lie at most this far back beyond the head slot's
     # place; where none fits beside the single-file lanes, they stand on them
-    way_gap: float = 0.6  # m: a slot's way to its lane passes this far from the points,
-    # slots and spots placed before (the controller's robot safety distance)
+    way_gap: float = 0.45  # m: a slot's way to its lane passes this far from the points,
+    # slots and spots placed before (two 0.22 m robots' bodies clear of each other)
     queue_step: float = 2.0  # m: a slot lies at most this far back along the lanes from the
     # one before (the queue ends there: robots moving up stay by their slots)
     serve_reach: float = 1.5  # m: a location on a passage is served beside its lanes, at
