@@ -272,8 +272,6 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
                         dtype=float)
     single = {(a, b) for segment in lanes.single_file
               for a in segment.nodes for b in segment.nodes if graph.has_edge(a, b)}
-    single_lanes = np.array([[roadways.nodes[a], roadways.nodes[b]] for a, b in single],
-                            dtype=float).reshape(-1, 2, 2)
     points = [np.asarray(roadways.nodes[lines.vertex_node[i]], dtype=float)
               for i in candidates]
     for k, i in enumerate(candidates):  # on a passage: served beside it where there is room
@@ -281,7 +279,7 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
             points[k] = _beside(points[k], _Aside(segments, points[:k] + points[k + 1:]),
                                 floor_plan, params)
     taken = list(points)
-    locations = []
+    locations, moved, dropped = [], 0, 0
     for location_id, (i, point) in enumerate(zip(candidates, points, strict=True)):
         node = lines.vertex_node[i]
         queue, entry, approach, zone = _queue(graph, node, holding, single, floor_plan,
@@ -291,21 +289,16 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
             entry = []  # from a head slot beside the lanes straight to the point
         parking = [] if zone else _parking(point, segments, floor_plan, taken + queue,
                                            params)
-        taken += queue + parking
+        overflow, moves, drops = _overflow(queue[-1], roadways.nodes[approach], floor_plan,
+                                           _Aside(segments, taken + queue + parking), params)
+        moved, dropped = moved + moves, dropped + drops
+        taken += queue + parking + overflow
         locations.append(LocationConfig(
             id=location_id, name=node, point=_listed(point), queue=queue, entry=entry,
-            exit_node=node, approach_node=approach, parking=parking))
-    moved = dropped = 0
-    for k, location in enumerate(locations):  # once every slot and spot is placed
-        overflow, moves, drops = _overflow(location.queue[-1],
-                                           roadways.nodes[location.approach_node], floor_plan,
-                                           _Aside(segments, taken), single_lanes, params)
-        moved, dropped = moved + moves, dropped + drops
-        taken += overflow
-        locations[k] = dataclasses.replace(location, overflow=overflow)
+            exit_node=node, approach_node=approach, parking=parking, overflow=overflow))
     if moved or dropped:
-        notes.append(f"waiting spots beyond the queues too near walls, furniture or "
-                     f"single-file lanes: {moved} moved, {dropped} dropped")
+        notes.append(f"waiting spots beyond the queues too near walls or furniture: {moved} "
+                     f"moved, {dropped} dropped")
     return BuildingNavigation(roadways, locations, lines, lanes.single_file, notes)
 
 
@@ -618,27 +611,21 @@ def _parking(point: np.ndarray, lanes: np.ndarray, floor_plan: FloorPlan, taken:
     return chosen
 
 
-def _overflow(tail, approach, floor_plan: FloorPlan, aside: _Aside, single: np.ndarray,
+def _overflow(tail, approach, floor_plan: FloorPlan, aside: _Aside,
               params: BuildingNavigationParams) -> tuple[list[list[float]], int, int]:
     """Where robots beyond the last queue slot wait, and how many spots were moved and
     dropped: [] where the waypoint generator's own spots (``WaypointPolicy._queue_spot``:
     ``slot_spacing`` apart from the ``tail`` slot towards the ``approach`` node, at most as
     far as it; the first ``overflow_spots``) keep ``slot_clearance`` from obstacles (walls
-    and furniture) and ``slot_lane_gap`` from the lanes of the single-file segments
-    (``single``, (m, 2, 2)), else those spots: each one too near either moved to the
-    nearest place within ``overflow_reach`` that keeps ``slot_clearance`` from obstacles,
-    ``slot_lane_gap`` from every lane and is in sight of the tail, or dropped where there
-    is none; a spot nearer than ``slot_spacing`` to the tail, the approach node,
-    ``aside.taken`` or the spots before is dropped too. The approach node itself, on the
-    lanes, is kept as it is (the last spot where the spots reach it) unless it is on a
-    single-file segment (then it is moved as the others), and is the one spot where all
-    others were dropped; where it is on such a segment, the tail slot is (robots beyond
-    it wait behind the robot there, not in the segment). The office's coe: its one slot
-    stands in an aisle beside the corridor, a cubicle between it and the approach node;
-    the first two spots on that line lay 0.34 and 0.17 m inside the cubicle, goals the
-    planner cannot reach. Its approach node, the last spot, stood in the corridor's
-    single-file segment: a robot waiting there held it from the robot granted the room
-    (seed 6, patrol_A1's third robot at v61, 296-337 s)."""
+    and furniture), else those spots: each one too near an obstacle moved to the nearest
+    place within ``overflow_reach`` that keeps it, ``slot_lane_gap`` from every lane and
+    in sight of the tail, or dropped where there is none; a spot nearer than
+    ``slot_spacing`` to the tail, the approach node, ``aside.taken`` or the spots before is
+    dropped too. The approach node itself, on the lanes, is kept as it is (the last spot
+    where the spots reach it), and is the one spot where all others were dropped. The
+    office's coe: its one slot stands in an aisle beside the corridor, a cubicle between
+    it and the approach node; the first two spots on that line lay 0.34 and 0.17 m inside
+    the cubicle, goals the planner cannot reach."""
     tail, approach = np.asarray(tail, dtype=float), np.asarray(approach, dtype=float)
     length = float(np.linalg.norm(approach - tail))
     if length == 0.0 or params.overflow_spots == 0:
@@ -647,27 +634,20 @@ def _overflow(tail, approach, floor_plan: FloorPlan, aside: _Aside, single: np.n
                                for k in range(1, params.overflow_spots + 1)))
     spots = [tail + (approach - tail) * (back / length) for back in backs]
     sd = floor_plan.obstacles.signed_distance
-
-    def in_single_file(xy) -> bool:
-        return bool(len(single)) and _off_lanes(np.asarray(xy, dtype=float).reshape(-1, 2),
-                                                single)[0] < params.slot_lane_gap - 1e-9
-
-    near = [back < length and (sd([spot])[0] < params.slot_clearance or in_single_file(spot))
+    near = [back < length and sd([spot])[0] < params.slot_clearance
             for spot, back in zip(spots, backs, strict=True)]
-    keep_approach = not in_single_file(approach)
-    if not any(near) and (keep_approach or backs[-1] < length):
+    if not any(near):
         return [], 0, 0
     radii = np.arange(0.05, params.overflow_reach + 1e-9, 0.05)
-    angles = np.arange(64) * (2 * math.pi / 64)
+    angles = np.arange(32) * (2 * math.pi / 32)
     ring = np.stack([np.outer(radii, np.cos(angles)), np.outer(radii, np.sin(angles))],
                     axis=-1).reshape(-1, 2)
     chosen: list[list[float]] = []
     moved = 0
     for spot, back, too_near in zip(spots, backs, near, strict=True):
-        if back >= length and keep_approach:
+        if back >= length:
             chosen.append(_listed(spot))
             continue
-        too_near = too_near or back >= length  # the approach node in a single-file segment
         taken = np.asarray(aside.taken + chosen + [list(tail)] + [list(approach)] * int(
             backs[-1] >= length), dtype=float).reshape(-1, 2)
         around = spot + ring if too_near else spot[None]
@@ -683,7 +663,7 @@ def _overflow(tail, approach, floor_plan: FloorPlan, aside: _Aside, single: np.n
                 moved += int(too_near)
                 break
     dropped = len(spots) - len(chosen)
-    return chosen or [_listed(approach if keep_approach else tail)], moved, dropped
+    return chosen or [_listed(approach)], moved, dropped
 
 
 def _listed(xy) -> list[float]:
