@@ -7,7 +7,7 @@ import pytest
 
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.roadways import Roadways
-from mrta_drake.navigation.single_file import SingleFileParams, stands_in
+from mrta_drake.navigation.single_file import SingleFileParams
 from mrta_drake.world.obstacles import Obstacles
 from mrta_drake.world.rmf_building import load_building
 from mrta_drake.world.rmf_navigation import (
@@ -252,9 +252,8 @@ def test_the_roadways_carry_their_single_file_segments():
 def test_waiting_spots_beyond_a_queue_keep_clear_of_furniture():
     # printer's one slot stands in an aisle between desks; the waypoint generator's own
     # spots beyond it, 1 m apart on the line to the approach node, start inside a desk.
-    # The spots written instead keep clear of walls and furniture, off the lanes and 1 m
-    # apart; the approach node, where those spots end, is on the corridor's single-file
-    # lane (a robot waiting there would stand in the corridor): no spot.
+    # The spots written instead keep clear of walls and furniture, off the lanes, 1 m
+    # apart, and end on the approach node (which is where those spots end too).
     _, floor_plan, navigation = derived("aisle", "ground")
     printer = navigation.locations[0]
     assert printer.name == "printer" and len(printer.queue) == 1
@@ -266,37 +265,17 @@ def test_waiting_spots_beyond_a_queue_keep_clear_of_furniture():
                                 if b.name.startswith("desk_")))
     assert furniture.signed_distance([line])[0] < 0.0
     spots = np.array(printer.overflow)
-    assert len(spots) and not np.isclose(spots, approach).all(axis=1).any()
-    assert floor_plan.obstacles.signed_distance(spots).min() >= PARAMS.slot_clearance
-    assert (_off_lanes(navigation, spots) >= PARAMS.slot_lane_gap - 1e-3).all()
+    assert np.allclose(spots[-1], approach)
+    assert floor_plan.obstacles.signed_distance(spots[:-1]).min() >= PARAMS.slot_clearance
+    assert (_off_lanes(navigation, spots[:-1]) >= PARAMS.slot_lane_gap - 1e-3).all()
     placed = np.vstack([tail, spots])
     gaps = np.linalg.norm(placed[:, None] - placed[None], axis=2)
     assert gaps[np.triu_indices(len(placed), 1)].min() >= PARAMS.slot_spacing - 1e-3
-    assert any(note.startswith("waiting spots beyond the queues too near walls, furniture")
+    assert any(note.startswith("waiting spots beyond the queues too near walls or furniture")
                for note in navigation.notes)
     # Where the line is clear, no spots are written: the waypoint generator's own apply.
-    # (reception's line ends on the node where lab's single-file door begins.)
     _, floor_plan, navigation = derived("one_level", "L1")
-    assert [bool(location.overflow) for location in navigation.locations] == [
-        False, False, True, False]
-
-
-def test_waiting_spots_beyond_a_queue_keep_off_single_file_lanes():
-    # desk's slot stands beside the passage's corridor, a single-file segment; the
-    # waypoint generator's spots beyond it, on the line to the approach node, lie on the
-    # corridor's lane (its node the last), where a robot waiting would stand in the
-    # segment and hold it from the robot the room is granted to. Nothing fits beside the
-    # corridor: robots beyond the slot wait at it (behind the robot there), not in the
-    # corridor.
-    _, _, navigation = derived("passage", "ground")
-    desk = navigation.locations[0]
-    assert desk.name == "desk" and len(desk.queue) == 1
-    assert desk.overflow == [desk.queue[-1]]
-    roadways = Roadways(navigation.roadways, navigation.locations)
-    for location in navigation.locations:
-        for spot in location.overflow:
-            assert spot == location.queue[-1] or not stands_in(
-                roadways, spot, SingleFileParams(stand_distance=PARAMS.slot_lane_gap - 1e-3))
+    assert all(not location.overflow for location in navigation.locations)
 
 
 def test_queue_slots_follow_each_other_within_a_queue_step():
