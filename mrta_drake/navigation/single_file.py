@@ -81,32 +81,10 @@ def _hop_segment(roadways: Roadways, a, b, c) -> tuple[int, bool] | None:
                  for n in roadways.graph.successors(start)]
         gap, n = min(lanes, key=lambda lane: lane[0], default=(math.inf, None))
         return roadways.segment_of(a, roadways.node_position(n)) if gap <= _BESIDE else None
-    if roadways.node_at(b) is None and (alongside := _beside_both(roadways, a, b)) is not None:
-        return alongside
     if c is not None and (onward := roadways.segment_of(b, c)) is not None:
         return onward
     near = _near(roadways, b, 1e-3)
     return (near[0], True) if near else None
-
-
-def _beside_both(roadways: Roadways, a, b) -> tuple[int, bool] | None:
-    """The segment beside whose lanes both spots ``a`` and ``b`` (off the lanes, within
-    ``_BESIDE``) lie, the way of its lane beside ``a`` that heads most towards ``b``; or
-    None. A hop between two such spots (queue slots beside a single-file corridor, a robot
-    granted the room driving from one to the next) drives that corridor: the office's
-    pantry, whose slots stood 4 m apart beside segment 6, its holder driving between them
-    unasked met a robot driving the segment head-on (seed 4, 310 s)."""
-    hop = (b[0] - a[0], b[1] - a[1])
-    best, found = 0.0, None
-    for k, start, end in _segment_lanes(roadways):
-        if _to_lane(a, start, end) > _BESIDE:
-            continue
-        heading = ((end[0] - start[0]) * hop[0] + (end[1] - start[1]) * hop[1]) / max(
-            math.dist(start, end), 1e-9)
-        if heading > best and any(_to_lane(b, s, e) <= _BESIDE
-                                  for j, s, e in _segment_lanes(roadways) if j == k):
-            best, found = heading, roadways.segment_of(start, end)
-    return found
 
 
 def _to_lane(xy, a, b) -> float:

@@ -21,23 +21,18 @@ locations with their queues, entries and parking spots.
   length), then ``queue_slots`` slots ``slot_spacing`` m apart, continuing along the lanes
   feeding it; a slot nearer a wall than ``slot_clearance`` moves on back. By a
   single-file lane a slot stands aside, ``slot_lane_gap`` from every lane (a robot waiting
-  on it would block everyone driving through), its way to the lane ``way_gap`` from the
-  places before, and moves on back where there is no room aside; each slot at most
-  ``queue_step`` back from the one before, else the queue ends. The node beyond the tail
-  is the approach node (the node just before it where the tail stands beside a
-  single-file lane within half a spacing past it), the point's own node the exit node, the
-  nodes between the head slot and the point the entry. On offset lanes the queue lies
-  along the lane arriving, robots leave by the other.
+  on it would block everyone driving through), and moves on back where there is no room
+  aside. The node beyond the tail is the approach node, the point's own node the exit
+  node, the nodes between the head slot and the point the entry. On offset lanes the queue
+  lies along the lane arriving, robots leave by the other.
 - **Parking**: up to ``parking_spots`` spots ``parking_distance`` m from the point, clear of
   walls by ``slot_clearance``, at least ``parking_lane_gap`` m from every lane,
   ``slot_spacing`` from the points, slots and spots placed before, and in line of sight of
   the point.
 - **Waiting spots beyond the queue** (``overflow``): where those of the waypoint generator
   (1 m apart from the tail slot towards the approach node) come nearer than
-  ``slot_clearance`` to a wall or a piece of furniture or ``slot_lane_gap`` to a
-  single-file lane, or end on a single-file segment, the location lists its own: those
-  spots, each too near one moved off the lanes or dropped, else the tail slot
-  (``_overflow``); placed after every location's slots and parking spots.
+  ``slot_clearance`` to a wall or a piece of furniture, the location lists its own: those
+  spots, each too near one moved off the lanes or dropped (``_overflow``).
 
 Metres, world frame (x east, y north).
 """
@@ -88,10 +83,6 @@ class BuildingNavigationParams:
     # lane, so robots pass it (two 0.22 m robots and 0.26 m between them)
     queue_reach: float = 5.0  # m: slots lie at most this far back beyond the head slot's
     # place; where none fits beside the single-file lanes, they stand on them
-    way_gap: float = 0.45  # m: a slot's way to its lane passes this far from the points,
-    # slots and spots placed before (two 0.22 m robots' bodies clear of each other)
-    queue_step: float = 2.0  # m: a slot lies at most this far back along the lanes from the
-    # one before (the queue ends there: robots moving up stay by their slots)
     serve_reach: float = 1.5  # m: a location on a passage is served beside its lanes, at
     # most this far from its vertex
     overflow_spots: int = 5  # waiting spots beyond the tail slot that are checked: the
@@ -108,7 +99,7 @@ class BuildingNavigationParams:
                 raise InputError(None, name, f"must be >= 0, got {getattr(self, name)}")
         require_positive(self, "slot_spacing", "head_gap", "slot_clearance", "parking_distance",
                          "parking_lane_gap", "zone_length", "slot_lane_gap", "queue_reach",
-                         "way_gap", "queue_step", "serve_reach", "overflow_reach", unit=" m")
+                         "serve_reach", "overflow_reach", unit=" m")
 
 
 @dataclass(frozen=True)
@@ -387,13 +378,8 @@ def _queue(graph: nx.DiGraph, node: str, holding: set[str], single: set[tuple[st
     if not slots:  # the lanes end right here: one slot between the point and its neighbour
         distances = [0.5 * along[-1]]
         slots = [_at(positions, along, distances[0])]
-    beyond = min(int(np.searchsorted(along, distances[-1], side="right")), len(path) - 1)
-    before = beyond - 1  # the node the tail slot lies just past, beside a single-file lane
-    if (before >= 1 and distances[-1] - along[before] <= 0.5 * params.slot_spacing
-            and (path[beyond], path[before]) in single
-            and _off_lanes(np.array(slots[-1:]), aside.lanes)[0] >= params.slot_lane_gap - 0.01):
-        beyond = before  # robots come to it from either side, not past it and back
-    approach = path[beyond]
+    beyond = int(np.searchsorted(along, distances[-1], side="right"))
+    approach = path[min(beyond, len(path) - 1)]
     entry = [_listed(positions[k]) for k in range(1, len(path))
              if along[k] < distances[0]][::-1]
     return [_listed(s) for s in slots], entry, approach, zone
@@ -402,17 +388,15 @@ def _queue(graph: nx.DiGraph, node: str, holding: set[str], single: set[tuple[st
 def _slots(path, positions, along, head: float, single: set[tuple[str, str]],
            floor_plan: FloorPlan, aside: "_Aside", params: BuildingNavigationParams):
     """Up to ``queue_slots`` slots (``_slot_at``) from ``head`` m back along ``path``,
-    ``slot_spacing`` apart or more, within ``queue_reach`` beyond ``head`` and each within
-    ``queue_step`` of the one before (else the queue ends there); and their distances
-    along ``path``."""
+    ``slot_spacing`` apart or more, within ``queue_reach`` beyond ``head``; and their
+    distances along ``path``."""
     slots, distances = [], []
     end = min(along[-1], head + params.queue_reach)
     for k in range(params.queue_slots):
         distance = head + k * params.slot_spacing
         if distances and distance <= distances[-1]:
             distance = distances[-1] + params.slot_spacing
-        last = end if not distances else min(end, distances[-1] + params.queue_step)
-        while distance <= last:
+        while distance <= end:
             xy = _slot_at(path, positions, along, distance, single, floor_plan,
                           _Aside(aside.lanes, aside.taken + slots), params)
             if xy is not None:
@@ -466,7 +450,7 @@ def _slot_at(path, positions, along, distance: float, single: set[tuple[str, str
     ``slot_clearance`` from walls; beside a single-file lane the nearest spot at least
     ``slot_lane_gap`` from every lane (up to 1.5 m more), in sight of the lane, clear of
     walls and ``slot_spacing`` from ``aside.taken`` (points, slots and spots placed
-    before), whose way to the lane passes ``way_gap`` from them (``_way_clear``)."""
+    before)."""
     on = _at(positions, along, distance)
     sd = floor_plan.obstacles.signed_distance
     k = min(int(np.searchsorted(along, distance, side="right")) - 1, len(path) - 2)
@@ -485,19 +469,9 @@ def _slot_at(path, positions, along, distance: float, single: set[tuple[str, str
         ok &= gaps.min(axis=1) >= params.slot_spacing - 1e-9
     for spot in spots[ok]:
         line = on + np.linspace(0.0, 1.0, 12)[:, None] * (spot - on)
-        if sd(line).min() >= params.slot_clearance - 0.2 and _way_clear(
-                spot, on, taken, params.way_gap):
+        if sd(line).min() >= params.slot_clearance - 0.2:
             return spot
     return None
-
-
-def _way_clear(spot: np.ndarray, on: np.ndarray, taken: np.ndarray, gap: float) -> bool:
-    """Whether a robot's way from ``spot`` to ``on`` (its lane) passes ``gap`` m from every
-    place ``taken`` (k, 2): a robot waiting there would block it (the office: patrol_A1's
-    slot in a dead-end aisle behind coe's, the robot granted patrol_A1 boxed in by the one
-    waiting for coe)."""
-    return not len(taken) or bool(_off_lanes(taken, np.array([[on, spot]])).min()
-                                  >= gap - 1e-9)
 
 
 def _door_path(graph: nx.DiGraph, node: str, single: set[tuple[str, str]],
