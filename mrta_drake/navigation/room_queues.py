@@ -57,9 +57,7 @@ class RoomQueues(LeafSystem):
        segment, alone or together, that all name it one way take that way (they turn in
        it: two robots standing in a dead end that both want out leave it).
     2. Wait: a robot naming a segment it does not hold waits (in the order it first did so;
-       new ones in robot order, those that stand in one they name first: at the start a
-       robot standing in a segment asks for it at the same instant as one driving in);
-       one that no longer does stops waiting.
+       new ones in robot order); one that no longer does stops waiting.
     3. Grant: robots that hold some of the segments they name (they stand in them) first,
        then the others, each in waiting order: a robot gets all the segments it names at
        once when each is free or held by robots driving it the same way (only by itself
@@ -161,8 +159,7 @@ class RoomQueues(LeafSystem):
                 for r in holds[k].holders if r != robot}
 
         order = [r for r in old.segment_waiting if needs(r)]
-        new = [r for r in self._robots if r not in order and needs(r)]
-        order += sorted(new, key=lambda r: not stops[r].intersection(wanted[r]))
+        order += [r for r in self._robots if r not in order and needs(r)]
         # Whom each robot waits for (class docstring), the turns kept added as they come.
         waits_for = {robot: blocked(robot) for robot in order}
         for queue in rooms:
