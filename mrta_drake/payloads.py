@@ -168,7 +168,8 @@ class QueueRequest:
     ``segments``: the single-file segments the robot wants to hold now, all together, each
     with the way it drives through it (``Roadways.segment_of``: (index, forward)); it gives
     up each one as soon as it stops naming it. ``stops``: the indices of those it will
-    stand in (its route ends there, or it stands), not only drive through.
+    stand in (its route ends there, or it stands), not only drive through; ``standing``:
+    those it stands in now.
     """
 
     robot: str
@@ -176,6 +177,7 @@ class QueueRequest:
     release: int | None = None
     segments: tuple[tuple[int, bool], ...] = ()
     stops: tuple[int, ...] = ()
+    standing: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -57,7 +57,9 @@ class RoomQueues(LeafSystem):
        segment, alone or together, that all name it one way take that way (they turn in
        it: two robots standing in a dead end that both want out leave it).
     2. Wait: a robot naming a segment it does not hold waits (in the order it first did so;
-       new ones in robot order); one that no longer does stops waiting.
+       new ones in robot order, those standing in one they name first: at the start a
+       robot standing in a segment asks for it at the same instant as one driving in);
+       one that no longer does stops waiting.
     3. Grant: robots that hold some of the segments they name (they stand in them) first,
        then the others, each in waiting order: a robot gets all the segments it names at
        once when each is free or held by robots driving it the same way (only by itself
@@ -158,8 +160,11 @@ class RoomQueues(LeafSystem):
                 or (not alone(robot, k) and holds[k].forward == way))
                 for r in holds[k].holders if r != robot}
 
+        standing = {robot: set(request.standing)
+                    for robot, request in zip(self._robots, requests, strict=True)}
         order = [r for r in old.segment_waiting if needs(r)]
-        order += [r for r in self._robots if r not in order and needs(r)]
+        new = [r for r in self._robots if r not in order and needs(r)]
+        order += sorted(new, key=lambda r: not standing[r].intersection(wanted[r]))
         # Whom each robot waits for (class docstring), the turns kept added as they come.
         waits_for = {robot: blocked(robot) for robot in order}
         for queue in rooms:

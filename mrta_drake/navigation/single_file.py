@@ -174,16 +174,19 @@ class Need:
     """What a robot on a route needs now: ``segments`` to hold ((index, forward), sorted),
     ``hold``: whether it must stand still until it holds them all, and ``stops``: those of
     them it will stand in (sorted indices: its route ends there, or it stands), which it
-    holds alone where robots stop (``stop_segments``); it only drives through the others."""
+    holds alone where robots stop (``stop_segments``); it only drives through the others;
+    ``standing``: those it stands in now (sorted indices)."""
 
     segments: tuple[tuple[int, bool], ...] = ()
     hold: bool = False
     stops: tuple[int, ...] = ()
+    standing: tuple[int, ...] = ()
 
     def without(self, dropped) -> "Need":
         """The same need, holding back, less the segments ``dropped`` (indices)."""
         return Need(tuple(seg for seg in self.segments if seg[0] not in dropped), True,
-                    tuple(k for k in self.stops if k not in dropped))
+                    tuple(k for k in self.stops if k not in dropped),
+                    tuple(k for k in self.standing if k not in dropped))
 
 
 NOTHING = Need()
@@ -287,7 +290,8 @@ def standing(roadways: Roadways, xy, spot, held, params: SingleFileParams) -> Ne
     if not wanted:
         return NOTHING
     return Need(tuple((k, held.get(k, True)) for k in wanted),
-                hold=not set(there) <= set(held) | set(here), stops=tuple(wanted))
+                hold=not set(there) <= set(held) | set(here), stops=tuple(wanted),
+                standing=tuple(sorted(here)))
 
 
 @functools.lru_cache(maxsize=64)

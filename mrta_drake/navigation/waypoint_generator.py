@@ -449,7 +449,7 @@ class WaypointPolicy:
                 s, self._target(s),
                 QueueRequest(self._robot, s.stop.location if s.phase in _ASKING_PHASES
                              and not s.giving_way else None, s.release, s.lanes.segments,
-                             s.lanes.stops),
+                             s.lanes.stops, s.lanes.standing),
                 RobotProgress(self._robot, s.visits, s.last_location, s.stop, s.detours),
                 self._lift_request(s))
         return outputs
@@ -1021,7 +1021,7 @@ class WaypointPolicy:
         to its spot)."""
         here = standing(self._roadways, robots.xy, robots.xy, self._held(queues),
                         self._params.single_file)
-        return Need(here.segments, True, here.stops)
+        return Need(here.segments, True, here.stops, here.standing)
 
     def _held(self, queues: QueueState) -> dict[int, bool]:
         """The single-file segments the robot holds, each with the way it holds it

@@ -152,10 +152,10 @@ class SegmentBench(Bench):
             self.want(robot)
         self.simulator.AdvanceTo(0.05)
 
-    def want(self, robot, *segments, room=None, stops=()):
+    def want(self, robot, *segments, room=None, stops=(), standing=()):
         port = self.queues.get_request_input_port(robot)
         port.FixValue(self.context, Value[object](QueueRequest(
-            robot, room, segments=segments, stops=stops)))
+            robot, room, segments=segments, stops=stops, standing=standing)))
 
     def state(self):
         return self.queues.GetOutputPort("queue_state").Eval(self.context)
@@ -273,6 +273,19 @@ def test_robots_driving_through_a_segment_where_robots_stop_follow_each_other_in
     bench.want("a", (0, True))  # c stops in it: a, driving through, waits
     bench.step()
     assert bench.state().segment_waiting == ("a",)
+
+
+def test_of_robots_asking_at_once_the_one_standing_in_the_segment_goes_first():
+    # At the start, a (driving in from outside) and b (standing in 0, nothing to do) ask
+    # for 0 at the same instant: b, already in it, gets it; a waits (and b, told so by
+    # the segment's waiting robots, drives out of its way).
+    bench = SegmentBench(["a", "b"], exclusive=frozenset({0}))
+    bench.want("a", (0, True), (1, True))
+    bench.want("b", (0, True), stops=(0,), standing=(0,))
+    bench.step()
+    state = bench.state()
+    assert state.segments[0].holders == ("b",) and state.segment_waiting == ("a",)
+    assert state.segments[0].waiting == ("a",)
 
 
 def test_a_robot_standing_in_a_segment_gets_the_next_before_robots_outside():

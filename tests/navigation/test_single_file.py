@@ -91,10 +91,10 @@ def test_a_hop_from_beside_the_lanes_onto_a_segment_enters_it():
 
 
 @pytest.mark.parametrize("xy, spot, expected", [
-    ((25.0, 0.3), (25.0, 0.0), Need(((1, True),), False, (1,))),  # in 1 already: asks, drives
+    ((25.0, 0.3), (25.0, 0.0), Need(((1, True),), False, (1,), (1,))),  # in 1: asks, drives
     ((25.0, 3.0), (25.0, 0.4), Need(((1, True),), True, (1,))),  # driving up to a slot in 1
     ((25.0, 3.0), (25.0, 2.0), Need()),  # beside the lanes
-    ((20.0, 0.0), (21.0, 3.0), Need(((0, False), (1, True)), False, (0, 1))),  # holds 0 one way
+    ((20.0, 0.0), (21.0, 3.0), Need(((0, False), (1, True)), False, (0, 1), (0, 1))),  # in 0, 1
 ])
 def test_a_robot_standing_in_a_segment_or_going_to_a_spot_in_one_needs_it(xy, spot, expected):
     held = {0: False} if expected.segments[:1] == ((0, False),) else {}
