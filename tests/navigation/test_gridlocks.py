@@ -219,7 +219,7 @@ def test_a_robot_giving_way_asks_only_for_the_segments_it_stands_in_and_no_room(
     assert [k for k, _ in policy.update(s, _Inputs(10.0, held, here)).lanes.segments] == [0, 2]
     order = BackOff("r0", (12.0, 3.0), 9.0, 24.0, ("r1",), 0.0, releases=True)
     giving = policy.update(s, _Inputs(10.0, held, here, BackOffOrders((order,), (order,))))
-    assert giving.lanes == Need(((2, True),), True, (2,)) and giving.giving_way
+    assert giving.lanes == Need(((2, True),), True, (2,), (2,)) and giving.giving_way
     assert not policy.outputs(giving).target.active
     # An order of the standstill rule (no releases) leaves its claims alone.
     plain = replace(order, releases=False)

@@ -688,7 +688,7 @@ def test_a_robot_back_home_holds_only_the_segment_it_stands_in():
     driving = policy.update(s, _Inputs(10.0, held, [[10.0, 3.0, 0.0, 0.5]]))
     assert [k for k, _ in driving.lanes.segments] == [0, 2]
     home = policy.update(s, _Inputs(10.0, held, [[10.0, 4.9, 0.0, 0.0]]))
-    assert home.lanes == Need(((2, True),), stops=(2,))  # it stands in it
+    assert home.lanes == Need(((2, True),), stops=(2,), standing=(2,))  # it stands in it
 
 
 def test_a_robot_without_a_stop_holds_the_segment_it_stands_in():
@@ -696,7 +696,8 @@ def test_a_robot_without_a_stop_holds_the_segment_it_stands_in():
     idle = policy.update(policy.initial_state(),
                          _Inputs(1.0, QueueState(segments=(SegmentHold(),) * 3),
                                  [[10.0, 4.0, 0.0, 0.0]]))
-    assert idle.phase == RobotMode.IDLE and idle.lanes == Need(((2, True),), stops=(2,))
+    assert idle.phase == RobotMode.IDLE
+    assert idle.lanes == Need(((2, True),), stops=(2,), standing=(2,))
 
 
 def test_a_robot_without_a_stop_leaves_a_segment_another_robot_waits_for_away_from_it():
