@@ -20,9 +20,6 @@ distance from world points to the nearest obstacle, m). Output: ``Lanes``, the
 - Junctions (three or more edges): the corners are also joined counterclockwise across each
   edge's mouth, a small loop like a roundabout for right-hand traffic: a robot turns right at
   the corner it arrives at, and drives around the loop to go straight, turn left or U-turn.
-  The loop's corners lie within twice the offset of the vertex (0.9 m), so lanes of
-  different directions there come closer than two robots keep apart: ``Lanes.junctions``
-  lists each loop's roadway nodes, for whoever lets one robot at a time through it.
 - Dead ends (one edge): a single node on the vertex itself, where both lanes meet.
 
 A lane that comes closer to obstacles than ``robot_radius + margin`` or runs backwards (its
@@ -137,14 +134,12 @@ class Lanes:
     """The derived lanes. ``roadways``: the one-way lane graph. ``single_file``: segments
     for one robot at a time. ``ends[(v, w)]``: the roadway nodes where the lane from vertex
     ``v`` towards vertex ``w`` starts (beside ``v``) and ends (beside ``w``), for every
-    lane. ``tight``: roadway edges that keep less than the clearance from obstacles.
-    ``junctions``: the roadway nodes of each junction's loop (two or more nodes)."""
+    lane. ``tight``: roadway edges that keep less than the clearance from obstacles."""
 
     roadways: RoadwaysConfig
     single_file: tuple[SingleFileSegment, ...]
     ends: Mapping[tuple[str, str], tuple[str, str]]
     tight: tuple[tuple[str, str], ...]
-    junctions: tuple[tuple[str, ...], ...] = ()
 
 
 def derive_lanes(graph: CentrelineGraph, clearance: Clearance,
@@ -179,7 +174,6 @@ class _Layout:
         self.start: dict[tuple[str, str], str] = {}  # (v, w): node beside v leaving to w
         self.end: dict[tuple[str, str], str] = {}  # (w, v): node beside v arriving from w
         self.links: list[tuple[str, str, str]] = []  # (vertex, from node, to node)
-        self.junctions: list[tuple[str, ...]] = []  # the nodes of each junction's loop
         for v in graph.nodes:
             self._lay_out(v)
 
@@ -209,10 +203,6 @@ class _Layout:
             for w, _ in around:  # across each edge's mouth, counterclockwise
                 if self.start[(v, w)] != self.end[(w, v)]:
                     self.links.append((v, self.start[(v, w)], self.end[(w, v)]))
-            loop = tuple(dict.fromkeys(node for w, _ in around
-                                       for node in (self.end[(w, v)], self.start[(v, w)])))
-            if len(loop) > 1:
-                self.junctions.append(loop)
 
     def _node(self, v: str, xy: np.ndarray) -> str:
         """The roadway node at ``xy`` (rounded to mm), made if new: named ``v`` on the vertex
@@ -275,8 +265,7 @@ class _Layout:
                 for edge in self.graph.edges for way in _ways(edge)}
         return Lanes(roadways=roadways, single_file=self._single_file_segments(),
                      ends=ends, tight=tuple(pair for pair in edges
-                                            if self._short(clearance, *pair)),
-                     junctions=tuple(self.junctions))
+                                            if self._short(clearance, *pair)))
 
     def _single_file_segments(self) -> tuple[SingleFileSegment, ...]:
         single_at = {v: [(w, k) for w, k in self.neighbours[v] if k in self.single]

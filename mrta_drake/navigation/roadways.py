@@ -117,8 +117,6 @@ class Roadways:
     Built from a scenario's ``RoadwaysConfig`` and ``LocationConfig`` list (points resolved);
     bad input raises ``InputError`` naming ``file``, the field and the value. The graph is a
     ``networkx.DiGraph`` whose nodes carry ``pos`` (x, y) and whose edges carry ``length``, m.
-    Robots reserve ``reserved_count`` stretches of lanes: the ``segment_count`` single-file
-    segments (``segment_of``), then the junctions (``junction_at``).
     """
 
     def __init__(
@@ -160,10 +158,6 @@ class Roadways:
         for k, names in enumerate(config.single_file):
             self._add_single_file(k, names)
         self.segment_count = len(config.single_file)
-        self._junction_of: dict[str, int] = {}
-        for j, names in enumerate(config.junctions):
-            self._add_junction(self.segment_count + j, names)
-        self.reserved_count = self.segment_count + len(config.junctions)
 
         self._places: dict[int, Place] = {}
         for i, location in enumerate(locations):
@@ -185,31 +179,19 @@ class Roadways:
                      for n in (hop.from_node, hop.to_node))
         self._lift_edges[ends] = hop
 
-    def _node_list(self, field: str, names) -> None:
-        """Checks ``names`` (the value of ``field``): a list of 2 or more roadway nodes."""
+    def _add_single_file(self, k: int, names: Sequence[str]) -> None:
+        """Segment ``k``: every lane between two of its nodes ``names``."""
+        field = f"roadways.single_file[{k}]"
         if not isinstance(names, list | tuple) or len(names) < 2:
             raise InputError(self._file, field,
                              f"expected a list of 2 or more roadway nodes, got {names!r}")
         for name in names:
             if not isinstance(name, str | int) or name not in self.graph:
                 raise InputError(self._file, field, f"unknown node {name!r}")
-
-    def _add_single_file(self, k: int, names: Sequence[str]) -> None:
-        """Segment ``k``: every lane between two of its nodes ``names``."""
-        self._node_list(f"roadways.single_file[{k}]", names)
         order = {name: i for i, name in enumerate(names)}
         for a, b in self.graph.subgraph(order).edges:
             ends = tuple(tuple(float(v) for v in self.node_position(n)) for n in (a, b))
             self._segment_of.setdefault(ends, (k, order[a] < order[b]))
-
-    def _add_junction(self, k: int, names: Sequence[str]) -> None:
-        """Junction ``k`` (numbered after the single-file segments): its nodes ``names``."""
-        field = f"roadways.junctions[{k - self.segment_count}]"
-        self._node_list(field, names)
-        for name in names:
-            if name in self._junction_of:
-                raise InputError(self._file, field, f"node {name!r} is in two junctions")
-            self._junction_of[name] = k
 
     def _place(self, location: LocationConfig, field: str) -> Place:
         file = self._file
@@ -318,14 +300,6 @@ class Roadways:
             if _on_segment(b, self.node_position(start), end):
                 return self._segment_of.get((ends[0], (float(end[0]), float(end[1]))))
         return None
-
-    def junction_at(self, xy) -> int | None:
-        """The junction (its index after the single-file segments, as the room queues count
-        them) whose node is at exactly ``xy`` (a point taken from a leg), or None."""
-        if not self._junction_of:
-            return None
-        node = self.node_at(xy)
-        return None if node is None else self._junction_of.get(node)
 
     def distance_to_lanes(self, xy) -> float:
         """Distance (m) from point ``xy`` (m) to the nearest lane (lift rides aside);

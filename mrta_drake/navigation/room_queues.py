@@ -65,8 +65,7 @@ class RoomQueues(LeafSystem):
        once when each is free or held by robots driving it the same way (only by itself
        for the ``exclusive`` segments, where robots stop, when it or a holder names the
        segment in ``stops``: it will stand there; robots that only drive through follow
-       each other in; always for the ``junctions``, whose lanes of different directions
-       meet), and, unless it holds some
+       each other in), and, unless it holds some
        already, none is named by a robot before it still waiting; else it gets none. (A
        robot standing in a segment goes as soon as its way is free: one waiting before it
        may wait for the very segment it stands in.) A robot waiting before it keeps its
@@ -93,7 +92,6 @@ class RoomQueues(LeafSystem):
         holders: Mapping[int, str] | None = None,
         segments: int = 0,
         exclusive: frozenset[int] = frozenset(),
-        junctions: frozenset[int] = frozenset(),
     ):
         super().__init__()
         holders = dict(holders or {})
@@ -104,7 +102,6 @@ class RoomQueues(LeafSystem):
         self._rooms = tuple(rooms)
         self._segments = segments
         self._exclusive = frozenset(exclusive)
-        self._junctions = frozenset(junctions)
         initial = QueueState(tuple(RoomQueue(room, holders.get(room)) for room in self._rooms),
                              segments=(FREE_SEGMENT,) * segments)
         self._state_index = self.DeclareAbstractState(Value[object](initial))
@@ -148,10 +145,8 @@ class RoomQueues(LeafSystem):
             return any(robot not in holds[k].holders for k in wanted[robot])
 
         def alone(robot, k):
-            """Whether segment ``k`` is ``robot``'s alone: a junction, or ``robot`` or a
-            holder stops in it (class docstring)."""
-            return (k in self._junctions or k in stops[robot]
-                    or any(k in stops[r] for r in holds[k].holders))
+            """Whether ``robot`` or a holder of segment ``k`` stops in it (class docstring)."""
+            return k in stops[robot] or any(k in stops[r] for r in holds[k].holders)
 
         def blocked(robot):
             """The other robots holding segments ``robot`` names and cannot have now."""

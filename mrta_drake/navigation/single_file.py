@@ -16,14 +16,6 @@ granted to a robot that would drive into it; a segment where robots stop (a loca
 point or queue slot on it, ``stop_segments``) is held by one robot at a time, since a robot
 following another into it could not pass it where it stops.
 
-A junction (``Roadways.junction_at``: the small loop where lanes of different directions
-meet, ``lane_derivation``) is held like a segment where robots stop, by one robot at a time:
-a route's pass through it, from the first of its nodes to the last, is a run of its own
-(joined with the single-file runs near it), held as they are and asked for from
-``junction_request_distance`` where it holds junctions alone. Robots that
-stand in a junction (queueing, serving, home) do not hold it: nobody would then drive
-through to free them.
-
 Routes are polylines of points (world frame, m); edge ``j`` joins points ``j`` and
 ``j + 1``; a robot driving to point ``index`` is on edge ``index - 1``.
 """
@@ -43,33 +35,26 @@ class SingleFileParams:
     (``hold_distance``), keep it until this far past its exit (``clear_distance``); stretches
     between segments shorter than ``chain_gap`` belong to the run. A robot whose centre is
     within ``stand_distance`` of a segment's lane stands in it (0.5 m: two 0.22 m robots
-    with a few centimetres between them). A run of junctions alone is asked for from
-    ``junction_request_distance`` (2 m: granted at once, a robot driving at 0.75 m/s
-    reaches ``hold_distance`` 0.7 s later without stopping; a junction is one robot's at a
-    time, and held from further back it would keep the others out the longer)."""
+    with a few centimetres between them)."""
 
     request_distance: float = 4.0
     hold_distance: float = 1.5
-    junction_request_distance: float = 2.0
     clear_distance: float = 1.0
     chain_gap: float = 5.0
     stand_distance: float = 0.5
 
     def __post_init__(self):
         require_positive(self, "request_distance", "hold_distance", "clear_distance",
-                         "chain_gap", "stand_distance", "junction_request_distance",
-                         unit=" m")
-        for name in ("request_distance", "junction_request_distance"):
-            if self.hold_distance > getattr(self, name):
-                raise InputError(None, name, f"must be >= hold_distance "
-                                 f"({self.hold_distance} m), got {getattr(self, name)}")
+                         "chain_gap", "stand_distance", unit=" m")
+        if self.hold_distance > self.request_distance:
+            raise InputError(None, "request_distance", f"must be >= hold_distance "
+                             f"({self.hold_distance} m), got {self.request_distance}")
 
 
 @dataclass(frozen=True)
 class Run:
     """Edges ``first`` .. ``last`` of a route (inclusive) and the segments they pass, each
-    as (index, forward), in the order driven (a junction's index follows the segments'; a
-    pass turning at one of its nodes, point ``first``, has ``last`` = ``first`` - 1)."""
+    as (index, forward), in the order driven."""
 
     first: int
     last: int
@@ -112,50 +97,29 @@ def _to_lane(xy, a, b) -> float:
     return math.hypot(xy[0] - a[0] - t * dx, xy[1] - a[1] - t * dy)
 
 
-def _junction_passes(roadways: Roadways, route) -> list[Run]:
-    """Each pass of ``route`` through a junction, as a run: from the edge leaving the first
-    of its nodes the route reaches to the edge arriving at the last (``last`` is ``first``
-    - 1 where the route only turns at one corner node)."""
-    passes: list[Run] = []
-    for i, xy in enumerate(route):
-        junction = roadways.junction_at(xy)
-        if junction is None:
-            continue
-        if passes and passes[-1].segments[0][0] == junction and passes[-1].last == i - 2:
-            passes[-1] = Run(passes[-1].first, i - 1, passes[-1].segments)
-        else:
-            passes.append(Run(i, i - 1, ((junction, True),)))
-    return passes
-
-
 @functools.lru_cache(maxsize=512)
 def route_runs(roadways: Roadways, route: tuple[tuple[float, float], ...],
                chain_gap: float, stand_distance: float = 0.0) -> tuple[Run, ...]:
     """The runs of ``route`` in order (see the module docstring). The segments within
     ``stand_distance`` of the route's end, where the robot will stand (a point where two
     segments meet, a slot by a lane), belong to the run that ends there (else to a run of
-    the last edge): it asks for them before it drives in, not once it stands in the way.
-    A pass through a junction (``Roadways.junction_at``) is a run too, joined with a run
-    of single-file segments less than ``chain_gap`` before or after it, not with another
-    junction's (robots wait between two junctions on their own lane)."""
-    items = [Run(j, j, (segment,)) for j in range(len(route) - 1) if (
-        segment := _hop_segment(roadways, route[j], route[j + 1],
-                                route[j + 2] if j + 2 < len(route) else None)) is not None]
-    items = sorted(items + _junction_passes(roadways, route), key=lambda run: run.first)
+    the last edge): it asks for them before it drives in, not once it stands in the way."""
     runs: list[Run] = []
-    for item in items:
-        if runs:
-            run = runs[-1]
-            gap = sum(math.dist(route[i], route[i + 1])
-                      for i in range(run.last + 1, item.first))
-            junctions_only = all(k >= roadways.segment_count
-                                 for k, _ in run.segments + item.segments)
-            if gap < chain_gap and not junctions_only:
-                driven = {k for k, _ in run.segments}
-                runs[-1] = Run(run.first, max(run.last, item.last), run.segments + tuple(
-                    seg for seg in item.segments if seg[0] not in driven))
-                continue
-        runs.append(item)
+    gap = math.inf
+    for j in range(len(route) - 1):
+        segment = _hop_segment(roadways, route[j], route[j + 1],
+                               route[j + 2] if j + 2 < len(route) else None)
+        if segment is None:
+            gap += math.dist(route[j], route[j + 1])
+            continue
+        if runs and gap < chain_gap:
+            run = runs.pop()
+            driven = {k for k, _ in run.segments}
+            segments = run.segments if segment[0] in driven else (*run.segments, segment)
+            runs.append(Run(run.first, j, segments))
+        else:
+            runs.append(Run(j, j, (segment,)))
+        gap = 0.0
     last = len(route) - 2
     if stand_distance > 0.0 and last >= 0:
         ending = runs[-1] if runs and runs[-1].last == last else Run(last, last, ())
@@ -197,7 +161,7 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
     """The segments a robot at ``xy`` driving ``route`` to point ``index`` needs, and
     whether it must hold where it is until it has them (it is within ``hold_distance``
     of a run's entry, or in the run)."""
-    if roadways.reserved_count == 0 or len(route) < 2:
+    if roadways.segment_count == 0 or len(route) < 2:
         return NOTHING
     wanted: dict[int, bool] = {}
     hold = False
@@ -208,9 +172,7 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
         if index <= run.first:  # ahead: how far along the route to its entry?
             ahead = math.dist(xy, route[index]) + sum(
                 math.dist(route[j], route[j + 1]) for j in range(index, run.first))
-            junctions = all(k >= roadways.segment_count for k, _ in run.segments)
-            if ahead > (params.junction_request_distance if junctions
-                        else params.request_distance):
+            if ahead > params.request_distance:
                 break
             wanted.update(dict(run.segments))
             hold = hold or ahead <= params.hold_distance
@@ -220,9 +182,6 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
         elif index == run.last + 2 and math.dist(xy, route[run.last + 1]) \
                 < params.clear_distance:  # just out
             wanted.update(dict(run.segments))
-            # Past a junction's node only by the waypoints' reach (pushed near it while
-            # held back), it still holds back until it holds the junction.
-            hold = hold or any(k >= roadways.segment_count for k, _ in run.segments)
     if not wanted:
         return NOTHING
     return Need(tuple(sorted(wanted.items())), hold, tuple(k for k in stops if k in wanted))

@@ -861,10 +861,7 @@ class WaypointPolicy:
         place = self._roadways.place(s.stop.location)
         queue = queues.room(place.id)
         holding = queue is not None and queue.holder == self._robot
-        # Through a junction on its route it drives the route, as far as it is out of it:
-        # entering or queueing it would drive into it unreserved (or give it up in it).
-        through = s.phase == RobotMode.DRIVE and self._in_junction_run(s, xy)
-        if s.phase == RobotMode.DRIVE and holding and not through:
+        if s.phase == RobotMode.DRIVE and holding:
             s = replace(s, phase=RobotMode.ENTER, route=(_point(place.point),), index=0)
         if s.phase == RobotMode.DRIVE:
             s = _changed(s, index=self._reached(s, xy))
@@ -875,7 +872,6 @@ class WaypointPolicy:
             if (
                 s.index == len(s.route) - 1
                 and _distance(xy, s.route[-1]) <= params.request_distance
-                and not through
             ):
                 s = replace(s, phase=RobotMode.QUEUE, route=(), index=len(place.queue) - 1)
         # Entering while another robot comes out of the room, or stands in its doorway, would
@@ -927,7 +923,7 @@ class WaypointPolicy:
         all; queueing or serving, or back home (within ``single_file.stand_distance`` of
         the home route's end), those it stands in (``single_file.standing``): a robot home
         keeps no segment of the way it came by from the robots that need it."""
-        if not self._roadways.reserved_count:
+        if not self._roadways.segment_count:
             return NOTHING
         if s.phase == RobotMode.SERVE and s.waiting:
             return NOTHING  # on the point without its room: the holder comes (docstring)
@@ -999,14 +995,6 @@ class WaypointPolicy:
                         np.array([xy], dtype=float), np.array([a, b], dtype=float))[0] <= reach:
                     out[k] = self._roadways.segment_of(a, b)[1]
         return out
-
-    def _in_junction_run(self, s: _Drive, xy) -> bool:
-        """Whether the robot needs a junction on its route (``s.lanes``) and is farther
-        than ``waypoint_tolerance`` from the route's end (a slot in a junction)."""
-        count = self._roadways.segment_count
-        return (self._roadways.reserved_count > count
-                and any(k >= count for k, _ in s.lanes.segments)
-                and _distance(xy, s.route[-1]) > self._params.waypoint_tolerance)
 
     def _between_nodes(self, xy) -> bool:
         """Whether ``xy`` is farther than ``single_file.stand_distance`` from every roadway

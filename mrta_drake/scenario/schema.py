@@ -93,15 +93,12 @@ class RoadwaysConfig:
     """A directed lane graph: ``nodes`` name -> [x, y]; ``edges`` [from, to] one-way;
     ``lift_edges``: rides between levels (a building with lifts); ``single_file``: segments
     driven both ways on one lane, each the roadway node names along it in order, which
-    robots drive one way at a time (reserved like a room); ``junctions``: small loops where
-    lanes of different directions meet, each its roadway node names, which one robot at a
-    time drives through (reserved like a single-file segment)."""
+    robots drive one way at a time (reserved like a room)."""
 
     nodes: dict[str, list[float]] = field(default_factory=dict)
     edges: list[list[str]] = field(default_factory=list)
     lift_edges: list[LiftEdgeConfig] = field(default_factory=list)
     single_file: list[list[str]] = field(default_factory=list)
-    junctions: list[list[str]] = field(default_factory=list)
 
 
 @dataclass(frozen=True)

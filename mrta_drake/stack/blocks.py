@@ -347,12 +347,9 @@ def _fifo_queues() -> BlockType:
         for name, location in zip(ctx.robot_names, ctx.start_locations, strict=True):
             if location is not None:
                 holders.setdefault(location, name)
-        roadways = ctx.roadways
-        return RoomQueues(ctx.robot_names, roadways.location_ids, rate_hz=ctx.rates.queues,
-                          holders=holders, segments=roadways.reserved_count,
-                          exclusive=stop_segments(roadways, lanes),
-                          junctions=frozenset(range(roadways.segment_count,
-                                                    roadways.reserved_count)))
+        return RoomQueues(ctx.robot_names, ctx.roadways.location_ids, rate_hz=ctx.rates.queues,
+                          holders=holders, segments=ctx.roadways.segment_count,
+                          exclusive=stop_segments(ctx.roadways, lanes))
 
     return BlockType(NoParams, make)
 

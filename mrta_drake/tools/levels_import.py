@@ -112,7 +112,7 @@ def _write_navigation(path: str, building: Building, graph: int, levels: Buildin
         "locations": [dataclasses.asdict(loc) for loc in levels.locations],
         "roadways": {"nodes": roadways.nodes, "edges": roadways.edges,
                      "lift_edges": [dataclasses.asdict(e) for e in roadways.lift_edges],
-                     "single_file": roadways.single_file, "junctions": roadways.junctions},
+                     "single_file": roadways.single_file},
     }
     write_yaml(path, header, content)
     return roadways

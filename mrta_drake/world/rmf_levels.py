@@ -40,9 +40,8 @@ class BuildingLevels:
     """A building's levels in one plane: their ``layout``, the combined ``floor_plan``, the
     per-level navigations shifted and renamed, joined into ``locations`` and ``roadways``
     (without lift rides: ``roadways_with_lifts`` adds them; with the levels' single-file
-    segments and junctions but those through a lift cabin, whose doors the lift bank
-    rules), the ``lifts`` with a stop on at least two levels, and ``notes`` on what was
-    left out."""
+    segments but those through a lift cabin, whose doors the lift bank rules), the ``lifts``
+    with a stop on at least two levels, and ``notes`` on what was left out."""
 
     layout: LevelLayout
     floor_plan: FloorPlan
@@ -70,7 +69,7 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
     layout = LevelLayout.side_by_side(
         [(name, building.levels[name].elevation, worlds[name].bounds) for name in names], gap)
     floor_plan = combined_floor_plan(building.name, worlds, layout, building.source)
-    nodes, edges, locations, single_file, junctions = {}, [], [], [], []
+    nodes, edges, locations, single_file = {}, [], [], []
     notes = unaligned_levels(building) + [f"{name}: left out, no lanes of graph {graph}"
                                           for name in building.levels if name not in names]
     cabin_nodes: dict[tuple[str, str], str] = {}
@@ -95,9 +94,6 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
         single_file += [[f"{name}/{node}" for node in segment.nodes]
                         for segment in navigation.single_file
                         if not level_cabins.intersection(segment.nodes)]
-        junctions += [[f"{name}/{node}" for node in loop]
-                      for loop in navigation.roadways.junctions
-                      if not level_cabins.intersection(loop)]
     lifts = []
     for lift in building.lifts.values():
         stops = tuple(_stop(lift, name, building.levels[name].elevation,
@@ -114,8 +110,7 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
         raise InputError(building.source, "lifts", f"no lift joins two levels on lanes of "
                          f"graph {graph}: robots could not leave their level (import one "
                          f"level with --level)")
-    roadways = RoadwaysConfig(nodes=nodes, edges=edges, single_file=single_file,
-                              junctions=junctions)
+    roadways = RoadwaysConfig(nodes=nodes, edges=edges, single_file=single_file)
     return BuildingLevels(layout, floor_plan, locations, roadways, tuple(lifts), notes)
 
 

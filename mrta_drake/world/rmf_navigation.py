@@ -137,8 +137,7 @@ class BuildingNavigation:
                 for loc in self.locations],
             "roadways": {"nodes": dict(self.roadways.nodes),
                          "edges": [list(e) for e in self.roadways.edges],
-                         "single_file": [list(nodes) for nodes in self.roadways.single_file],
-                         "junctions": [list(nodes) for nodes in self.roadways.junctions]},
+                         "single_file": [list(nodes) for nodes in self.roadways.single_file]},
         }
 
 
@@ -231,8 +230,7 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
     lanes = one_way_lanes(lines, floor_plan, {lines.vertex_node[i] for i in candidates
                                               if degree[lines.vertex_node[i]] > 1})
     roadways = dataclasses.replace(lanes.roadways, single_file=[
-        list(segment.nodes) for segment in lanes.single_file],
-        junctions=[list(nodes) for nodes in lanes.junctions])
+        list(segment.nodes) for segment in lanes.single_file])
     graph = nx.DiGraph()
     for name, xy in roadways.nodes.items():
         graph.add_node(name, pos=np.asarray(xy, dtype=float))

@@ -120,8 +120,7 @@ def with_building_navigation(scenario: Scenario) -> Scenario:
         roadways=scenario.roadways if scenario.roadways.nodes else dataclasses.replace(
             navigation.roadways, nodes=dict(navigation.roadways.nodes),
             edges=list(navigation.roadways.edges),
-            single_file=[list(nodes) for nodes in navigation.roadways.single_file],
-            junctions=[list(nodes) for nodes in navigation.roadways.junctions]))
+            single_file=[list(nodes) for nodes in navigation.roadways.single_file]))
 
 
 def _version(path: str) -> tuple[float, int]:

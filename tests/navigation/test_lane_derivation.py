@@ -71,20 +71,6 @@ def test_plus_crossing_junction_is_a_counterclockwise_loop(plus):
         assert pa[0] * pb[1] - pa[1] * pb[0] > 0  # counterclockwise about the junction
 
 
-def test_plus_crossing_junction_lists_its_loop(plus):
-    lanes, _ = plus
-    corners = {name for name in lanes.roadways.nodes if name.startswith("c")}
-    (junction,) = lanes.junctions
-    assert set(junction) == corners and len(junction) == 4
-
-
-def test_a_junction_of_single_file_edges_is_no_loop():
-    nodes = {"c": (0.0, 0.0), "n": (0.0, 6.0), "s": (0.0, -6.0), "e": (6.0, 0.0),
-             "w": (-6.0, 0.0)}
-    lanes, _ = derived(PLUS, nodes, [CentrelineEdge("c", v, single_file=True) for v in "nsew"])
-    assert lanes.junctions == ()  # every lane meets on the vertex: single file rules it
-
-
 def test_dead_ends_keep_one_node_on_the_vertex(plus):
     lanes, _ = plus
     for v in "nsew":

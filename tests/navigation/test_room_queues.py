@@ -143,9 +143,9 @@ class SegmentBench(Bench):
     """A RoomQueues with three single-file segments; ``want`` sets a robot's segments as
     (index, forward) pairs."""
 
-    def __init__(self, robots, exclusive=frozenset(), junctions=frozenset()):
+    def __init__(self, robots, exclusive=frozenset()):
         self.queues = RoomQueues(robots, rooms=[ROOM], rate_hz=10.0, segments=3,
-                                 exclusive=exclusive, junctions=junctions)
+                                 exclusive=exclusive)
         self.simulator = Simulator(self.queues)
         self.context = self.simulator.get_mutable_context()
         for robot in robots:
@@ -181,22 +181,6 @@ def test_segments_are_granted_all_or_nothing_one_way_at_a_time():
     state = bench.state()
     assert state.segment_waiting == ()
     assert state.holds_segments("b", ((1, False), (2, True))) and not state.segments[1].forward
-
-
-def test_a_junction_is_one_robot_at_a_time_and_granted_with_the_segments_of_its_run():
-    bench = SegmentBench(["a", "b", "c"], junctions=frozenset({2}))
-    bench.want("a", (2, True))
-    bench.step()
-    bench.want("b", (2, True))  # the same junction, even "the same way": waits
-    bench.want("c", (0, True), (2, True))  # with a segment: gets neither
-    bench.step()
-    state = bench.state()
-    assert state.segments[2].holders == ("a",) and state.segments[0].holders == ()
-    assert state.segment_waiting == ("b", "c")
-    bench.want("a")  # a is through: b first
-    bench.step()
-    state = bench.state()
-    assert state.segments[2].holders == ("b",) and state.segment_waiting == ("c",)
 
 
 def test_robots_standing_together_in_a_segment_turn_when_they_all_want_out():

@@ -118,8 +118,6 @@ def test_params_check_themselves():
         SingleFileParams(hold_distance=0.0)
     with pytest.raises(InputError, match="request_distance"):
         SingleFileParams(request_distance=1.0, hold_distance=2.0)
-    with pytest.raises(InputError, match="junction_request_distance"):
-        SingleFileParams(junction_request_distance=1.0)
 
 
 def test_a_route_ending_where_segments_meet_asks_for_them_all_before_it_drives_in():
@@ -134,45 +132,3 @@ def test_a_route_ending_where_segments_meet_asks_for_them_all_before_it_drives_i
                                                                (0, 1))  # it stops in both
     # Without the stand distance, only the segment driven.
     assert route_runs(corridor(), route, PARAMS.chain_gap)[0].segments == ((1, True),)
-
-
-def test_a_pass_through_a_junction_is_a_run_and_joins_the_segments_near_it():
-    roadways = Roadways(RoadwaysConfig(
-        nodes=roadways_nodes(), edges=roadways_edges(), single_file=[["A40", "A50"]],
-        junctions=[["A20", "A30"]]), corridor_locations())
-    assert roadways.reserved_count == 2 and roadways.junction_at((20.0, 0.0)) == 1
-    # From A20 to A30 (edge 2), then 10 m of lane to the segment: a run of its own.
-    east = route_runs(roadways, EAST, PARAMS.chain_gap)
-    assert [(r.first, r.last, r.segments) for r in east] == [
-        (2, 2, ((1, True),)), (4, 4, ((0, True),))]
-    # Chained with the segment when less than chain_gap from it.
-    near = route_runs(roadways, EAST, 12.0)
-    assert [(r.first, r.last, r.segments) for r in near] == [(2, 4, ((1, True), (0, True)))]
-
-
-def test_a_junction_turned_at_one_node_is_held_until_clear_of_it():
-    roadways = Roadways(RoadwaysConfig(
-        nodes=roadways_nodes(), edges=roadways_edges(), junctions=[["A20", "A0"]]),
-        corridor_locations())
-    route = EAST[1:4]  # A10, A20, A30: through node A20 only
-    (run,) = route_runs(roadways, route, PARAMS.chain_gap)
-    assert (run.first, run.last, run.segments) == (1, 0, ((0, True),))
-    assert need(roadways, route, 1, (17.0, 0.0), PARAMS) == Need()  # asked for from 2 m
-    assert need(roadways, route, 1, (18.0, 0.0), PARAMS) == Need(((0, True),), False)
-    assert need(roadways, route, 1, (19.0, 0.0), PARAMS) == Need(((0, True),), True)
-    # Past the node (within the waypoints' reach) it still holds back until it holds it.
-    assert need(roadways, route, 2, (20.5, 0.0), PARAMS) == Need(((0, True),), True)
-    assert need(roadways, route, 2, (21.5, 0.0), PARAMS) == Need()
-
-
-@pytest.mark.parametrize("junctions, field, message", [
-    ([["A20"]], "roadways.junctions[0]", "2 or more"),
-    ([["A20", "X"]], "roadways.junctions[0]", "unknown node 'X'"),
-    ([["A20", "A30"], ["A30", "A40"]], "roadways.junctions[1]", "in two junctions"),
-])
-def test_bad_junctions(junctions, field, message):
-    config = RoadwaysConfig(nodes=roadways_nodes(), edges=roadways_edges(),
-                            junctions=junctions)
-    with pytest.raises(InputError, match=message) as error:
-        Roadways(config, corridor_locations())
-    assert error.value.field == field
