@@ -11,6 +11,7 @@ edges: each corridor has one lane per direction).
 """
 
 import copy
+import functools
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -346,8 +347,7 @@ class Roadways:
         start = self.place(from_location)
         avoid = self._past_queue(start)
         out = np.array(self.way_out(start), dtype=float).reshape(-1, 2)
-        row = {n: k for k, n in enumerate(self.graph.nodes)}
-        xy = np.array([self.node_position(n) for n in self.graph.nodes], dtype=float)
+        row, xy = self._node_rows
         around = {} if avoid is None else nx.single_source_dijkstra_path(
             nx.restricted_view(self.graph, [], [avoid]), start.exit_node, weight="length")
         anyway = None
@@ -363,6 +363,14 @@ class Roadways:
                 names = anyway.get(target.approach_node)
             yield to_location, None if names is None else _without_repeats(np.concatenate(
                 [out, xy[[row[n] for n in names]], target.tail[None]]))
+
+    @functools.cached_property
+    def _node_rows(self) -> tuple[dict[str, int], np.ndarray]:
+        """Each roadway node's row in an (n, 2) array of their positions (m), and the
+        array (closed views share it: they close lanes, not nodes)."""
+        names = list(self.graph.nodes)
+        return ({n: k for k, n in enumerate(names)},
+                np.array([self.node_position(n) for n in names], dtype=float).reshape(-1, 2))
 
     def leg_length(self, from_location: int, to_location: int) -> float:
         """Length of ``leg(from_location, to_location)``, m; 0 from a location to itself."""

@@ -38,7 +38,7 @@ from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig, TasksConf
 from mrta_drake.scenario.stream_sizing import BATCH_SIZE, LEG_SHARE, StreamSize, size_stream
 from mrta_drake.world.floor_plan import FloorPlan
 from mrta_drake.world.rmf_building import Building, Level
-from mrta_drake.world.rmf_levels import laned_levels
+from mrta_drake.world.rmf_levels import laned_levels, left_out_levels
 from mrta_drake.world.rmf_navigation import BuildingNavigation
 from mrta_drake.world.rmf_scenario import (
     building_at,
@@ -110,8 +110,7 @@ def import_building(path: str, out_dir: str, options: ImportOptions = ImportOpti
         return report
     laned = laned_levels(building, options.graph)
     if len(laned) == 1:
-        report.lines += [f"{name}: left out, no lanes of graph {options.graph}"
-                         for name in building.levels if name not in laned]
+        report.lines += left_out_levels(building, laned, options.graph)
         _write_level(building, laned[0], out_dir, options, report)
         return report
     from mrta_drake.tools.levels_import import write_all_levels

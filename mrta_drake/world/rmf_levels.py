@@ -13,6 +13,7 @@ Metres, world frame (x east, y north).
 """
 
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from mrta_drake.errors import InputError
@@ -70,8 +71,7 @@ def building_levels(building: Building, graph: int = 0, gap: float = MIN_LEVEL_G
         [(name, building.levels[name].elevation, worlds[name].bounds) for name in names], gap)
     floor_plan = combined_floor_plan(building.name, worlds, layout, building.source)
     nodes, edges, locations, single_file = {}, [], [], []
-    notes = unaligned_levels(building) + [f"{name}: left out, no lanes of graph {graph}"
-                                          for name in building.levels if name not in names]
+    notes = unaligned_levels(building) + left_out_levels(building, names, graph)
     cabin_nodes: dict[tuple[str, str], str] = {}
     for name in names:
         level = building.levels[name]
@@ -122,6 +122,12 @@ def laned_levels(building: Building, graph: int) -> list[str]:
     if not names:
         raise InputError(building.source, "levels", f"no level has lanes of graph {graph}")
     return names
+
+
+def left_out_levels(building: Building, laned: Sequence[str], graph: int) -> list[str]:
+    """A note for each level of ``building`` not among ``laned`` (``laned_levels``)."""
+    return [f"{name}: left out, no lanes of graph {graph}" for name in building.levels
+            if name not in laned]
 
 
 def unaligned_levels(building: Building) -> list[str]:
