@@ -7,30 +7,22 @@ segments")."""
 from pathlib import Path
 
 import numpy as np
-import yaml
 
-from mrta_drake import load_scenario, simulate
-from mrta_drake.tools.building_import import ImportOptions, import_building
+from mrta_drake import simulate
+from tests.system.fixed_routes import fixed_routes
 
 BUILDING = Path(__file__).parents[1] / "data" / "buildings" / "narrow_corridor.building.yaml"
 CORRIDOR_X = (6.0, 16.0)  # m, the 1.6 m corridor between the two rooms (lane at y = 3)
 
 
 def test_a_robot_without_a_task_leaves_a_single_file_corridor_another_robot_needs(tmp_path):
-    import_building(str(BUILDING), str(tmp_path), ImportOptions(robots=2))
-    raw = yaml.safe_load((tmp_path / "scenario.yaml").read_text())
-    names = [loc["name"] for loc in
-             yaml.safe_load((tmp_path / "navigation.yaml").read_text())["locations"]]
     # robot1 drives from west_a to east_a through the corridor, in which robot2, with
     # nothing to do, stands 1 m in from the west end.
-    raw["robots"] = [
-        {"name": "robot1", "start": [1.5, 4.8, 0.0], "route": [names.index("east_a")]},
+    scenario, names = fixed_routes(BUILDING, tmp_path, [
+        {"name": "robot1", "start": [1.5, 4.8, 0.0], "route": ["east_a"]},
         {"name": "robot2", "start": [7.0, 3.0, 0.0], "route": []},
-    ]
-    raw.setdefault("blocks", {})["allocator"] = {"kind": "fixed"}
-    raw.pop("tasks")
-    (tmp_path / "idle.yaml").write_text(yaml.safe_dump(raw))
-    result = simulate(load_scenario(tmp_path / "idle.yaml"), duration=80.0, plots=False)
+    ])
+    result = simulate(scenario, duration=80.0, plots=False)
 
     arrivals = [(e["robot"], e["location"], e["at"]) for e in result.events
                 if e["type"] == "arrival"]

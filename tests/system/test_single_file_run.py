@@ -4,31 +4,23 @@ take turns (tests/data/buildings/narrow_corridor.building.yaml)."""
 from pathlib import Path
 
 import numpy as np
-import yaml
 
-from mrta_drake import load_scenario, simulate
-from mrta_drake.tools.building_import import ImportOptions, import_building
+from mrta_drake import simulate
+from tests.system.fixed_routes import fixed_routes
 
 BUILDING = Path(__file__).parents[1] / "data" / "buildings" / "narrow_corridor.building.yaml"
 CORRIDOR_X = (6.0, 16.0)  # m, the 1.6 m corridor between the two rooms
 
 
 def test_robots_from_both_ends_take_turns_in_a_single_file_corridor(tmp_path):
-    import_building(str(BUILDING), str(tmp_path), ImportOptions(robots=2))
-    raw = yaml.safe_load((tmp_path / "scenario.yaml").read_text())
-    names = [loc["name"] for loc in
-             yaml.safe_load((tmp_path / "navigation.yaml").read_text())["locations"]]
+    # From the docks at the same time: robot1 east and back west, robot2 west and back east.
+    scenario, names = fixed_routes(BUILDING, tmp_path, [
+        {"name": "robot1", "start": [4.5, 4.8, -2.27], "route": ["east_b", "west_a"]},
+        {"name": "robot2", "start": [17.5, 1.2, 0.88], "route": ["west_b", "east_a"]},
+    ])
     west_a, west_b, east_a, east_b = (names.index(n) for n in
                                       ("west_a", "west_b", "east_a", "east_b"))
-    # From the docks at the same time: robot1 east and back west, robot2 west and back east.
-    raw["robots"] = [
-        {"name": "robot1", "start": [4.5, 4.8, -2.27], "route": [east_b, west_a]},
-        {"name": "robot2", "start": [17.5, 1.2, 0.88], "route": [west_b, east_a]},
-    ]
-    raw.setdefault("blocks", {})["allocator"] = {"kind": "fixed"}
-    raw.pop("tasks")
-    (tmp_path / "swap.yaml").write_text(yaml.safe_dump(raw))
-    result = simulate(load_scenario(tmp_path / "swap.yaml"), duration=150.0, plots=False)
+    result = simulate(scenario, duration=150.0, plots=False)
 
     arrivals = [e for e in result.events if e["type"] == "arrival"]
     assert sorted((e["robot"], e["location"]) for e in arrivals) == sorted(

@@ -5,30 +5,21 @@ dead_end_dock.building.yaml; triple_H seed 1, docs/worlds.md, "Junction standoff
 from pathlib import Path
 
 import numpy as np
-import yaml
 
-from mrta_drake import load_scenario, simulate
-from mrta_drake.tools.building_import import ImportOptions, import_building
+from mrta_drake import simulate
+from tests.system.fixed_routes import fixed_routes
 
 BUILDING = Path(__file__).parents[1] / "data" / "buildings" / "dead_end_dock.building.yaml"
 SPOT = (4.2, 11.0)  # m, robot2's start spot: the corridor's centre line, 0.45 m from its lanes
 
 
 def test_a_robot_pushed_off_its_start_spot_between_the_lanes_drives_back(tmp_path):
-    import_building(str(BUILDING), str(tmp_path), ImportOptions(robots=2))
-    raw = yaml.safe_load((tmp_path / "scenario.yaml").read_text())
-    names = [loc["name"] for loc in
-             yaml.safe_load((tmp_path / "navigation.yaml").read_text())["locations"]]
     # robot1 leaves the dock at the corridor's dead end, past robot2, which has nothing to do.
-    raw["robots"] = [
-        {"name": "robot1", "start": [4.2, 13.5, -1.5708],
-         "route": [names.index("west"), names.index("east")]},
+    scenario, names = fixed_routes(BUILDING, tmp_path, [
+        {"name": "robot1", "start": [4.2, 13.5, -1.5708], "route": ["west", "east"]},
         {"name": "robot2", "start": [*SPOT, -1.5708], "route": []},
-    ]
-    raw.setdefault("blocks", {})["allocator"] = {"kind": "fixed"}
-    raw.pop("tasks")
-    (tmp_path / "push.yaml").write_text(yaml.safe_dump(raw))
-    result = simulate(load_scenario(tmp_path / "push.yaml"), duration=60.0, plots=False)
+    ])
+    result = simulate(scenario, duration=60.0, plots=False)
 
     arrivals = [(e["robot"], e["location"]) for e in result.events if e["type"] == "arrival"]
     assert arrivals == [("robot1", names.index("west")), ("robot1", names.index("east"))]
