@@ -21,9 +21,8 @@ from pydrake.common.value import Value
 from pydrake.systems.framework import EventStatus
 from pydrake.systems.primitives import Adder
 
-from mrta_drake.payloads import Relocations
-
 from mrta_drake.humans.human_body_driver import HumanBodyDriver
+from mrta_drake.payloads import Relocations
 from mrta_drake.stack.contact_recorder import ContactRecorder
 from mrta_drake.world.plant import World
 
