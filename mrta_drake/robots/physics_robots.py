@@ -92,13 +92,14 @@ class PhysicsRobots(LeafSystem):
         speed (body-frame x velocity), m/s.
     Output ``plant_positions`` (3N): [x, y, theta] per robot, its planar joint's positions.
 
-    With ``relocations`` (a building run across levels) the block has input
-    ``relocations``: abstract ``Relocations`` (a lift ride's end), and output ``relocate``:
-    abstract ``Relocations``, the moves whose sequence numbers are new (None for the other
-    robots). The plant owns the bodies' state, so the plant applies them
-    (``plant_stepping.add_plant_stepping``: its own unrestricted update at its step, before
-    the step; ``relocated``); the block notes them applied in its unrestricted update at the
-    same instants (each pose once). Without ``relocations`` neither port nor update exists.
+    Input ``relocations``: abstract ``Relocations`` (a lift ride's end). Output
+    ``relocate``: abstract ``Relocations``, its moves whose sequence numbers are new (None
+    for the other robots). The plant owns the bodies' state, so the plant applies them
+    (``plant_stepping.add_plant_stepping``, when ``relocates``: its own unrestricted update
+    at its step, before the step; ``relocated``); with ``relocations`` (a building run
+    across levels) the block notes them applied in its unrestricted update at the same
+    instants, so each pose is applied once. With ``relocations`` False (a run without
+    lifts) the block has no such update and no state for it, and ``relocate`` is all None.
     """
 
     def __init__(self, plant: MultibodyPlant, robot_models, params: PhysicsRobotParams, *,
@@ -136,15 +137,16 @@ class PhysicsRobots(LeafSystem):
         self.DeclareVectorOutputPort(
             "plant_positions", BasicVector(PLANAR_POSITION_SIZE * self._n),
             self._calc_plant_positions, prerequisites_of_calc=plant_state)
+        self.relocates = relocations
+        self._relocations = self.DeclareAbstractInputPort("relocations",
+                                                          Value[object](Relocations()))
+        relocate = {self._relocations.ticket()}
         if relocations:
-            self._relocations = self.DeclareAbstractInputPort("relocations",
-                                                              Value[object](Relocations()))
             self._applied = self.DeclareAbstractState(Value[object](Applied((0,) * self._n)))
-            self.DeclareAbstractOutputPort(
-                "relocate", lambda: Value[object](Relocations()), self._calc_relocate,
-                prerequisites_of_calc={self._relocations.ticket(),
-                                       self.abstract_state_ticket(self._applied)})
+            relocate.add(self.abstract_state_ticket(self._applied))
             self.DeclarePeriodicUnrestrictedUpdateEvent(params.time_step, 0.0, self._applied_now)
+        self.DeclareAbstractOutputPort("relocate", lambda: Value[object](Relocations()),
+                                       self._calc_relocate, prerequisites_of_calc=relocate)
 
     @property
     def num_robots(self) -> int:
@@ -181,9 +183,9 @@ class PhysicsRobots(LeafSystem):
         return x
 
     def _new_moves(self, context) -> tuple:
-        applied = context.get_abstract_state(self._applied).get_value()
-        if not self._relocations.HasValue(context):
+        if not (self.relocates and self._relocations.HasValue(context)):
             return (None,) * self._n
+        applied = context.get_abstract_state(self._applied).get_value()
         return applied.new_moves(self._relocations.Eval(context))
 
     def _calc_relocate(self, context, output) -> None:

@@ -13,8 +13,8 @@ may change it, so the plant itself applies them: ``add_plant_stepping`` gives it
 ``relocations`` (the robots block's ``relocate``: the moves not applied yet) and a
 periodic unrestricted update at its time step, Drake's own event declared on the plant,
 that puts each moved robot's planar joint on its pose at rest before that instant's step
-(the robots block notes the moves applied at the same instants). A run without lifts has
-neither.
+(the robots block notes the moves applied at the same instants). In a run without lifts
+(a robots block that does not ``relocates``) the plant has neither.
 """
 
 from pydrake.common.value import Value
@@ -29,13 +29,13 @@ from mrta_drake.world.plant import World
 
 def add_plant_stepping(builder, world: World, robots, human_positions=None) -> ContactRecorder:
     """Connect the stepped ``world.plant`` to ``robots`` (input ``plant_state``, output
-    ``generalized_force``, and ``relocate`` when it has one) and, when there are people, to
+    ``generalized_force``, and ``relocate`` when it ``relocates``) and, when there are people, to
     their ``plant_positions`` output port ``human_positions``; return the contact recorder
     added."""
     plant = world.plant
     state = plant.get_state_output_port()
     builder.Connect(state, robots.GetInputPort("plant_state"))
-    if robots.HasOutputPort("relocate"):
+    if getattr(robots, "relocates", False):
         builder.Connect(robots.GetOutputPort("relocate"), _declare_relocation(plant, robots))
     forces = robots.GetOutputPort("generalized_force")
     if human_positions is not None and world.humans:

@@ -143,12 +143,11 @@ def test_the_plant_applies_a_relocation_once_when_its_sequence_number_is_new():
 
 
 def test_without_relocations_the_plant_has_no_relocation_update_and_steps_alike():
-    # A run without lifts: neither the block nor the plant has the relocations ports or
-    # updates; a block built with them, with nothing to relocate, steps the same.
+    # A run without lifts: neither the block nor the plant has a relocation update, the
+    # plant no relocations input; a block built with them, nothing to relocate, steps alike.
     poses, commands = [(-2.0, 0.0, 0.0), (0.0, 1.0, 2.0)], [[1.0, 0.3], [0.5, -0.2]]
     simulator, world, robots, _ = _world(poses, commands)
-    assert not robots.HasInputPort("relocations") and not robots.HasOutputPort("relocate")
-    assert not world.plant.HasInputPort("relocations")
+    assert not robots.relocates and not world.plant.HasInputPort("relocations")
     assert robots.num_abstract_states() == 0
     without = _drive(simulator, robots, 2.0)
     simulator, world, robots, _ = _world(poses, commands, relocations=True)
