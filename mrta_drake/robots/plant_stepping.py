@@ -14,7 +14,7 @@ may change it, so the plant itself applies them: ``add_plant_stepping`` gives it
 periodic unrestricted update at its time step, Drake's own event declared on the plant,
 that puts each moved robot's planar joint on its pose at rest before that instant's step
 (the robots block notes the moves applied at the same instants). In a run without lifts
-(a robots block that does not ``relocates``) the plant has neither.
+(a robots block whose ``relocates`` is False) the plant has neither.
 """
 
 from pydrake.common.value import Value
