@@ -4,10 +4,17 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+from pydrake.common.value import Value
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.systems.framework import BasicVector, LeafSystem
+from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
 
-from mrta_drake.payloads import PLANAR_POSITION_SIZE, ROBOT_COMMAND_SIZE, ROBOT_STATE_SIZE
+from mrta_drake.payloads import (
+    PLANAR_POSITION_SIZE,
+    ROBOT_COMMAND_SIZE,
+    ROBOT_STATE_SIZE,
+    Relocations,
+)
+from mrta_drake.robots.relocation import Applied
 
 
 @dataclass(frozen=True)
@@ -62,10 +69,12 @@ class PhysicsRobots(LeafSystem):
         input_ports:
         - commands (optional)
         - plant_state
+        - relocations (optional)
         output_ports:
         - generalized_force
         - state
         - plant_positions
+        - relocate
 
     Each robot is driven like a differential drive: the commanded forward speed v (clipped
     to [-max_reverse_speed, max_speed]) and yaw rate omega (clipped to +-max_yaw_rate) are
@@ -82,9 +91,19 @@ class PhysicsRobots(LeafSystem):
     Output ``state`` (4N): [x, y, theta, v] per robot, world frame, m, rad; v the forward
         speed (body-frame x velocity), m/s.
     Output ``plant_positions`` (3N): [x, y, theta] per robot, its planar joint's positions.
+
+    Input ``relocations``: abstract ``Relocations`` (a lift ride's end). Output
+    ``relocate``: abstract ``Relocations``, its moves whose sequence numbers are new (None
+    for the other robots). The plant owns the bodies' state, so the plant applies them
+    (``plant_stepping.add_plant_stepping``, when ``relocates``: its own unrestricted update
+    at its step, before the step; ``relocated``); with ``relocations`` (a building run
+    across levels) the block notes them applied in its unrestricted update at the same
+    instants, so each pose is applied once. With ``relocations`` False (a run without
+    lifts) the block has no such update and no state for it, and ``relocate`` is all None.
     """
 
-    def __init__(self, plant: MultibodyPlant, robot_models, params: PhysicsRobotParams):
+    def __init__(self, plant: MultibodyPlant, robot_models, params: PhysicsRobotParams, *,
+                 relocations: bool = False):
         super().__init__()
         self._n = len(robot_models)
         nq, nv = plant.num_positions(), plant.num_velocities()
@@ -118,6 +137,16 @@ class PhysicsRobots(LeafSystem):
         self.DeclareVectorOutputPort(
             "plant_positions", BasicVector(PLANAR_POSITION_SIZE * self._n),
             self._calc_plant_positions, prerequisites_of_calc=plant_state)
+        self.relocates = relocations
+        self._relocations = self.DeclareAbstractInputPort("relocations",
+                                                          Value[object](Relocations()))
+        relocate = {self._relocations.ticket()}
+        if relocations:
+            self._applied = self.DeclareAbstractState(Value[object](Applied((0,) * self._n)))
+            relocate.add(self.abstract_state_ticket(self._applied))
+            self.DeclarePeriodicUnrestrictedUpdateEvent(params.time_step, 0.0, self._applied_now)
+        self.DeclareAbstractOutputPort("relocate", lambda: Value[object](Relocations()),
+                                       self._calc_relocate, prerequisites_of_calc=relocate)
 
     @property
     def num_robots(self) -> int:
@@ -142,6 +171,34 @@ class PhysicsRobots(LeafSystem):
 
     def _calc_plant_positions(self, context, output: BasicVector) -> None:
         output.SetFromVector(self._read(context)[0].ravel())
+
+    def relocated(self, plant_state: np.ndarray, moves: tuple) -> np.ndarray:
+        """The plant's state [q; v] with every robot that has a move (``relocate``'s
+        ``moves``, per robot ``(sequence, (x, y, theta))`` or None) on its pose, at rest."""
+        x = np.array(plant_state, dtype=float)
+        for k, move in enumerate(moves):
+            if move is not None:
+                x[self._q[k]] = move[1]
+                x[self._v[k]] = 0.0
+        return x
+
+    def _new_moves(self, context) -> tuple:
+        if not (self.relocates and self._relocations.HasValue(context)):
+            return (None,) * self._n
+        applied = context.get_abstract_state(self._applied).get_value()
+        return applied.new_moves(self._relocations.Eval(context))
+
+    def _calc_relocate(self, context, output) -> None:
+        output.set_value(Relocations(self._new_moves(context)))
+
+    def _applied_now(self, context, state) -> EventStatus:
+        # Nothing new: DidNothing lets Drake skip applying the update.
+        moves = self._new_moves(context)
+        if not any(moves):
+            return EventStatus.DidNothing()
+        applied = context.get_abstract_state(self._applied).get_value()
+        state.get_mutable_abstract_state(self._applied).set_value(applied.after(moves))
+        return EventStatus.Succeeded()
 
 
 @numba.njit(cache=True)

@@ -14,6 +14,7 @@ from mrta_drake.payloads import (
     ROBOT_STATE_SIZE,
     Relocations,
 )
+from mrta_drake.robots.relocation import Applied
 
 
 @dataclass(frozen=True)
@@ -25,16 +26,6 @@ class UnicycleParams:
     max_reverse_speed: float = 0.3  # v >= -max_reverse_speed, m/s
     max_acceleration: float = 1.0  # |dv/dt|, m/s^2
     max_yaw_rate: float = 2.0  # |omega|, rad/s
-
-
-@dataclass(frozen=True)
-class _Applied:
-    """Per robot, the sequence number of the last relocation applied (0: none)."""
-
-    seen: tuple[int, ...]
-
-    def __deepcopy__(self, memo):
-        return self  # immutable: Drake's copies of the state at each update can share it
 
 
 class UnicycleRobots(LeafSystem):
@@ -84,7 +75,7 @@ class UnicycleRobots(LeafSystem):
                                                           Value[object](Relocations()))
         if relocations:
             self._applied = self.DeclareAbstractState(
-                Value[object](_Applied((0,) * self._n)))
+                Value[object](Applied((0,) * self._n)))
         self.DeclareStateOutputPort("state", state)
         self.DeclareVectorOutputPort(
             "plant_positions", PLANAR_POSITION_SIZE * self._n, self._calc_plant_positions,
@@ -115,19 +106,16 @@ class UnicycleRobots(LeafSystem):
         # what depends on the state) when no other block updates at this instant.
         if not self._relocations.HasValue(context):
             return EventStatus.DidNothing()
-        moves = self._relocations.Eval(context).moves
-        applied = context.get_abstract_state(self._applied).get_value().seen
-        if not any(move is not None and move[0] > seen
-                   for move, seen in zip(moves, applied, strict=False)):
+        applied = context.get_abstract_state(self._applied).get_value()
+        moves = applied.new_moves(self._relocations.Eval(context))
+        if not any(moves):
             return EventStatus.DidNothing()
         x = context.get_discrete_state_vector().value().reshape(self._n, ROBOT_STATE_SIZE).copy()
-        seen = list(applied)
         for k, move in enumerate(moves):
-            if move is not None and move[0] > seen[k]:
+            if move is not None:
                 x[k] = (*move[1], 0.0)
-                seen[k] = move[0]
         state.get_mutable_discrete_state().get_mutable_vector(0).SetFromVector(x.ravel())
-        state.get_mutable_abstract_state(self._applied).set_value(_Applied(tuple(seen)))
+        state.get_mutable_abstract_state(self._applied).set_value(applied.after(moves))
         return EventStatus.Succeeded()
 
     def _calc_plant_positions(self, context, output: BasicVector) -> None:

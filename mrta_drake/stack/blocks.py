@@ -238,7 +238,8 @@ def _physics_robots() -> BlockType:
 
     return BlockType(
         PhysicsRobotParams,
-        lambda ctx, params: PhysicsRobots(ctx.world.plant, ctx.world.robots, params),
+        lambda ctx, params: PhysicsRobots(ctx.world.plant, ctx.world.robots, params,
+                                          relocations=bool(ctx.lifts)),
         physics=lambda params: PlantPhysics(params.time_step, params.mass,
                                             params.collision_shape))
 

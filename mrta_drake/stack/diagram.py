@@ -254,8 +254,8 @@ def _add_lifts(builder: DiagramBuilder, ctx: BuildContext, make, robots: LeafSys
     if not robots.HasInputPort("relocations"):
         raise InputError(ctx.scenario.source, "blocks.robots.kind",
                          f"{ctx.scenario.blocks.robots.kind!r} robots cannot ride lifts "
-                         "(no relocations input): use kind kinematic for a building run "
-                         "across levels")
+                         "(no relocations input): use kind kinematic or physics for a "
+                         "building run across levels")
     bank = builder.AddNamedSystem("lift_bank", make("lifts"))
     builder.Connect(robots.GetOutputPort("state"), bank.GetInputPort("robot_state"))
     builder.Connect(bank.GetOutputPort("relocations"), robots.GetInputPort("relocations"))

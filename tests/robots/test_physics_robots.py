@@ -11,6 +11,7 @@ from pydrake.systems.primitives import ConstantVectorSource
 
 from mrta_drake import load_scenario, simulate
 from mrta_drake.errors import InputError
+from mrta_drake.payloads import Relocations
 from mrta_drake.robots.physics_robots import PhysicsRobotParams, PhysicsRobots
 from mrta_drake.robots.plant_stepping import add_plant_stepping
 from mrta_drake.stack.blocks import replace_block
@@ -24,10 +25,11 @@ RADIUS = 0.22  # m
 WALL_FACE = 1.9  # m, the west face of the test wall (x)
 
 
-def _world(robot_poses, commands, human_poses=(), human_targets=None):
+def _world(robot_poses, commands, human_poses=(), human_targets=None, relocations=False):
     """A 6 m x 6 m floor with one wall (x from 1.9 to 2.1 m), robots ``r0``, ``r1``, ...
     under constant ``commands`` (N, 2) and people ``h0``, ... moved to ``human_targets``;
-    default physics parameters."""
+    default physics parameters; with ``relocations``, the robots block's relocations input
+    (left for the test to fix)."""
     params = PhysicsRobotParams()
     floor_plan = FloorPlan("test", (-3.0, 3.0, -3.0, 3.0), 2.5, Obstacles(
         (Box("wall", (WALL_FACE + 0.1, 0.0), (0.2, 4.0), height=2.5),)))
@@ -37,7 +39,8 @@ def _world(robot_poses, commands, human_poses=(), human_targets=None):
         robots=[Body(f"r{k}", RADIUS, tuple(p)) for k, p in enumerate(robot_poses)],
         humans=[Body(f"h{k}", 0.25, tuple(p)) for k, p in enumerate(human_poses)],
         physics=PlantPhysics(params.time_step, params.mass, params.collision_shape))
-    robots = builder.AddSystem(PhysicsRobots(world.plant, world.robots, params))
+    robots = builder.AddSystem(PhysicsRobots(world.plant, world.robots, params,
+                                             relocations=relocations))
     source = builder.AddSystem(ConstantVectorSource(np.ravel(commands)))
     builder.Connect(source.get_output_port(), robots.GetInputPort("commands"))
     human_positions = None
@@ -108,6 +111,48 @@ def test_people_are_moved_onto_their_targets_and_push_robots_aside():
     assert states[-1, 0, 0] > -0.2 + 0.25 + RADIUS - 0.01
     (pair,) = contacts.summary()["pairs"]
     assert pair["between"] == ["h0", "r0"] and pair["kind"] == "robot_human"
+
+
+def test_the_plant_applies_a_relocation_once_when_its_sequence_number_is_new():
+    # r0 drives east at 0.5 m/s; r1 stands. Each move puts a robot on its pose, at rest, at
+    # the next step; a move already applied is not applied again.
+    simulator, world, robots, _ = _world([(-2.0, 0.0, 0.0), (-2.0, 2.0, 0.0)],
+                                         [[0.5, 0.0], [0.0, 0.0]], relocations=True)
+    context = robots.GetMyContextFromRoot(simulator.get_context())
+    relocations = robots.GetInputPort("relocations")
+    relocations.FixValue(context, Relocations((None, (1, (-2.0, -2.0, 1.0)))))
+    states = _drive(simulator, robots, 1.0)
+    np.testing.assert_allclose(states[-1, 1], [-2.0, -2.0, 1.0, 0.0], atol=1e-9)
+    assert states[-1, 0, 3] == pytest.approx(0.5, abs=1e-3)  # r0 untouched
+    # r0, moving, is put on a pose: at rest there, then it speeds up again.
+    relocations.FixValue(context, Relocations(((1, (1.0, -1.0, np.pi / 2)),
+                                               (1, (-2.0, -2.0, 1.0)))))
+    simulator.AdvanceTo(1.0 + PhysicsRobotParams().time_step)
+    state = robots.GetOutputPort("state").Eval(context).reshape(-1, 4)
+    np.testing.assert_allclose(state[0, :3], [1.0, -1.0, np.pi / 2], atol=0.01)
+    assert state[0, 3] < 0.05  # one step's acceleration from rest
+    np.testing.assert_allclose(state[1], [-2.0, -2.0, 1.0, 0.0], atol=1e-9)
+    # The same sequence numbers: r0 drives north from the pose, not put back on it.
+    simulator.AdvanceTo(3.0)
+    state = robots.GetOutputPort("state").Eval(context).reshape(-1, 4)
+    assert state[0, 1] > -0.5
+    relocations.FixValue(context, Relocations(((2, (0.0, 1.0, 0.0)), None)))
+    simulator.AdvanceTo(3.0 + PhysicsRobotParams().time_step)
+    state = robots.GetOutputPort("state").Eval(context).reshape(-1, 4)
+    np.testing.assert_allclose(state[0, :2], [0.0, 1.0], atol=0.01)
+
+
+def test_without_relocations_the_plant_has_no_relocation_update_and_steps_alike():
+    # A run without lifts: neither the block nor the plant has a relocation update, the
+    # plant no relocations input; a block built with them, nothing to relocate, steps alike.
+    poses, commands = [(-2.0, 0.0, 0.0), (0.0, 1.0, 2.0)], [[1.0, 0.3], [0.5, -0.2]]
+    simulator, world, robots, _ = _world(poses, commands)
+    assert not robots.relocates and not world.plant.HasInputPort("relocations")
+    assert robots.num_abstract_states() == 0
+    without = _drive(simulator, robots, 2.0)
+    simulator, world, robots, _ = _world(poses, commands, relocations=True)
+    assert world.plant.HasInputPort("relocations")
+    np.testing.assert_array_equal(without, _drive(simulator, robots, 2.0))
 
 
 def test_parameters_are_checked():
