@@ -125,13 +125,11 @@ class BuildContext:
     @cached_property
     def travel_times(self) -> np.ndarray:
         """The allocator's (L, L) integer travel times (s): the scenario's file, else an
-        estimate from roadway leg lengths at ``tasks.estimate_speed``."""
-        from mrta_drake.scenario.travel_times import load_travel_times
+        estimate from roadway leg lengths at ``tasks.estimate_speed``, the one the loader
+        drew a generated stream's deadlines with (``allocator_travel_times``)."""
+        from mrta_drake.scenario.travel_times import allocator_travel_times
 
-        tasks = self.scenario.tasks
-        if tasks.travel_times:
-            return load_travel_times(tasks.travel_times, len(self.scenario.locations))
-        return self.roadways.travel_time_estimate(tasks.estimate_speed)
+        return allocator_travel_times(self.scenario, self.roadways)
 
     @cached_property
     def start_locations(self) -> list[int | None]:
