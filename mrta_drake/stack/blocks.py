@@ -365,7 +365,8 @@ def _grid_astar_planner() -> BlockType:
 
     return BlockType(PlannerServiceParams, lambda ctx, params: PlannerService.from_obstacles(
         ctx.obstacles, ctx.floor_plan.bounds, ctx.robot_names, params,
-        replan_rate_hz=ctx.rates.planner, target_check_rate_hz=ctx.rates.planner_target_check))
+        replan_rate_hz=ctx.rates.planner, target_check_rate_hz=ctx.rates.planner_target_check,
+        floors=ctx.floor_plan.floors))
 
 
 def _back_off_watchdog() -> BlockType:
@@ -375,7 +376,8 @@ def _back_off_watchdog() -> BlockType:
     def make(ctx: BuildContext, params: WatchdogParams):
         _, planner = resolve_block(ctx.scenario, "planner")
         costmap = Costmap.from_obstacles(ctx.obstacles, ctx.floor_plan.bounds,
-                                         getattr(planner, "costmap", CostmapParams()))
+                                         getattr(planner, "costmap", CostmapParams()),
+                                         floors=ctx.floor_plan.floors)
         return DeadlockWatchdog(ctx.robot_names, [r.radius for r in ctx.scenario.robots],
                                 costmap, params, _priorities(ctx), rate_hz=ctx.rates.watchdog,
                                 roadways=ctx.roadways)
