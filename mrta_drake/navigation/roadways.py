@@ -266,6 +266,7 @@ class Roadways:
                 and any(segment_crosses_box(self.node_position(a), self.node_position(b), box)
                        for box in key)])
             view.closures, view._legs, view._closed_views = key, {}, {}
+            vars(view).pop("leg_lengths", None)  # this one's, measured without the closures
             self._closed_views[key] = view
         return view
 

@@ -82,6 +82,9 @@ def test_the_estimate_counts_every_leg_as_driven(single_file):
     np.testing.assert_allclose(roadways.leg_lengths, expected, rtol=1e-12)
     np.testing.assert_array_equal(roadways.travel_time_estimate(0.7),
                                   np.ceil(np.array(expected) / 0.7).astype(int))
+    closed = roadways.closed([(14.0, 16.0, -0.5, 0.5)])  # the eastbound lane past B
+    assert closed.leg_lengths[0, 2] == math.inf  # A to C: no way east left
+    assert roadways.leg_lengths[0, 2] == pytest.approx(roadways.leg_length(0, 2))
 
 
 def test_route_from_a_point_joins_the_nearest_node():
