@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from matplotlib.path import Path
 from scipy import ndimage
 
 from mrta_drake.world.obstacles import Box, Cylinder, Obstacles
@@ -56,6 +57,25 @@ def resolution_for(bounds, max_cells: int = MAX_CELLS) -> float:
     area = (bounds[1] - bounds[0]) * (bounds[3] - bounds[2])
     factor = max(1, math.ceil(math.sqrt(area / max_cells) / DEFAULT_RESOLUTION - 1e-9))
     return round(factor * DEFAULT_RESOLUTION, 6)
+
+
+def _on_floors(grid: OccupancyGrid, floors) -> np.ndarray:
+    """Which cells of ``grid`` are on one of the polygons ``floors`` (centre inside, or
+    within a cell of one: no seam where two polygons meet)."""
+    on = np.zeros(grid.shape, dtype=bool)
+    rows, cols = grid.shape
+    for floor in floors:
+        polygon = np.asarray(floor, dtype=float)
+        i0, j0 = grid.world_to_cell(polygon.min(axis=0))
+        i1, j1 = grid.world_to_cell(polygon.max(axis=0))
+        i0, j0 = max(int(i0), 0), max(int(j0), 0)
+        i1, j1 = min(int(i1), rows - 1), min(int(j1), cols - 1)
+        if i0 > i1 or j0 > j1:
+            continue
+        ii, jj = np.mgrid[i0:i1 + 1, j0:j1 + 1]
+        inside = Path(polygon).contains_points(grid.cell_to_world(ii, jj).reshape(-1, 2))
+        on[i0:i1 + 1, j0:j1 + 1] |= inside.reshape(ii.shape)
+    return ndimage.binary_dilation(on)
 
 
 def inflation_cost(distance, robot_radius: float, inflation_radius: float,
@@ -103,10 +123,16 @@ class Costmap:
     @classmethod
     def from_obstacles(cls, obstacles: Obstacles, bounds,
                        params: CostmapParams = CostmapParams(),
-                       resolution: float = DEFAULT_RESOLUTION) -> "Costmap":
+                       resolution: float = DEFAULT_RESOLUTION, floors=()) -> "Costmap":
         """Rasterize ``obstacles`` over ``bounds`` = (x_min, x_max, y_min, y_max) (m) and
-        inflate them."""
-        return cls.from_grid(obstacles.rasterize(bounds, resolution), params)
+        inflate them. With ``floors`` (polygons of (x, y) vertices, m; ``FloorPlan.floors``)
+        every cell outside all of them is an obstacle too: paths stay on the floors (never
+        through the gap between a building's levels side by side)."""
+        grid = obstacles.rasterize(bounds, resolution)
+        if len(floors):
+            grid = OccupancyGrid(grid.occupied | ~_on_floors(grid, floors), grid.resolution,
+                                 grid.origin)
+        return cls.from_grid(grid, params)
 
     def with_obstacles(self, obstacles: Obstacles, cost: int = LETHAL) -> "Costmap":
         """This costmap with ``obstacles`` added (e.g. a region closed for a while),

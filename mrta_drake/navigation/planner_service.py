@@ -168,13 +168,14 @@ class PlannerService(LeafSystem):
     @classmethod
     def from_obstacles(cls, obstacles: Obstacles, bounds, robot_names: Sequence[str],
                        params: PlannerServiceParams = PlannerServiceParams(), *,
-                       replan_rate_hz: float, target_check_rate_hz: float
+                       replan_rate_hz: float, target_check_rate_hz: float, floors=()
                        ) -> "PlannerService":
         """A block planning over ``obstacles`` rasterized on ``bounds`` = (x_min, x_max,
         y_min, y_max) (m) at the costmap's default resolution, coarser for very large
-        worlds (``costmap.resolution_for``)."""
+        worlds (``costmap.resolution_for``), and off the ``floors`` (``FloorPlan.floors``)
+        where there are any."""
         costmap = Costmap.from_obstacles(obstacles, bounds, params.costmap,
-                                         resolution_for(bounds))
+                                         resolution_for(bounds), floors)
         return cls(GridPlanner(costmap, params.planner), robot_names,
                    replan_rate_hz=replan_rate_hz, target_check_rate_hz=target_check_rate_hz,
                    cost_resting_robots=params.cost_resting_robots)

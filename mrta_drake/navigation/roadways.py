@@ -266,6 +266,7 @@ class Roadways:
                 and any(segment_crosses_box(self.node_position(a), self.node_position(b), box)
                        for box in key)])
             view.closures, view._legs, view._closed_views = key, {}, {}
+            vars(view).pop("leg_lengths", None)  # this one's, measured without the closures
             self._closed_views[key] = view
         return view
 
@@ -479,11 +480,41 @@ class Roadways:
         ``location_ids`` (ascending ids, so the index is the id when ids are 0..n-1)."""
         if speed <= 0:
             raise ValueError(f"speed must be positive, got {speed}")
-        ids = self.location_ids
-        column = {b: j for j, b in enumerate(ids)}
-        times = np.zeros((len(ids), len(ids)), dtype=int)
-        for i, a in enumerate(ids):
-            for b, leg in self.legs_from(a):
-                times[i, column[b]] = math.ceil(self.route_length(leg) / speed)
+        times = np.ceil(self.leg_lengths / speed).astype(int)
         times.flags.writeable = False
         return times
+
+    @functools.cached_property
+    def leg_lengths(self) -> np.ndarray:
+        """(L, L) lengths (m) of the legs between all locations (``leg_length``; rows and
+        columns follow ``location_ids``, 0 on the diagonal, inf where no lane leads), from
+        one search of the lanes per exit node: a leg's length is its way out to the exit
+        node, the shortest way along the lanes to the approach node (off the lane past the
+        own queue where another way leads there: ``_past_queue``) and the step to the
+        queue's tail slot."""
+        ids = self.location_ids
+        places = [self.place(a) for a in ids]
+        approach = [p.approach_node for p in places]
+        to_tail = np.array([math.dist(self.node_position(p.approach_node), p.tail)
+                            for p in places])
+        searched: dict[tuple, dict] = {}
+
+        def distances(node: str, avoid) -> dict:
+            if (node, avoid) not in searched:
+                graph = self.graph if avoid is None else nx.restricted_view(
+                    self.graph, [], [avoid])
+                searched[node, avoid] = nx.single_source_dijkstra_path_length(
+                    graph, node, weight="length")
+            return searched[node, avoid]
+
+        lengths = np.zeros((len(ids), len(ids)))
+        for i, start in enumerate(places):
+            out = _polyline_length(np.array(
+                [*self.way_out(start), self.node_position(start.exit_node)], dtype=float))
+            avoid = self._past_queue(start)
+            around, anyway = distances(start.exit_node, avoid), distances(start.exit_node, None)
+            along = np.array([around.get(n, anyway.get(n, math.inf)) for n in approach])
+            lengths[i] = out + along + to_tail
+            lengths[i, i] = 0.0
+        lengths.flags.writeable = False
+        return lengths

@@ -12,7 +12,9 @@ s), the number of robots and the run's duration (s):
    spanning the most levels first, so that tasks ride the lifts (a clinic whose levels are
    far apart through its lifts would otherwise keep its tasks on one level), and each
    level as likely as the next to hold a pickup or a drop-off;
-   fewer than two: the run is too short for this building (``InputError``).
+   fewer than two: the run is too short for this building (``InputError``). The search
+   looks at ``MAX_SETS`` sets that cannot grow at most (hundreds of locations many of
+   whose pairs fit can make millions).
 2. **When**: a task takes at most ``2 x longest leg + 2 x service time`` (to the pickup,
    then to the drop-off) among those locations, ``2 x mean leg + 2 x service time`` on
    average; the last batch arrives a longest and a mean task time before the end, time
@@ -26,6 +28,7 @@ s), the number of robots and the run's duration (s):
 The tasks themselves stay a seeded draw (``tasks.generate`` with the scenario's seed).
 """
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -38,6 +41,7 @@ from mrta_drake.errors import InputError
 LEG_SHARE = 0.2  # of the run: the longest loaded leg
 UTILISATION = 0.5  # of the fleet's time spent on tasks
 BATCH_SIZE = (1, 2)  # tasks per batch, uniform
+MAX_SETS = 20_000  # sets of locations near each other looked at, at most (1.)
 
 
 @dataclass(frozen=True)
@@ -90,7 +94,8 @@ def _largest_neighbourhood(times: np.ndarray, limit: float, levels: Sequence[str
                            ) -> list[int]:
     """Of the sets of locations whose legs both ways take at most ``limit`` s, the one
     spanning the most ``levels`` (one per location), then the largest (ties: the one with
-    the shortest legs, then the lowest indices)."""
+    the shortest legs, then the lowest indices); among the first ``MAX_SETS`` sets that
+    cannot grow (``networkx.find_cliques``' order) where there are more."""
     n = len(times)
     near = nx.Graph()
     near.add_nodes_from(range(n))
@@ -98,9 +103,9 @@ def _largest_neighbourhood(times: np.ndarray, limit: float, levels: Sequence[str
                         if max(times[i, j], times[j, i]) <= limit)
     best: list[int] = []
     best_key = (0, 0, -math.inf)
-    for clique in nx.find_cliques(near):
+    for clique in itertools.islice(nx.find_cliques(near), MAX_SETS):
         clique = sorted(clique)
-        total = sum(times[i, j] for i in clique for j in clique)
+        total = float(times[np.ix_(clique, clique)].sum())
         key = (len({levels[i] for i in clique}), len(clique), -total)
         if key > best_key or (key == best_key and clique < best):
             best, best_key = clique, key

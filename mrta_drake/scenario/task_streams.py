@@ -129,22 +129,11 @@ def _arrivals(config: TaskGenerationConfig, end: float, rng: np.random.Generator
 
 def _allocator_travel_time(scenario: Scenario) -> Callable[[int, int], float]:
     """Travel time (s) between two location ids as the allocator sees it."""
-    tasks = scenario.tasks
-    ids = sorted(location.id for location in scenario.locations)
-    if tasks.travel_times:
-        from mrta_drake.scenario.travel_times import load_travel_times
+    from mrta_drake.scenario.travel_times import allocator_travel_times
 
-        times = load_travel_times(tasks.travel_times, len(ids))
-    else:
-        from mrta_drake.navigation.roadways import Roadways
-
-        if not all(location.point for location in scenario.locations):
-            from mrta_drake.world.plant import load_floor_plan_of, resolve_locations
-
-            scenario = resolve_locations(scenario, load_floor_plan_of(scenario, objects=False))
-        roadways = Roadways(scenario.roadways, scenario.locations, scenario.source)
-        times = roadways.travel_time_estimate(tasks.estimate_speed)
-    index = {location: k for k, location in enumerate(ids)}
+    times = allocator_travel_times(scenario)
+    index = {location: k for k, location in enumerate(sorted(
+        location.id for location in scenario.locations))}
     return lambda a, b: float(times[index[a], index[b]])
 
 

@@ -4,9 +4,13 @@ A matrix ``T`` (L, L) of integer seconds: ``T[i, j]`` is the time to drive from 
 to location ``j`` (row and column = location id; ids are 0..L-1). Files are YAML
 (``travel_times: [[...], ...]``, optionally ``stat`` and ``repeats`` describing how they were
 measured) or CSV (one row per line, no header).
+
+``allocator_travel_times`` is the one owner of a scenario's matrix: the loader's slack
+deadlines of a generated stream and the diagram's allocator both take it from there.
 """
 
 import csv
+import hashlib
 import math
 import os
 
@@ -14,7 +18,43 @@ import numpy as np
 import yaml
 
 from mrta_drake.errors import InputError
+from mrta_drake.scenario.schema import Scenario
 from mrta_drake.scenario.typed_yaml import read_yaml
+
+
+def allocator_travel_times(scenario: Scenario, roadways=None) -> np.ndarray:
+    """The allocator's (L, L) integer travel times (s) between ``scenario``'s locations
+    (rows and columns in ascending id order): its ``tasks.travel_times`` file, else the
+    estimate from the roadway legs at ``tasks.estimate_speed``
+    (``Roadways.travel_time_estimate``; location points the scenario leaves out are taken
+    from its floor plan). ``roadways``: the scenario's ``Roadways`` when the caller has
+    them (built here otherwise).
+
+    The estimate is made once per roadways, locations and speed and kept for the last few
+    (read-only): it depends on nothing else, so the same scenario gives the same matrix
+    however often it is asked for in one process."""
+    tasks = scenario.tasks
+    if tasks.travel_times:
+        return load_travel_times(tasks.travel_times, len(scenario.locations))
+    if not all(location.point for location in scenario.locations):
+        from mrta_drake.world.plant import load_floor_plan_of, resolve_locations
+
+        scenario = resolve_locations(scenario, load_floor_plan_of(scenario, objects=False))
+    content = repr((scenario.roadways, scenario.locations, tasks.estimate_speed)).encode()
+    key = hashlib.sha256(content).digest()
+    if key not in _ESTIMATES:
+        if roadways is None:
+            from mrta_drake.navigation.roadways import Roadways
+
+            roadways = Roadways(scenario.roadways, scenario.locations, scenario.source)
+        _ESTIMATES[key] = roadways.travel_time_estimate(tasks.estimate_speed)
+        while len(_ESTIMATES) > _KEPT:
+            _ESTIMATES.pop(next(iter(_ESTIMATES)))
+    return _ESTIMATES[key]
+
+
+_KEPT = 4  # estimates kept, the oldest dropped first
+_ESTIMATES: dict[bytes, np.ndarray] = {}  # by a digest of the roadways, locations and speed
 
 
 def load_travel_times(path: str, num_locations: int) -> np.ndarray:

@@ -125,13 +125,11 @@ class BuildContext:
     @cached_property
     def travel_times(self) -> np.ndarray:
         """The allocator's (L, L) integer travel times (s): the scenario's file, else an
-        estimate from roadway leg lengths at ``tasks.estimate_speed``."""
-        from mrta_drake.scenario.travel_times import load_travel_times
+        estimate from roadway leg lengths at ``tasks.estimate_speed``, the one the loader
+        drew a generated stream's deadlines with (``allocator_travel_times``)."""
+        from mrta_drake.scenario.travel_times import allocator_travel_times
 
-        tasks = self.scenario.tasks
-        if tasks.travel_times:
-            return load_travel_times(tasks.travel_times, len(self.scenario.locations))
-        return self.roadways.travel_time_estimate(tasks.estimate_speed)
+        return allocator_travel_times(self.scenario, self.roadways)
 
     @cached_property
     def start_locations(self) -> list[int | None]:
@@ -368,7 +366,8 @@ def _grid_astar_planner() -> BlockType:
 
     return BlockType(PlannerServiceParams, lambda ctx, params: PlannerService.from_obstacles(
         ctx.obstacles, ctx.floor_plan.bounds, ctx.robot_names, params,
-        replan_rate_hz=ctx.rates.planner, target_check_rate_hz=ctx.rates.planner_target_check))
+        replan_rate_hz=ctx.rates.planner, target_check_rate_hz=ctx.rates.planner_target_check,
+        floors=ctx.floor_plan.floors))
 
 
 def _back_off_watchdog() -> BlockType:
@@ -378,7 +377,8 @@ def _back_off_watchdog() -> BlockType:
     def make(ctx: BuildContext, params: WatchdogParams):
         _, planner = resolve_block(ctx.scenario, "planner")
         costmap = Costmap.from_obstacles(ctx.obstacles, ctx.floor_plan.bounds,
-                                         getattr(planner, "costmap", CostmapParams()))
+                                         getattr(planner, "costmap", CostmapParams()),
+                                         floors=ctx.floor_plan.floors)
         return DeadlockWatchdog(ctx.robot_names, [r.radius for r in ctx.scenario.robots],
                                 costmap, params, _priorities(ctx), rate_hz=ctx.rates.watchdog,
                                 roadways=ctx.roadways)

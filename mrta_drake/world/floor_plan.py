@@ -28,7 +28,9 @@ class FloorPlan:
     ``bounds`` = (x_min, x_max, y_min, y_max) of the mapped area, m. ``obstacles`` are the
     walls and furniture. ``places`` maps names to world (x, y) points, m. ``source`` is the file
     the plan was loaded from. ``raw_grid`` is the occupancy the plan was imported from (ROS
-    maps), None for authored plans.
+    maps), None for authored plans. ``floors``: polygons ((x, y) vertices, m) of the floor
+    robots may drive on, outside all of which the planner's costmap is an obstacle
+    (``Costmap.from_obstacles``); empty: everywhere within ``bounds``.
     """
 
     name: str
@@ -38,6 +40,7 @@ class FloorPlan:
     places: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     source: str = ""
     raw_grid: OccupancyGrid | None = None
+    floors: tuple[tuple[tuple[float, float], ...], ...] = ()
 
     def occupancy(self, resolution: float = 0.05) -> OccupancyGrid:
         """The obstacles rasterized over ``bounds`` with square cells of ``resolution`` m."""

@@ -89,10 +89,14 @@ class LevelLayout:
 def combined_floor_plan(name: str, plans: Mapping[str, FloorPlan], layout: LevelLayout,
                         source: str = "") -> FloorPlan:
     """One floor plan of the level ``plans`` (by level name) placed as in ``layout``:
-    obstacles and places named ``<level>/<name>``."""
-    boxes, cylinders, places = [], [], {}
+    obstacles and places named ``<level>/<name>``, each level's floors (its plan's, else
+    its bounds) shifted with it, so that the gaps between the levels are no floor."""
+    boxes, cylinders, places, floors = [], [], {}, []
     for level, plan in plans.items():
         offset = layout.placement(level).offset
+        x0, x1, y0, y1 = plan.bounds
+        floors += [tuple((x + offset, y) for x, y in floor) for floor in
+                   plan.floors or [((x0, y0), (x1, y0), (x1, y1), (x0, y1))]]
         obstacles = plan.obstacles
         boxes += [Box(f"{level}/{b.name}", (b.center[0] + offset, b.center[1]), b.size, b.yaw,
                       b.height) for b in obstacles.boxes]
@@ -103,4 +107,4 @@ def combined_floor_plan(name: str, plans: Mapping[str, FloorPlan], layout: Level
     wall_height = max(plan.wall_height for plan in plans.values())
     return FloorPlan(name=name, bounds=layout.bounds, wall_height=wall_height,
                      obstacles=Obstacles(tuple(boxes), tuple(cylinders)), places=places,
-                     source=source)
+                     source=source, floors=tuple(floors))

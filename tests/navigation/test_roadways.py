@@ -71,6 +71,22 @@ def test_leg_lengths_and_travel_time_estimate():
         roadways.leg(1, 1)
 
 
+@pytest.mark.parametrize("single_file", [[], [["N20", "N10"]]])
+def test_the_estimate_counts_every_leg_as_driven(single_file):
+    # One search of the lanes per exit node gives each leg's length as ``leg`` drives it
+    # (off the single-file lane past the own queue where another way leads there).
+    config, locations = loop_world()
+    roadways = Roadways(replace(config, single_file=single_file), locations)
+    ids = roadways.location_ids
+    expected = [[roadways.leg_length(a, b) for b in ids] for a in ids]
+    np.testing.assert_allclose(roadways.leg_lengths, expected, rtol=1e-12)
+    np.testing.assert_array_equal(roadways.travel_time_estimate(0.7),
+                                  np.ceil(np.array(expected) / 0.7).astype(int))
+    closed = roadways.closed([(14.0, 16.0, -0.5, 0.5)])  # the eastbound lane past B
+    assert closed.leg_lengths[0, 2] == math.inf  # A to C: no way east left
+    assert roadways.leg_lengths[0, 2] == pytest.approx(roadways.leg_length(0, 2))
+
+
 def test_route_from_a_point_joins_the_nearest_node():
     roadways = Roadways(*loop_world())
     route = roadways.route_from_point([19.0, -0.5], to_location=0)
@@ -125,6 +141,9 @@ def test_hospital_navigation_has_every_leg():
                 np.testing.assert_array_equal(leg[-1], roadways.place(b).tail)
         # One search for all legs out of a location: where two ways are equally short
         # (the hospital's corridors make many), possibly the other one.
+        np.testing.assert_allclose(
+            roadways.leg_lengths[ids.index(a)],
+            [roadways.leg_length(a, b) for b in ids], rtol=1e-12)
         legs = dict(roadways.legs_from(a))
         assert sorted(legs) == [b for b in ids if b != a]
         for b, leg in legs.items():

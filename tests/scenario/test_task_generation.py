@@ -154,6 +154,27 @@ def test_scenario_generate_block_uses_the_seed_and_roadway_travel_times(tmp_path
                 assert allowed <= 3 * estimate[task.pickup, task.dropoff] + 1
 
 
+def test_the_loader_and_the_allocator_share_one_estimate(tmp_path, monkeypatch):
+    from mrta_drake.navigation.roadways import Roadways
+    from mrta_drake.stack.blocks import BuildContext
+
+    made = []
+    estimate = Roadways.travel_time_estimate
+    monkeypatch.setattr(Roadways, "travel_time_estimate",
+                        lambda self, speed: made.append(speed) or estimate(self, speed))
+    path = _scenario_file(tmp_path, "{rate: 0.03, batch_size: [1, 2], slack: [2, 3]}")
+    speed = {"tasks.estimate_speed": 0.4321}  # not estimated by an earlier test
+    scenario = load_scenario(path, overrides=speed)
+    for seed in (7, 8):  # the same roadways, locations and speed: estimated once
+        times = BuildContext.for_scenario(load_scenario(path, overrides=speed | {
+            "seed": seed})).travel_times
+    assert made == [0.4321]
+    np.testing.assert_array_equal(times, Roadways(
+        scenario.roadways, scenario.locations).travel_time_estimate(0.4321))
+    load_scenario(path, overrides={"tasks.estimate_speed": 0.4322})
+    assert made[-2:] == [0.4321, 0.4322]  # another speed: estimated anew
+
+
 def test_scenario_generate_block_uses_the_travel_time_file(tmp_path):
     matrix = tmp_path / "travel.csv"
     matrix.write_text("\n".join(",".join("0" if i == j else str(10 * (i + j)) for j in range(6))

@@ -91,3 +91,26 @@ def test_a_level_without_two_shared_fiducials_is_named(tmp_path):
     assert unaligned_levels(load_building(renamed)) == [
         "L2: 1 fiducial(s) shared with the reference level L1: taken as drawn in its frame, "
         "not aligned"]
+
+
+def test_no_plan_leads_from_one_level_to_another_through_the_gap():
+    # Two levels whose walls do not close them in: without the floors the planner finds a
+    # way round the walls and across the gap; with them the levels are apart.
+    from mrta_drake.navigation.costmap import Costmap
+    from mrta_drake.navigation.grid_planner import UNREACHABLE, GridPlanner
+    from mrta_drake.world.floor_plan import FloorPlan
+    from mrta_drake.world.levels import combined_floor_plan
+    from mrta_drake.world.obstacles import Box, Obstacles
+
+    wall = Obstacles((Box("wall", (5.0, 2.5), (0.1, 3.0), 0.0, 2.5),))
+    plans = {name: FloorPlan(name, (0.0, 10.0, 0.0, 5.0), 2.5, wall) for name in ("A", "B")}
+    layout = LevelLayout.side_by_side([(name, 4.0 * k, plan.bounds)
+                                       for k, (name, plan) in enumerate(plans.items())])
+    plan = combined_floor_plan("two", plans, layout)
+    start, goal = (2.0, 2.5), layout.to_world("B", (8.0, 2.5))
+    open_gap = GridPlanner(Costmap.from_obstacles(plan.obstacles, plan.bounds, resolution=0.1))
+    assert open_gap.plan(start, goal).found
+    floors = GridPlanner(Costmap.from_obstacles(plan.obstacles, plan.bounds, resolution=0.1,
+                                                floors=plan.floors))
+    assert floors.plan(start, goal).failure == UNREACHABLE
+    assert floors.plan(start, (8.0, 2.5)).found  # round its own wall, on its level
