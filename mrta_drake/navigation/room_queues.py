@@ -61,14 +61,15 @@ class RoomQueues(LeafSystem):
        robot standing in a segment asks for it at the same instant as one driving in);
        one that no longer does stops waiting.
     3. Grant: robots that hold some of the segments they name (they stand in them) first,
-       then the others, each in waiting order: a robot gets all the segments it names at
-       once when each is free or held by robots driving it the same way (only by itself
-       for the ``exclusive`` segments, where robots stop, when it or a holder names the
-       segment in ``stops``: it will stand there; robots that only drive through follow
-       each other in), and, unless it holds some
-       already, none is named by a robot before it still waiting; else it gets none. (A
-       robot standing in a segment goes as soon as its way is free: one waiting before it
-       may wait for the very segment it stands in.) A robot waiting before it keeps its
+       then those that hold the room they ask for (on their way into it: every robot
+       queueing for that room waits for it), then the others, each in waiting order: a
+       robot gets all the segments it names at once when each is free or held by robots
+       driving it the same way (only by itself for the ``exclusive`` segments, where
+       robots stop, when it or a holder names the segment in ``stops``: it will stand
+       there; robots that only drive through follow each other in), and, unless it holds
+       some already, none is named by a robot before it still waiting; else it gets none.
+       (A robot standing in a segment goes as soon as its way is free: one waiting before
+       it may wait for the very segment it stands in.) A robot waiting before it keeps its
        turn only while that robot does not wait, through others, for this one: for the
        holders of the segments it cannot have, for the robots before it whose turn it
        keeps, for the holder of the room it queues for (office seed 3: a room's holder,
@@ -178,7 +179,11 @@ class RoomQueues(LeafSystem):
             return False
 
         inside = [r for r in order if any(r in holds[k].holders for k in wanted[r])]
-        order = inside + [r for r in order if r not in inside]
+        room_of = {robot: request.room
+                   for robot, request in zip(self._robots, requests, strict=True)}
+        entering = [r for r in order if r not in inside and any(
+            queue.holder == r and room_of[r] == queue.room for queue in rooms)]
+        order = inside + entering + [r for r in order if r not in inside and r not in entering]
         waiting, named = [], {}  # named: segment -> the robots still waiting that name it
         for robot in order:
             turns = set() if robot in inside else {
