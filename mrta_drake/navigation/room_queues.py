@@ -61,20 +61,22 @@ class RoomQueues(LeafSystem):
        robot standing in a segment asks for it at the same instant as one driving in);
        one that no longer does stops waiting.
     3. Grant: robots that hold some of the segments they name (they stand in them) first,
-       then those that hold the room they ask for (on their way into it: every robot
-       queueing for that room waits for it), then the others, each in waiting order: a
-       robot gets all the segments it names at once when each is free or held by robots
-       driving it the same way (only by itself for the ``exclusive`` segments, where
-       robots stop, when it or a holder names the segment in ``stops``: it will stand
-       there; robots that only drive through follow each other in), and, unless it holds
-       some already, none is named by a robot before it still waiting; else it gets none.
-       (A robot standing in a segment goes as soon as its way is free: one waiting before
-       it may wait for the very segment it stands in.) A robot waiting before it keeps its
+       then the others, each in waiting order: a robot gets all the segments it names at
+       once when each is free or held by robots driving it the same way (only by itself
+       for the ``exclusive`` segments, where robots stop, when it or a holder names the
+       segment in ``stops``: it will stand there; robots that only drive through follow
+       each other in), and, unless it holds some already, none is named by a robot
+       before it still waiting; else it gets none. (A robot standing in a segment goes as
+       soon as its way is free: one waiting before it may wait for the very segment it
+       stands in.) A robot waiting before it keeps its
        turn only while that robot does not wait, through others, for this one: for the
        holders of the segments it cannot have, for the robots before it whose turn it
        keeps, for the holder of the room it queues for (office seed 3: a room's holder,
        leaving away from its queue, kept behind a robot that waited for the segment in
-       which the robot at the room's head slot stood: a gridlock).
+       which the robot at the room's head slot stood: a gridlock). A robot outside a
+       segment where it would stop (``stops``) waits while a robot that holds the room it
+       asks for (on its way in) waits for that segment: stopped there, on the way to that
+       room's queue, it would keep the holder out for good.
     4. Each segment names the robots still waiting that name it (``SegmentHold.waiting``):
        a robot without a task standing in one drives out of the way (``WaypointPolicy``).
 
@@ -179,15 +181,19 @@ class RoomQueues(LeafSystem):
             return False
 
         inside = [r for r in order if any(r in holds[k].holders for k in wanted[r])]
-        room_of = {robot: request.room
-                   for robot, request in zip(self._robots, requests, strict=True)}
-        entering = [r for r in order if r not in inside and any(
-            queue.holder == r and room_of[r] == queue.room for queue in rooms)]
-        order = inside + entering + [r for r in order if r not in inside and r not in entering]
+        order = inside + [r for r in order if r not in inside]
+        asked = {robot: request.room
+                 for robot, request in zip(self._robots, requests, strict=True)}
+        entering = {queue.holder for queue in rooms if queue.holder is not None
+                    and asked[queue.holder] == queue.room} - set(inside)
         waiting, named = [], {}  # named: segment -> the robots still waiting that name it
         for robot in order:
             turns = set() if robot in inside else {
                 r for k in wanted[robot] for r in named.get(k, ()) if not reaches(r, robot)}
+            if robot not in inside and robot not in entering:
+                turns |= {h for h in entering for k in stops[robot]
+                          if k in wanted[robot] and k in wanted[h]
+                          and h not in holds[k].holders}
             if not blocked(robot) and not turns:
                 for k, way in wanted[robot].items():
                     if robot not in holds[k].holders:
