@@ -65,10 +65,10 @@ class RoomQueues(LeafSystem):
        once when each is free or held by robots driving it the same way (only by itself
        for the ``exclusive`` segments, where robots stop, when it or a holder names the
        segment in ``stops``: it will stand there; robots that only drive through follow
-       each other in), and, unless it holds some already, none is named by a robot
-       before it still waiting; else it gets none. (A robot standing in a segment goes as
-       soon as its way is free: one waiting before it may wait for the very segment it
-       stands in.) A robot waiting before it keeps its
+       each other in), and, unless it holds some
+       already, none is named by a robot before it still waiting; else it gets none. (A
+       robot standing in a segment goes as soon as its way is free: one waiting before it
+       may wait for the very segment it stands in.) A robot waiting before it keeps its
        turn only while that robot does not wait, through others, for this one: for the
        holders of the segments it cannot have, for the robots before it whose turn it
        keeps, for the holder of the room it queues for (office seed 3: a room's holder,
