@@ -73,7 +73,10 @@ class RoomQueues(LeafSystem):
        holders of the segments it cannot have, for the robots before it whose turn it
        keeps, for the holder of the room it queues for (office seed 3: a room's holder,
        leaving away from its queue, kept behind a robot that waited for the segment in
-       which the robot at the room's head slot stood: a gridlock).
+       which the robot at the room's head slot stood: a gridlock). A robot outside a
+       segment where it would stop (``stops``) waits while a robot that holds the room it
+       asks for (on its way in) waits for that segment: stopped there, on the way to that
+       room's queue, it would keep the holder out for good.
     4. Each segment names the robots still waiting that name it (``SegmentHold.waiting``):
        a robot without a task standing in one drives out of the way (``WaypointPolicy``).
 
@@ -179,10 +182,18 @@ class RoomQueues(LeafSystem):
 
         inside = [r for r in order if any(r in holds[k].holders for k in wanted[r])]
         order = inside + [r for r in order if r not in inside]
+        asked = {robot: request.room
+                 for robot, request in zip(self._robots, requests, strict=True)}
+        entering = {queue.holder for queue in rooms if queue.holder is not None
+                    and asked[queue.holder] == queue.room} - set(inside)
         waiting, named = [], {}  # named: segment -> the robots still waiting that name it
         for robot in order:
             turns = set() if robot in inside else {
                 r for k in wanted[robot] for r in named.get(k, ()) if not reaches(r, robot)}
+            if robot not in inside and robot not in entering:
+                turns |= {h for h in entering for k in stops[robot]
+                          if k in wanted[robot] and k in wanted[h]
+                          and h not in holds[k].holders}
             if not blocked(robot) and not turns:
                 for k, way in wanted[robot].items():
                     if robot not in holds[k].holders:

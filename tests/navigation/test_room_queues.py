@@ -336,6 +336,29 @@ def test_a_robot_keeps_no_turn_that_waits_for_the_robot_behind_it():
     assert state.segment_waiting == ("x",)
 
 
+def test_the_room_holder_on_its_way_in_gets_a_segment_before_robots_that_would_stop_there():
+    # h holds the room and, to drive in, wants 0 (where robots stop: the room's queue
+    # slot is in it); q, waiting for 0 first, drives to that queue slot and would wait
+    # there for h, h for q's segment (the fork's older office, seed 0): h goes first.
+    bench = SegmentBench(["h", "q", "c"], exclusive=frozenset({0}))
+    bench.want("h", room=ROOM)
+    bench.want("c", (0, True), stops=(0,))  # c stands in 0
+    bench.step()
+    bench.want("q", (1, True), (0, True), stops=(0,))
+    bench.step()
+    bench.want("h", (0, True), room=ROOM, stops=(0,))
+    bench.step()
+    assert bench.state().segments[0].waiting == ("q", "h")
+    bench.want("c")
+    bench.step()
+    state = bench.state()
+    assert state.holds_segments("h", ((0, True),))
+    assert state.segment_waiting == ("q",)
+    bench.want("h", room=ROOM)  # h is in the room
+    bench.step()
+    assert bench.state().holds_segments("q", ((0, True), (1, True)))
+
+
 class _QueueReader(LeafSystem):
     """Reads ``queue_state`` into an output and counts how often that output is computed."""
 
