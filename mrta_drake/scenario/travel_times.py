@@ -47,7 +47,9 @@ def allocator_travel_times(scenario: Scenario, roadways=None) -> np.ndarray:
             from mrta_drake.navigation.roadways import Roadways
 
             roadways = Roadways(scenario.roadways, scenario.locations, scenario.source)
-        _ESTIMATES[key] = roadways.travel_time_estimate(tasks.estimate_speed)
+        estimate = roadways.travel_time_estimate(tasks.estimate_speed)
+        estimate.setflags(write=False)
+        _ESTIMATES[key] = estimate
         while len(_ESTIMATES) > _KEPT:
             _ESTIMATES.pop(next(iter(_ESTIMATES)))
     return _ESTIMATES[key]
