@@ -16,6 +16,7 @@ from mrta_drake.control.controller_common import predict_states
 from mrta_drake.control.go_to_goal_controller import GoToGoalController
 from mrta_drake.control.nominal import NominalParams, nominal_control
 from mrta_drake.control.wall_rays import SensingParams, WallRays
+from mrta_drake.errors import InputError
 from mrta_drake.payloads import PATH_OK, FleetPaths, HumanStates, RobotPath, frozen_array
 from mrta_drake.results.summary import SLACK_TOLERANCE
 from mrta_drake.robots.unicycle_robots import UnicycleRobots
@@ -454,6 +455,30 @@ def test_only_followers_in_the_way_of_a_robot_ranked_above_get_the_slow_down_nom
     assert _slowed(_coordinated("clusters", "all"), beside_it, beside) == [False, True]
     with pytest.raises(ValueError, match="followers"):
         CoordinationParams(followers="none")
+
+
+def test_robots_head_on_on_the_two_lanes_of_a_corridor_pass_without_yielding():
+    # Lanes 0.9 m apart (LaneParams.offset 0.45 each side of the centre line): the robot
+    # driving west on the other lane passes the leader without either turning aside.
+    lane = [(0.0, 0.0), (8.0, 0.0)]  # robot 0 (the leader) drives east along y = 0
+    default = CbfParams()
+    other_lane = [[0.0, 0.0, 0.0, 0.0], [2.5, 0.9, math.pi, 0.0]]
+    assert _slowed(default, other_lane, [lane, [(2.5, 0.9), (-6.0, 0.9)]]) == [False, False]
+    # Nearer than head_on_clearance to the leader's lane (0.75 m): in its way.
+    near_lane = [[0.0, 0.0, 0.0, 0.0], [2.5, 0.6, math.pi, 0.0]]
+    assert _slowed(default, near_lane, [lane, [(2.5, 0.6), (-6.0, 0.6)]]) == [False, True]
+    # Crossing 0.9 m ahead of the leader (not head on): still in its way.
+    crossing = [[0.0, 0.0, 0.0, 0.0], [0.9, 2.5, -math.pi / 2, 0.0]]
+    assert _slowed(default, crossing, [lane, [(0.9, 2.5), (0.9, -4.0)]]) == [False, True]
+    # Turning across the leader's lane 1.7 m on, 0.8 m ahead of it: in its way, though
+    # head on at first.
+    assert _slowed(default, other_lane, [lane, [(2.5, 0.9), (0.8, 0.9), (0.8, -4.0)]]) == [
+        False, True]
+    # As wide as yield_clearance, the rule is the one without head_on_clearance.
+    wide = CbfParams(coordination=CoordinationParams(head_on_clearance=1.0))
+    assert _slowed(wide, other_lane, [lane, [(2.5, 0.9), (-6.0, 0.9)]]) == [False, True]
+    with pytest.raises(InputError, match="head_on_clearance: must be at most yield_clearance"):
+        CoordinationParams(head_on_clearance=1.2)
 
 
 def test_a_follower_out_of_the_leaders_way_drives_on():
