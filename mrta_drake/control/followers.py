@@ -5,11 +5,11 @@ member ranked above it in the cluster order, i.e. within ``yield_clearance`` (m)
 member's path ahead (its next ``yield_horizon`` m), or with that member within
 ``yield_clearance`` of its own path ahead, unless it drives the same way there (one follows
 the other, and the barriers keep the gap). Where the two drive opposite ways there (head on,
-within 60 degrees), the nearer ``head_on_clearance`` (m) counts instead: robots on the two
-one-way lanes of a corridor (0.9 m apart, ``LaneParams.offset``) pass each other, their
-barriers (``SafetyDistances.robot``, 0.6 m) met without either turning aside, while two on
-one line, who cannot pass, are in each other's way. The others follow their paths, the
-cluster's joint QP still keeping them all apart.
+within 60 degrees), one at least ``head_on_clearance`` (m) beside the other's path is not in
+its way: robots on the two one-way lanes of a corridor (0.9 m apart, ``LaneParams.offset``)
+pass each other, their barriers (``SafetyDistances.robot``, 0.6 m) met without either
+turning aside, while two on one line, who cannot pass, are in each other's way as before.
+The others follow their paths, the cluster's joint QP still keeping them all apart.
 """
 
 from mrta_drake.control.paths import path_ahead_near, travel_direction
@@ -58,12 +58,16 @@ def _conflict(x, y, points, qx, qy, qdx, qdy, clearance, head_on_clearance, hori
     """Whether a robot at (x, y) on the path ``points`` comes, in its next ``horizon`` m,
     within ``clearance`` (m) of a robot at (qx, qy) driving in the unit direction
     (qdx, qdy) (zero: standing), driving another way than it there; if that way is head
-    on, within ``head_on_clearance``."""
+    on, also within ``head_on_clearance`` of it in its next ``horizon + clearance -
+    head_on_clearance`` m: the other stands on its line ahead, not beside its path. On a
+    straight path, a robot less than ``head_on_clearance`` beside it is then in the way
+    from the same distance on as under ``clearance`` alone."""
     near, ux, uy = path_ahead_near(x, y, points, qx, qy, horizon, clearance)
     way = ux * qdx + uy * qdy
     if not near or way >= _SAME_WAY:
         return False
     if way > _HEAD_ON:
         return True
-    near, ux, uy = path_ahead_near(x, y, points, qx, qy, horizon, head_on_clearance)
+    near, ux, uy = path_ahead_near(x, y, points, qx, qy, horizon + clearance - head_on_clearance,
+                                   head_on_clearance)
     return near and ux * qdx + uy * qdy < _SAME_WAY
