@@ -42,9 +42,9 @@ class CoordinationParams:
     smallest leads; ``largest_priority``; ``distance_to_goal``; or one registered with
     ``register_leader_rule``). ``followers``:
     which other members get the slow-down nominal (``followers.FOLLOWER_RULES``: ``all`` or
-    ``in_the_way``, within ``yield_clearance`` m of a path's next ``yield_horizon`` m, within
-    ``head_on_clearance`` m (at most ``yield_clearance``) where the two drive head on; see
-    ``mrta_drake.control.followers``).
+    ``in_the_way``, within ``yield_clearance`` m of a path's next ``yield_horizon`` m; where
+    the two drive head on, not when at least ``head_on_clearance`` m (at most
+    ``yield_clearance``) beside the other's path; see ``mrta_drake.control.followers``).
 
     ``arrival_radius`` (m): a robot this near the end of its stop-at-end path is done and
     leads no cluster (a queue slot or room point too near a wall can be unreachable by a few
