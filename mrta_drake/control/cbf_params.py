@@ -44,7 +44,8 @@ class CoordinationParams:
     which other members get the slow-down nominal (``followers.FOLLOWER_RULES``: ``all`` or
     ``in_the_way``, within ``yield_clearance`` m of a path's next ``yield_horizon`` m; where
     the two drive head on, not when at least ``head_on_clearance`` m (at most
-    ``yield_clearance``) beside the other's path; see ``mrta_drake.control.followers``).
+    ``yield_clearance``; None: ``yield_clearance``, no exception) beside the other's path;
+    see ``mrta_drake.control.followers``).
 
     ``arrival_radius`` (m): a robot this near the end of its stop-at-end path is done and
     leads no cluster (a queue slot or room point too near a wall can be unreachable by a few
@@ -59,7 +60,7 @@ class CoordinationParams:
     leader_rule: str = "priority"
     followers: str = "in_the_way"
     yield_clearance: float = 1.0
-    head_on_clearance: float = 0.75
+    head_on_clearance: float | None = None
     yield_horizon: float = 3.0
     arrival_radius: float = 0.5
     stall_time: float = 3.0
@@ -69,12 +70,20 @@ class CoordinationParams:
     def __post_init__(self):
         require_choice(self, "mode", COORDINATION_MODES)
         require_choice(self, "followers", FOLLOWER_RULES)
-        require_non_negative(self, "cluster_radius", "yield_clearance", "head_on_clearance",
-                             "yield_horizon", "arrival_radius", "stall_speed")
+        require_non_negative(self, "cluster_radius", "yield_clearance", "yield_horizon",
+                             "arrival_radius", "stall_speed")
         require_positive(self, "stall_time")
-        if self.head_on_clearance > self.yield_clearance:
-            raise InputError(None, "head_on_clearance", f"must be at most yield_clearance "
-                             f"({self.yield_clearance!r}), got {self.head_on_clearance!r}")
+        if self.head_on_clearance is not None:
+            require_non_negative(self, "head_on_clearance")
+            if self.head_on_clearance > self.yield_clearance:
+                raise InputError(None, "head_on_clearance", f"must be at most yield_clearance "
+                                 f"({self.yield_clearance!r}), got {self.head_on_clearance!r}")
+
+    @property
+    def head_on(self) -> float:
+        """The clearance (m) beside a path at which a robot driving head on is out of the
+        way: ``head_on_clearance``, or ``yield_clearance`` when that is None."""
+        return self.yield_clearance if self.head_on_clearance is None else self.head_on_clearance
 
 
 @dataclass(frozen=True)
