@@ -5,11 +5,12 @@ member ranked above it in the cluster order, i.e. within ``yield_clearance`` (m)
 member's path ahead (its next ``yield_horizon`` m), or with that member within
 ``yield_clearance`` of its own path ahead, unless it drives the same way there (one follows
 the other, and the barriers keep the gap). Where the two drive opposite ways there (head on,
-within 60 degrees), one at least ``head_on_clearance`` (m) beside the other's path is not in
-its way: robots on the two one-way lanes of a corridor (0.9 m apart, ``LaneParams.offset``)
-pass each other, their barriers (``SafetyDistances.robot``, 0.6 m) met without either
-turning aside, while two on one line, who cannot pass, are in each other's way as before.
-The others follow their paths, the cluster's joint QP still keeping them all apart.
+within 60 degrees), one at least ``head_on_clearance`` (m, below ``yield_clearance``: an
+option, ``CoordinationParams``) beside the other's path is not in its way: with 0.75 m,
+robots on the two one-way lanes of a corridor (0.9 m apart, ``LaneParams.offset``) pass
+each other, their barriers (``SafetyDistances.robot``, 0.6 m) met without either turning
+aside, while two on one line, who cannot pass, are in each other's way as before. The
+others follow their paths, the cluster's joint QP still keeping them all apart.
 """
 
 from mrta_drake.control.paths import path_ahead_near, travel_direction
