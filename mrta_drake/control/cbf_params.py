@@ -24,7 +24,7 @@ from mrta_drake.control.nominal import NominalParams
 from mrta_drake.control.param_groups import moved_from_flat
 from mrta_drake.control.qp_solver import QpParams
 from mrta_drake.control.wall_rays import SensingParams
-from mrta_drake.errors import require_choice, require_non_negative, require_positive
+from mrta_drake.errors import InputError, require_choice, require_non_negative, require_positive
 
 COORDINATION_MODES = ("clusters", "decentralized", "centralized")
 
@@ -42,8 +42,10 @@ class CoordinationParams:
     smallest leads; ``largest_priority``; ``distance_to_goal``; or one registered with
     ``register_leader_rule``). ``followers``:
     which other members get the slow-down nominal (``followers.FOLLOWER_RULES``: ``all`` or
-    ``in_the_way``, within ``yield_clearance`` m of a path's next ``yield_horizon`` m; see
-    ``mrta_drake.control.followers``).
+    ``in_the_way``, within ``yield_clearance`` m of a path's next ``yield_horizon`` m; where
+    the two drive head on, not when at least ``head_on_clearance`` m (at most
+    ``yield_clearance``; None: ``yield_clearance``, no exception) beside the other's path;
+    see ``mrta_drake.control.followers``).
 
     ``arrival_radius`` (m): a robot this near the end of its stop-at-end path is done and
     leads no cluster (a queue slot or room point too near a wall can be unreachable by a few
@@ -58,6 +60,7 @@ class CoordinationParams:
     leader_rule: str = "priority"
     followers: str = "in_the_way"
     yield_clearance: float = 1.0
+    head_on_clearance: float | None = None
     yield_horizon: float = 3.0
     arrival_radius: float = 0.5
     stall_time: float = 3.0
@@ -70,6 +73,17 @@ class CoordinationParams:
         require_non_negative(self, "cluster_radius", "yield_clearance", "yield_horizon",
                              "arrival_radius", "stall_speed")
         require_positive(self, "stall_time")
+        if self.head_on_clearance is not None:
+            require_non_negative(self, "head_on_clearance")
+            if self.head_on_clearance > self.yield_clearance:
+                raise InputError(None, "head_on_clearance", f"must be at most yield_clearance "
+                                 f"({self.yield_clearance!r}), got {self.head_on_clearance!r}")
+
+    @property
+    def head_on(self) -> float:
+        """The clearance (m) beside a path at which a robot driving head on is out of the
+        way: ``head_on_clearance``, or ``yield_clearance`` when that is None."""
+        return self.yield_clearance if self.head_on_clearance is None else self.head_on_clearance
 
 
 @dataclass(frozen=True)

@@ -197,7 +197,8 @@ class ClusterCbfController(LeafSystem):
         self._settings = tuple(TickSettings(  # a plain tuple, see plan
             self._priorities, params.nominal.gains, limits_of(params.nominal, self._dt),
             follower_rule_code(coordination.mode, coordination.followers),
-            coordination.yield_clearance, coordination.yield_horizon,
+            coordination.yield_clearance, coordination.head_on,
+            coordination.yield_horizon,
             coordination.cluster_radius ** 2))
         self._ports = declare_controller_ports(self, self._n, self._dt, self._update)
         (self.robot_state_port, self.paths_port, self.human_states_port,

@@ -24,6 +24,7 @@ class TickSettings(NamedTuple):
     limits: np.ndarray  # input_limits.limits_of
     follower_rule: int  # followers.NO_FOLLOWERS, ALL_FOLLOWERS or FOLLOWERS_IN_THE_WAY
     yield_clearance: float  # m
+    head_on_clearance: float  # m
     yield_horizon: float  # m
     cluster_radius2: float  # m^2, the cluster radius squared
 
@@ -84,8 +85,8 @@ def plan_tick(robots, world, paths, settings, out):
     """
     states, shared, keys, active, stalled, reachable, slowed = robots
     human_positions, human_velocities, hits, hit_mask = world
-    priorities, gains, limits, follower_rule, yield_clearance, yield_horizon, radius2 = (
-        settings)
+    (priorities, gains, limits, follower_rule, yield_clearance, head_on_clearance, yield_horizon,
+     radius2) = settings
     order, labels, starts, u_nominal, lower, upper, minima = out
     n = len(states)
     _copy_into(labels, cluster_labels(states[:, :2].copy(), radius2, reachable))
@@ -110,7 +111,7 @@ def plan_tick(robots, world, paths, settings, out):
             first = k
         if follower and follower_rule == FOLLOWERS_IN_THE_WAY:
             follower = in_the_way(i, order[first:k], states, paths, active, yield_clearance,
-                                  yield_horizon)
+                                  head_on_clearance, yield_horizon)
         if slowed[i] or (follower_rule != NO_FOLLOWERS and follower):
             u_nominal[i, 0], u_nominal[i, 1] = slow_down_input(states[i, 3], gains)
     fill_input_bounds(states, limits, lower, upper)

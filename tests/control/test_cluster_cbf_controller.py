@@ -1,5 +1,6 @@
 """Closed-loop tests of the CBF controller (and the go-to-goal baseline) with kinematic robots."""
 
+import dataclasses
 import math
 import pathlib
 
@@ -16,6 +17,7 @@ from mrta_drake.control.controller_common import predict_states
 from mrta_drake.control.go_to_goal_controller import GoToGoalController
 from mrta_drake.control.nominal import NominalParams, nominal_control
 from mrta_drake.control.wall_rays import SensingParams, WallRays
+from mrta_drake.errors import InputError
 from mrta_drake.payloads import PATH_OK, FleetPaths, HumanStates, RobotPath, frozen_array
 from mrta_drake.results.summary import SLACK_TOLERANCE
 from mrta_drake.robots.unicycle_robots import UnicycleRobots
@@ -454,6 +456,38 @@ def test_only_followers_in_the_way_of_a_robot_ranked_above_get_the_slow_down_nom
     assert _slowed(_coordinated("clusters", "all"), beside_it, beside) == [False, True]
     with pytest.raises(ValueError, match="followers"):
         CoordinationParams(followers="none")
+
+
+def test_robots_head_on_on_the_two_lanes_of_a_corridor_pass_with_a_head_on_clearance():
+    # Lanes 0.9 m apart (LaneParams.offset 0.45 each side of the centre line): with
+    # head_on_clearance 0.75 m the robot driving west on the other lane passes the leader.
+    lane = [(0.0, 0.0), (8.0, 0.0)]  # robot 0 (the leader) drives east along y = 0
+    passing = CbfParams(coordination=CoordinationParams(head_on_clearance=0.75))
+    other_lane = [[0.0, 0.0, 0.0, 0.0], [2.5, 0.9, math.pi, 0.0]]
+    west = [lane, [(2.5, 0.9), (-6.0, 0.9)]]
+    assert _slowed(passing, other_lane, west) == [False, False]
+    assert _slowed(CbfParams(), other_lane, west) == [False, True]  # by default: in the way
+    # Nearer than head_on_clearance to the leader's lane (0.6 m): in its way.
+    near_lane = [[0.0, 0.0, 0.0, 0.0], [2.5, 0.6, math.pi, 0.0]]
+    assert _slowed(passing, near_lane, [lane, [(2.5, 0.6), (-6.0, 0.6)]]) == [False, True]
+    # On the leader's line ahead of it, as without head_on_clearance: in its way from 1 m
+    # past the horizon (here 2 m, the pair within the 4 m cluster radius) on.
+    short = CoordinationParams(yield_horizon=2.0)
+    for x, slowed in ((2.95, True), (3.05, False)):
+        states = [[0.0, 0.0, 0.0, 0.0], [x, 0.0, math.pi, 0.0]]
+        line = [lane, [(x, 0.0), (-6.0, 0.0)]]
+        assert _slowed(CbfParams(coordination=short), states, line) == [False, slowed]
+        assert _slowed(CbfParams(coordination=dataclasses.replace(
+            short, head_on_clearance=0.75)), states, line) == [False, slowed]
+    # Crossing 0.9 m ahead of the leader (not head on): still in its way.
+    crossing = [[0.0, 0.0, 0.0, 0.0], [0.9, 2.5, -math.pi / 2, 0.0]]
+    assert _slowed(passing, crossing, [lane, [(0.9, 2.5), (0.9, -4.0)]]) == [False, True]
+    # Turning across the leader's lane 1.7 m on, 0.8 m ahead of it: in its way, though
+    # head on at first.
+    assert _slowed(passing, other_lane, [lane, [(2.5, 0.9), (0.8, 0.9), (0.8, -4.0)]]) == [
+        False, True]
+    with pytest.raises(InputError, match="head_on_clearance: must be at most yield_clearance"):
+        CoordinationParams(head_on_clearance=1.2)
 
 
 def test_a_follower_out_of_the_leaders_way_drives_on():
