@@ -14,13 +14,20 @@
   locations. Where lanes pass nearer walls than the controller's
   default wall safety distance (0.6 m), as through the demos' 0.9 m doors, the scenario sets
   the controller's ``safety_distances.wall`` to the lanes' least clearance less 6 cm (at
-  least the robot radius plus 5 cm), else robots stop short of those doors.
+  least the robot radius plus 5 cm), else robots stop short of those doors. Where some
+  lanes are two-way corridors (outside every single-file segment), the scenario sets the
+  controller's ``coordination.head_on_clearance`` (``HEAD_ON_CLEARANCE``): robots driving
+  head on along a corridor's two lanes pass each other instead of one yielding
+  (``control.followers``; docs/worlds.md, "Yielding on two-lane corridors"). A building
+  whose lanes are all single file keeps the default: its robots meet head on only beside
+  the lanes, waiting at queue slots and spots, where yielding is kept.
 
 A building with several levels and no ``level`` gets one folder running them all,
 joined by the lifts (``levels_import``).
 """
 
 import dataclasses
+import itertools
 import math
 import os
 import shutil
@@ -52,6 +59,7 @@ START_GAP = 0.3  # m kept free between two robots' bodies at the start
 PEOPLE_GAP = 1.0  # m between a person's first point and any robot start
 WALL_SAFETY = SafetyDistances().wall  # m, the controller's default safety distance to walls
 WALL_SAFETY_MARGIN = 0.06  # m kept between that distance and the lanes' clearance
+HEAD_ON_CLEARANCE = 0.75  # m, below the lanes' 0.9 m spacing (LaneParams.offset)
 START_ORDER = ("is_charger", "is_parking_spot", "spawn_robot_name")
 QUEUE_BERTH = 2.0  # m: a start spot off a task location keeps this far from its point and queue
 ROUTE_BERTH = 1.0  # m: a leg this near a start spot passes it
@@ -139,7 +147,7 @@ def _write_level(building: Building, level_name: str, out_dir: str, options: Imp
                       options.graph, navigation)
     scenario = os.path.join(out_dir, "scenario.yaml")
     write_scenario(scenario, os.path.basename(building.source), level_name, options, starts,
-                    humans, wall_safety(navigation.roadways, world.floor_plan), stream)
+                    humans, controller_params(navigation.roadways, world.floor_plan), stream)
     report.scenarios.append(scenario)
     roadways = navigation.roadways
     report.lines.append(
@@ -283,6 +291,26 @@ def wall_safety(roadways: RoadwaysConfig, floor_plan: FloorPlan) -> float:
     return round(min(WALL_SAFETY, max(ROBOT_RADIUS + 0.05, least - WALL_SAFETY_MARGIN)), 3)
 
 
+def controller_params(roadways: RoadwaysConfig, floor_plan: FloorPlan) -> dict:
+    """The controller's params the scenario sets (see the module docstring): the wall safety
+    distance when below the default, ``coordination.head_on_clearance`` when some lanes of
+    ``roadways`` are two-way corridors; empty when neither."""
+    params = {}
+    safety = wall_safety(roadways, floor_plan)
+    if safety < WALL_SAFETY:
+        params["safety_distances"] = {"wall": safety}
+    if _has_two_way_corridors(roadways):
+        params["coordination"] = {"head_on_clearance": HEAD_ON_CLEARANCE}
+    return params
+
+
+def _has_two_way_corridors(roadways: RoadwaysConfig) -> bool:
+    """Whether some lane of ``roadways`` lies in no single-file segment."""
+    single_file = {frozenset(pair) for segment in roadways.single_file
+                   for pair in itertools.pairwise(segment)}
+    return any(frozenset((a, b)) not in single_file for a, b in roadways.edges)
+
+
 def _heading(lines, node: str) -> float:
     """Direction (rad) from ``node`` to its first neighbour along the centre lines."""
     for a, b, _ in lines.edges:
@@ -349,12 +377,12 @@ def _write_navigation(path: str, building: Building, level: str, graph: int,
 
 
 def write_scenario(path: str, building_file: str, level: str, options: ImportOptions,
-                   starts, humans: dict, safety: float, stream: StreamSize | None = None,
+                   starts, humans: dict, controller: dict, stream: StreamSize | None = None,
                    ) -> None:
     """Writes the imported scenario to ``path``: the building's ``level`` ("" for every
     level), robots at ``starts``, the ``humans`` section, a generated task stream (sized
-    by ``stream`` when given, else ``options.tasks_per_robot``), and the controller's wall
-    safety distance when ``safety`` (m) is below the default."""
+    by ``stream`` when given, else ``options.tasks_per_robot``), and the controller's
+    params ``controller`` (``controller_params``) when there are any."""
     content = {
         "world": {"kind": "rmf_building", "floor_plan": building_file, "level": level,
                   "graph": options.graph},
@@ -367,9 +395,8 @@ def write_scenario(path: str, building_file: str, level: str, options: ImportOpt
     }
     if humans:
         content["humans"] = humans
-    if safety < WALL_SAFETY:
-        content["blocks"] = {"controller": {"kind": "cluster_cbf",
-                                            "params": {"safety_distances": {"wall": safety}}}}
+    if controller:
+        content["blocks"] = {"controller": {"kind": "cluster_cbf", "params": controller}}
     where = f"level {level}" if level else "every level"
     header = (f"# {building_file}, {where}: imported by `mrta-sim import` (seed "
               f"{options.seed}).\n# Run: mrta-sim run {os.path.basename(path)}\n")

@@ -1,5 +1,6 @@
 """``mrta-sim import``: building files made into runnable scenario folders."""
 
+import dataclasses
 import subprocess
 import sys
 from pathlib import Path
@@ -10,7 +11,13 @@ import yaml
 
 from mrta_drake.errors import InputError
 from mrta_drake.scenario.loading import load_scenario
-from mrta_drake.tools.building_import import ImportOptions, import_building, robot_starts
+from mrta_drake.tools.building_import import (
+    HEAD_ON_CLEARANCE,
+    ImportOptions,
+    controller_params,
+    import_building,
+    robot_starts,
+)
 from mrta_drake.tools.cli import main
 from mrta_drake.world.plant import load_floor_plan_of
 from mrta_drake.world.rmf_building import load_building
@@ -40,8 +47,26 @@ def test_import_writes_a_scenario_that_loads(tmp_path):
     assert len(scenario.humans.walkers) == 2
     tasks = [task for batch in scenario.tasks.stream for task in batch.tasks]
     assert tasks and {t.pickup for t in tasks} | {t.dropoff for t in tasks} <= {0, 1, 2, 3}
-    # The pantry door (1.2 m) leaves lanes 0.6 m from its jambs: the controller is told.
-    assert scenario.blocks.controller.params == {"safety_distances": {"wall": 0.54}}
+    # The pantry door (1.2 m) leaves lanes 0.6 m from its jambs: the controller is told;
+    # robots head on along the corridor's two lanes pass each other.
+    assert scenario.blocks.controller.params == {
+        "safety_distances": {"wall": 0.54}, "coordination": {"head_on_clearance": 0.75}}
+
+
+def test_head_on_passing_is_set_only_where_some_lanes_are_two_way_corridors(tmp_path):
+    import_building(str(ONE_LEVEL), str(tmp_path), ImportOptions(robots=1))
+    scenario = load_scenario(tmp_path / "scenario.yaml")
+    floor_plan = load_floor_plan_of(scenario, objects=False)
+    roadways = scenario.roadways
+    assert controller_params(roadways, floor_plan)["coordination"] == {
+        "head_on_clearance": HEAD_ON_CLEARANCE}
+    # Every lane but one in single-file segments: still a two-way stretch.
+    segments = [list(edge) for edge in roadways.edges]
+    one_left = dataclasses.replace(roadways, single_file=segments[1:])
+    assert "coordination" in controller_params(one_left, floor_plan)
+    # Every lane single file (driven one way at a time): robots never pass head on.
+    all_single = dataclasses.replace(roadways, single_file=segments)
+    assert "coordination" not in controller_params(all_single, floor_plan)
 
 
 def test_robots_start_where_they_are_least_in_the_way(tmp_path):
