@@ -1210,10 +1210,10 @@ class WaypointPolicy:
         queue (``_queue_on_lanes``) stands on single-file lanes: where it stands if that is
         off them and off every location's point, else at ``_hold_spot``'s spot, put into
         the route after that spot's roadway node and followed by it again; with neither, it
-        drives on. Once a place off the lanes frees, it drives on (a spot not yet reached
+        drives on. Once a place off the lanes frees, it drives on (a spot it has not set out for
         taken out of the route again)."""
         if not self._queue_on_lanes(place, queue, robots.states):
-            if s.held and s.hold >= s.index:  # not there yet: the spot and its node out
+            if s.held and s.hold > s.index:  # not yet set out for the spot: it and its node out
                 return replace(s, route=s.route[:s.hold - 1] + s.route[s.hold + 1:],
                                index=min(s.index, s.hold - 1), held=False, hold=-1)
             return _changed(s, held=False)
