@@ -1,7 +1,7 @@
 """Turns each robot's plan into waypoints: roadway legs, room queues, entries and service."""
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from operator import attrgetter
 
@@ -69,6 +69,8 @@ class WaypointParams:
     lift_wait_distance: float = 3.0  # wait for it this far back along the route from the
     # cabin's point, one more metre per robot ahead in its queue
     single_file: SingleFileParams = SingleFileParams()  # holding single-file segments
+    hold_back: bool = True  # a robot whose queue place stands on single-file lanes holds
+    # back off them (off: it drives into the queue all the same)
     hold_reach: float = 2.5  # a spot to hold back at is at most this far from the roadway
     # node of the route it is reached from (``WaypointPolicy._hold_spot``)
     on_lane: float = 0.05  # a start spot this near a lane is on it (``initial_state``)
@@ -308,9 +310,10 @@ class WaypointPolicy:
       stands if that is off the single-file lanes and off every location's point, else at
       a spot off the lanes on the route ahead (``_hold_spot``: one where a robot may wait
       out of the way, within ``hold_reach`` of a roadway node of the route, the last such
-      node before the queue), driving there and back to that node; with neither, it drives
-      on as before. Once the place it would take stands off the lanes, it drives on
-      (docs/worlds.md, "Queue places off single-file lanes").
+      node before the queue, reached from it in a straight line clear of walls per
+      ``sight``), driving there and back to that node; with neither, it drives on as
+      before. Once the place it would take stands off the lanes, it drives on
+      (docs/worlds.md, "Queue places off single-file lanes"). ``hold_back`` off: never.
     - queue: request the room and wait at slot ``place`` (0 the head slot), moving up as
       the queue advances; one slot further back while the holder stands at the head slot
       (within ``waypoint_tolerance``: it waits there, for single-file segments or its
@@ -422,8 +425,10 @@ class WaypointPolicy:
         params: WaypointParams = WaypointParams(),
         home: tuple[float, float] | None = None,
         spots: Sequence[tuple[float, float]] = (),
+        sight: Callable[[tuple[float, float], tuple[float, float]], bool] | None = None,
     ):
         self._robot = robot_names[index]
+        self._sight = sight
         self._names = tuple(robot_names)
         self._home = home
         self._spots = tuple(spot for spot in spots if spot != home)
@@ -1236,7 +1241,7 @@ class WaypointPolicy:
         robots waiting, and one more while the holder is not yet at the point (farther than
         ``reach_tolerance``): on its way in it may yet stop at the head slot, for
         single-file segments or the doorway, and the robots waiting move one slot back."""
-        first = self._on_lanes_from(place)
+        first = self._on_lanes_from(place) if self._params.hold_back else None
         if first is None or queue is None or (queue.holder is None and not queue.waiting):
             return False
         coming = queue.holder not in (None, self._robot) and _distance(
@@ -1264,20 +1269,24 @@ class WaypointPolicy:
     def _hold_spot(self, s: _Drive, robots: _Robots) -> tuple[int, tuple[float, float]] | None:
         """Where to hold back on the route ahead: a spot off the single-file lanes where a
         robot may wait out of the way (``_refuge_spots``), no other robot within
-        ``parking_clearance`` of it, within ``hold_reach`` of its nearest roadway node and
-        that node on the route ahead (route index j: the last such before the route's end;
-        of its spots, the nearest); as (j, spot), or None. Beside its nearest node, the
-        robot drives there and back along no wall (office: patrol_D1's parking spot, 2.1 m
-        from its node, 2.5 m from the next through a wall)."""
+        ``parking_clearance`` of it, within ``hold_reach`` of a roadway node on the route
+        ahead (route index j: the last such before the route's end; of its spots, the
+        nearest) and reached from it in a straight line clear of walls: per ``sight``
+        (a function of two points, world frame, m), else only the spots whose nearest
+        node it is (office, seed 1: patrol_D1's parking spot lies 2.5 m from the node
+        v46, through a wall; a robot sent there stood against it, holding two segments,
+        from 285 s to the end). As (j, spot), or None."""
         others = np.delete(robots.states[:, :2], self._index, axis=0)
         reach = self._params.hold_reach
         spots = [(spot, node) for spot, node, segments in self._refuge_spots()
-                 if not segments and self._free(spot, others)
-                 and _distance(spot, self._roadways.node_position(node)) <= reach]
+                 if not segments and self._free(spot, others)]
         for j in range(len(s.route) - 2, s.index - 1, -1) if spots else ():
             node = self._roadways.node_at(s.route[j])
-            near = [spot for spot, at in spots if at == node]
-            if node is not None and near:
+            if node is None:
+                continue
+            near = [spot for spot, at in spots if _distance(spot, s.route[j]) <= reach and (
+                at == node if self._sight is None else self._sight(s.route[j], spot))]
+            if near:
                 return j, min(near, key=lambda spot: _distance(spot, s.route[j]))
         return None
 

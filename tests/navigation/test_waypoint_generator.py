@@ -872,6 +872,13 @@ def test_a_robot_whose_queue_place_is_on_single_file_lanes_holds_back_off_them()
                          (10.8, 1.0))
     assert [k for k, _ in off.lanes.segments] == [0, 1]
     assert policy.outputs(off).queue_request.room is None
+    # A wall between M and the spot (``sight``), or ``hold_back`` off: it drives on.
+    for blind in (WaypointPolicy(["r0", "r1", "r2"], 0, hold_world(), None, WaypointParams(),
+                                 sight=lambda a, b: False),
+                  WaypointPolicy(["r0", "r1", "r2"], 0, hold_world(), None,
+                                 WaypointParams(hold_back=False))):
+        on = blind.update(s, _to_a(1.0, busy, [[3.0, 0.0, 0.0, 1.0], *others]))
+        assert not on.held and on.route == route and 2 in dict(on.lanes.segments)
     # At the spot it stands (target inactive), asking for no segment.
     there = policy.update(replace(off, index=2), _to_a(2.0, busy, [[7.0, -1.8, 0.0, 0.0],
                                                                    *others]))
