@@ -201,11 +201,3 @@ class Costmap:
         """True where a robot centred at world points ``xy`` (shape (..., 2)) is clear of the
         inscribed zone and on the grid."""
         return self.cost_at(xy) < INSCRIBED
-
-    def line_clear(self, a, b) -> bool:
-        """Whether a robot centred anywhere on the straight line from ``a`` to ``b`` (world
-        frame, m) is clear of the inscribed zone and on the grid (sampled every cell)."""
-        a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-        steps = max(1, int(math.ceil(float(np.linalg.norm(b - a)) / self.grid.resolution)))
-        f = np.linspace(0.0, 1.0, steps + 1)[:, None]
-        return bool(self.is_traversable(a + f * (b - a)).all())

@@ -1,7 +1,7 @@
 """Turns each robot's plan into waypoints: roadway legs, room queues, entries and service."""
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from operator import attrgetter
 
@@ -69,15 +69,10 @@ class WaypointParams:
     lift_wait_distance: float = 3.0  # wait for it this far back along the route from the
     # cabin's point, one more metre per robot ahead in its queue
     single_file: SingleFileParams = SingleFileParams()  # holding single-file segments
-    hold_back: bool = True  # a robot whose queue place stands on single-file lanes holds
-    # back off them (off: it drives into the queue all the same)
-    hold_reach: float = 2.5  # a spot to hold back at is at most this far from the roadway
-    # node of the route it is reached from (``WaypointPolicy._hold_spot``)
     on_lane: float = 0.05  # a start spot this near a lane is on it (``initial_state``)
 
     def __post_init__(self):
-        require_positive(self, "door_clearance", "overflow_spacing", "on_lane", "hold_reach",
-                         unit=" m")
+        require_positive(self, "door_clearance", "overflow_spacing", "on_lane", unit=" m")
         require_positive(self, "door_patience", unit=" s")
 
 
@@ -94,10 +89,7 @@ class _Drive:
     single-file segments it needs now, and whether it stands until it holds them.
     ``door_since``: holding the room and not yet through its door, since when the doorway
     has been taken (``WaypointPolicy._door_busy``; s), else None. ``giving_way``: a
-    ``releases`` order of the deadlock watchdog is in force for the robot. ``held``: driving,
-    it holds back (its place in its stop's queue stands on single-file lanes), where it
-    stands or at route point ``hold`` (a spot off the lanes put into the route; -1: none;
-    -2: it held back on this route and drove on, and does not hold back again on it)."""
+    ``releases`` order of the deadlock watchdog is in force for the robot."""
 
     phase: RobotMode = RobotMode.IDLE
     stop: Stop | None = None
@@ -116,8 +108,6 @@ class _Drive:
     lanes: Need = NOTHING
     door_since: float | None = None
     giving_way: bool = False
-    held: bool = False
-    hold: int = -1
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the state can share it
@@ -303,19 +293,6 @@ class WaypointPolicy:
       count as reached within ``waypoint_tolerance``. Within ``request_distance`` of the
       tail slot, on the last segment, go to queue. A robot that still holds the stop's room
       (sent back to it) drives straight to the point instead.
-    - hold back: driving, while the place it would take in the stop's queue (one behind the
-      robots waiting, one more while the holder waits at the head slot) stands on
-      single-file lanes, the robot does not drive into the queue, where it would stand in a
-      segment its holder or others need: it holds back (target inactive, asking for no
-      segment but those it stands in, and giving up rooms it holds but its stop's) where it
-      stands if that is off the single-file lanes and off every location's point, else at
-      a spot off the lanes on the route ahead (``_hold_spot``: one where a robot may wait
-      out of the way, within ``hold_reach`` of a roadway node of the route, the last such
-      node before the queue, reached from it in a straight line clear of walls per
-      ``sight``), driving there and back to that node; with neither, it drives on as
-      before. Once the place it would take stands off the lanes, it drives on, and does
-      not hold back again on that route (docs/worlds.md, "Queue places off single-file
-      lanes"). ``hold_back`` off: never.
     - queue: request the room and wait at slot ``place`` (0 the head slot), moving up as
       the queue advances; one slot further back while the holder stands at the head slot
       (within ``waypoint_tolerance``: it waits there, for single-file segments or its
@@ -427,10 +404,8 @@ class WaypointPolicy:
         params: WaypointParams = WaypointParams(),
         home: tuple[float, float] | None = None,
         spots: Sequence[tuple[float, float]] = (),
-        sight: Callable[[tuple[float, float], tuple[float, float]], bool] | None = None,
     ):
         self._robot = robot_names[index]
-        self._sight = sight
         self._names = tuple(robot_names)
         self._home = home
         self._spots = tuple(spot for spot in spots if spot != home)
@@ -444,7 +419,6 @@ class WaypointPolicy:
         self._start_location = start_location
         self._spots_cache: dict[tuple, tuple[bool, tuple]] = {}  # ``_spots_reached``'s
         self._refuges: tuple | None = None  # ``_refuge``'s candidate spots, made when needed
-        self._first_on_lanes: dict[int, int | None] = {}  # ``_on_lanes_from``'s, per place
         # The outputs of the state last read: most updates keep the state object as it is.
         self._last_outputs: _Outputs | None = None
 
@@ -501,8 +475,6 @@ class WaypointPolicy:
             wait = _back_along(s.route[:s.index + 1],
                                self._params.lift_wait_distance + s.lift_slot)
             return WaypointTarget(self._robot, True, wait, None, True)
-        if s.phase == RobotMode.DRIVE and s.held and s.index == s.hold:
-            return WaypointTarget(self._robot, True, s.route[s.index], None, True)
         if s.phase in (RobotMode.DRIVE, RobotMode.ENTER):
             return self._along_route(s)
         place = self._roadways.place(s.stop.location)
@@ -782,7 +754,7 @@ class WaypointPolicy:
         if lanes.closures and waypoints != route(self._roadways):
             s = replace(s, detours=s.detours + (Detour(t, s.closed, waypoints is not None),))
         return replace(s, phase=RobotMode.DRIVE if waypoints else RobotMode.WAIT, stop=stop,
-                       route=waypoints or (), index=0, since=None, held=False, hold=-1)
+                       route=waypoints or (), index=0, since=None)
 
     def _reroute(self, s: _Drive, xy, lanes: Roadways, closed: tuple[str, ...],
                  t: float) -> _Drive:
@@ -803,7 +775,7 @@ class WaypointPolicy:
         else:
             return s
         return replace(s, phase=RobotMode.DRIVE if route else RobotMode.WAIT,
-                       route=route or (), index=0, held=False, hold=-1,
+                       route=route or (), index=0,
                        detours=s.detours + (Detour(t, changed, route is not None),))
 
     def _free_parking(self, place, others: np.ndarray) -> int | None:
@@ -890,21 +862,18 @@ class WaypointPolicy:
         queue = queues.room(place.id)
         holding = queue is not None and queue.holder == self._robot
         if s.phase == RobotMode.DRIVE and holding:
-            s = replace(s, phase=RobotMode.ENTER, route=(_point(place.point),), index=0,
-                        held=False, hold=-1)
+            s = replace(s, phase=RobotMode.ENTER, route=(_point(place.point),), index=0)
         if s.phase == RobotMode.DRIVE:
-            s = self._hold_back(s, place, queue, robots)
             s = _changed(s, index=self._reached(s, xy))
             s = self._to_lift(s, xy)
         if s.phase == RobotMode.LIFT:
             s = self._ride(s, xy, lanes, lifts)
         if s.phase == RobotMode.DRIVE:
             if (
-                not s.held and s.index == len(s.route) - 1
+                s.index == len(s.route) - 1
                 and _distance(xy, s.route[-1]) <= params.request_distance
             ):
-                s = replace(s, phase=RobotMode.QUEUE, route=(), index=len(place.queue) - 1,
-                            hold=-1)
+                s = replace(s, phase=RobotMode.QUEUE, route=(), index=len(place.queue) - 1)
         # Entering while another robot comes out of the room, or stands in its doorway, would
         # stand both in the doorway: the holder waits at its slot, or where it stands.
         slot = self._slot_ahead(s, place) if holding else None
@@ -931,8 +900,7 @@ class WaypointPolicy:
         # at the slot ahead (above), out of the corridor's way.
         s = _changed(s, waiting=(s.phase == RobotMode.SERVE and not holding)
                      or (s.phase == RobotMode.ENTER and waits)
-                     or self._held_at_door(s, robots, queues)
-                     or (s.phase == RobotMode.DRIVE and self._at_hold(s, xy)))
+                     or self._held_at_door(s, robots, queues))
         if (s.phase == RobotMode.SERVE and holding
                 and _distance(xy, place.point) <= params.reach_tolerance):
             since = t if s.since is None else s.since
@@ -967,16 +935,14 @@ class WaypointPolicy:
         elif s.phase == RobotMode.HOME and s.route and _distance(
                 robots.xy, s.route[-1]) <= self._params.single_file.stand_distance:
             spot = s.route[-1]
-        elif (s.phase == RobotMode.IDLE and self._index not in robots.broken) or (
-                s.phase == RobotMode.DRIVE and s.held and s.waiting):
+        elif s.phase == RobotMode.IDLE and self._index not in robots.broken:
             spot = robots.xy
         if spot is not None:
             return standing(self._roadways, robots.xy, spot, self._held(queues),
                             self._params.single_file)
         if s.phase not in (RobotMode.DRIVE, RobotMode.ENTER, RobotMode.HOME):
             return NOTHING
-        route = s.route[:s.hold + 1] if s.held and s.hold >= s.index else s.route
-        wanted = need(self._roadways, route, s.index, robots.xy, self._params.single_file)
+        wanted = need(self._roadways, s.route, s.index, robots.xy, self._params.single_file)
         if s.phase == RobotMode.HOME and s.index == 0:
             out = self._leaving(robots.xy, s.route[0], queues)
             if out:
@@ -1077,8 +1043,7 @@ class WaypointPolicy:
                 self._params.lift_request_distance:
             route = _points_or_none(lanes.route_from_point(xy, s.stop.location))
             return replace(s, phase=RobotMode.DRIVE if route else RobotMode.WAIT,
-                           route=route or (), index=0, lift_slot=-1, berth=None, held=False,
-                           hold=-1)
+                           route=route or (), index=0, lift_slot=-1, berth=None)
         return _changed(s, lift_slot=-1, berth=berth)
 
     def _spot_taken(self, spot, states: np.ndarray) -> bool:
@@ -1170,8 +1135,7 @@ class WaypointPolicy:
     def _reached(self, s: _Drive, xy) -> int:
         """The first route index not yet reached, at most the last."""
         index, route = s.index, s.route
-        last = s.hold if s.held and s.hold >= index else len(route) - 1
-        while index < last and (
+        while index < len(route) - 1 and (
             _distance(xy, route[index]) <= self._params.waypoint_tolerance
         ) and not (self._roadways.has_lifts
                    and self._roadways.lift_edge(route[index], route[index + 1])):
@@ -1192,7 +1156,7 @@ class WaypointPolicy:
             point = self._roadways.place(queue.room).point
             if s.stop.location != queue.room and (
                 _distance(robots.xy, point) > self._params.release_distance
-                or self._at_slot(s, robots.xy) or s.held
+                or self._at_slot(s, robots.xy)
             ):
                 return queue.room
         return None
@@ -1210,100 +1174,6 @@ class WaypointPolicy:
             return 0
         holder = states[self._names.index(queue.holder), :2]
         return int(_distance(holder, place.queue[0]) <= self._params.waypoint_tolerance)
-
-    def _hold_back(self, s: _Drive, place, queue, robots: _Robots) -> _Drive:
-        """Driving to ``place``'s queue: whether, and where, the robot holds back (``held``,
-        ``hold``; the class docstring). It holds back while the place it would take in the
-        queue (``_queue_on_lanes``) stands on single-file lanes: where it stands if that is
-        off them and off every location's point, else at ``_hold_spot``'s spot, put into
-        the route after that spot's roadway node and followed by it again; with neither, it
-        drives on. Once a place off the lanes frees, it drives on (a spot it has not set out for
-        taken out of the route again) and does not hold back again on this route: the place
-        it would take changes as the holder reaches and leaves the head slot, and a robot
-        held, released and held again put the spot into its route once more each time
-        (office seed 6, docs/worlds.md, "Queue places off single-file lanes")."""
-        if s.hold == -2:
-            return s
-        if not self._queue_on_lanes(place, queue, robots.states):
-            if s.held and s.hold > s.index:  # not yet set out for the spot: it and its node out
-                return replace(s, route=s.route[:s.hold - 1] + s.route[s.hold + 1:],
-                               index=min(s.index, s.hold - 1), held=False, hold=-2)
-            return _changed(s, held=False, hold=-2 if s.held else s.hold)
-        if s.held and (s.hold < 0 or s.hold >= s.index):
-            return s
-        xy = robots.xy
-        if not stands_in(self._roadways, xy, self._params.single_file) and all(
-                _distance(xy, self._roadways.place(i).point) > self._params.reach_tolerance
-                for i in self._roadways.location_ids):
-            return _changed(s, held=True, hold=-1)
-        found = self._hold_spot(s, robots)
-        if found is None:
-            return _changed(s, held=False)
-        j, spot = found
-        return replace(s, route=s.route[:j + 1] + (spot,) + s.route[j:], held=True, hold=j + 1)
-
-    def _queue_on_lanes(self, place, queue, states: np.ndarray) -> bool:
-        """Whether the place a robot joining ``place``'s queue (``queue``, this robot not
-        in it) would take stands on single-file lanes (``_on_lanes_from``): one behind the
-        robots waiting, and one more while the holder waits at the head slot
-        (``_holder_at_head``), as the queue phase counts it."""
-        first = self._on_lanes_from(place) if self._params.hold_back else None
-        if first is None or queue is None or (queue.holder is None and not queue.waiting):
-            return False
-        return len(queue.waiting) + self._holder_at_head(queue, place, states) >= first
-
-    def _on_lanes_from(self, place) -> int | None:
-        """The first place of ``place``'s queue (``_queue_spot``) that stands in a
-        single-file segment (``single_file.stands_in``), or None if none does; kept per
-        place."""
-        if place.id not in self._first_on_lanes:
-            first, k, last = None, 0, None
-            while self._roadways.segment_count:
-                spot = self._queue_spot(place, k)
-                if stands_in(self._roadways, spot, self._params.single_file):
-                    first = k
-                    break
-                if spot == last:  # the places beyond are this one again
-                    break
-                last, k = spot, k + 1
-            self._first_on_lanes[place.id] = first
-        return self._first_on_lanes[place.id]
-
-    def _hold_spot(self, s: _Drive, robots: _Robots) -> tuple[int, tuple[float, float]] | None:
-        """Where to hold back on the route ahead: a spot off the single-file lanes where a
-        robot may wait out of the way (``_refuge_spots``), no other robot within
-        ``parking_clearance`` of it, within ``hold_reach`` of a roadway node on the route
-        ahead (route index j: the last such before the route's end; of its spots, the
-        nearest) and reached from it in a straight line clear of walls: per ``sight``
-        (a function of two points, world frame, m), else only the spots whose nearest
-        node it is (office, seed 1: patrol_D1's parking spot lies 2.5 m from the node
-        v46, through a wall; a robot sent there stood against it, holding two segments,
-        from 285 s to the end). As (j, spot), or None."""
-        others = np.delete(robots.states[:, :2], self._index, axis=0)
-        reach = self._params.hold_reach
-        spots = [(spot, node) for spot, node, segments in self._refuge_spots()
-                 if not segments and self._free(spot, others)]
-        for j in range(len(s.route) - 2, s.index - 1, -1) if spots else ():
-            node = self._roadways.node_at(s.route[j])
-            if node is None:
-                continue
-            near = [spot for spot, at in spots if _distance(spot, s.route[j]) <= reach and (
-                at == node if self._sight is None else self._sight(s.route[j], spot))]
-            if near:
-                return j, min(near, key=lambda spot: _distance(spot, s.route[j]))
-        return None
-
-    def _at_hold(self, s: _Drive, xy) -> bool:
-        """Whether the robot, holding back, stands where it holds back: where it stood
-        (no ``hold``), or within ``waypoint_tolerance`` of the spot and off the
-        single-file lanes."""
-        if not s.held:
-            return False
-        if s.hold < 0:
-            return True
-        return s.index == s.hold and _distance(xy, s.route[s.hold]) <= \
-            self._params.waypoint_tolerance and not stands_in(
-                self._roadways, xy, self._params.single_file)
 
     def _queue_spot(self, place, index: int) -> tuple[float, float]:
         """Where the robot at place ``index`` of ``place``'s queue waits (world frame, m):

@@ -306,26 +306,6 @@ def _waypoint_params(ctx: BuildContext, params):
     return dataclasses.replace(params, service_time=ctx.scenario.tasks.service_time)
 
 
-class _Sight:
-    """Whether a robot drives the straight line between two points (world frame, m) clear
-    of walls and furniture (``Costmap.line_clear`` on the planner's costmap), the costmap
-    built when first asked: the waypoint policies ask only where single-file segments make
-    a robot hold back (``WaypointPolicy._hold_spot``)."""
-
-    def __init__(self, ctx: BuildContext):
-        self._ctx, self._costmap = ctx, None
-
-    def __call__(self, a, b) -> bool:
-        if self._costmap is None:
-            from mrta_drake.navigation.costmap import Costmap, CostmapParams
-
-            _, planner = resolve_block(self._ctx.scenario, "planner")
-            self._costmap = Costmap.from_obstacles(
-                self._ctx.obstacles, self._ctx.floor_plan.bounds,
-                getattr(planner, "costmap", CostmapParams()))
-        return self._costmap.line_clear(a, b)
-
-
 def _roadway_waypoints() -> BlockType:
     from mrta_drake.navigation.waypoint_generator import (
         FleetWaypoints,
@@ -335,10 +315,9 @@ def _roadway_waypoints() -> BlockType:
 
     def make(ctx: BuildContext, params: WaypointParams):
         params = _waypoint_params(ctx, params)
-        sight = _Sight(ctx)
         return FleetWaypoints([
             WaypointPolicy(ctx.robot_names, k, ctx.roadways, location, params, ctx.home(k),
-                           ctx.homes, sight)
+                           ctx.homes)
             for k, location in enumerate(ctx.start_locations)], rate_hz=ctx.rates.waypoints)
 
     return BlockType(WaypointParams, make)
@@ -350,8 +329,7 @@ def _roadway_per_robot_waypoints() -> BlockType:
     def make(ctx: BuildContext, params: WaypointParams, index: int):
         return WaypointGenerator(ctx.robot_names, index, ctx.roadways,
                                  ctx.start_locations[index], _waypoint_params(ctx, params),
-                                 ctx.home(index), ctx.homes, _Sight(ctx),
-                                 rate_hz=ctx.rates.waypoints)
+                                 ctx.home(index), ctx.homes, rate_hz=ctx.rates.waypoints)
 
     return BlockType(WaypointParams, make, per_robot=True)
 

@@ -113,9 +113,7 @@ class _Obeying(LeafSystem):
 
 def _gridlock_run(starts, routes, until, sees_waits=True):
     """Robots ``r<i>`` (pass through each other, 1 m/s) starting on the points of
-    ``starts`` (location ids) serve ``routes`` on ``_dead_end`` (service 30 s; robots that
-    would hold back from R's queue, whose slots stand in the single-file segment, drive
-    into it: the gridlocks of a world without a spot to hold back at), with the
+    ``starts`` (location ids) serve ``routes`` on ``_dead_end`` (service 30 s), with the
     watchdog (seeing the room queues only with ``sees_waits``): the robots' visits
     (location ids each), the orders given, and the queues at the end."""
     roadways = _dead_end()
@@ -140,8 +138,8 @@ def _gridlock_run(starts, routes, until, sees_waits=True):
     generators = []
     for i, (robot, start) in enumerate(zip(names, starts, strict=True)):
         generator = builder.AddSystem(WaypointGenerator(
-            names, i, roadways, start,
-            WaypointParams(service_time=30.0, parking=False, hold_back=False), rate_hz=10.0))
+            names, i, roadways, start, WaypointParams(service_time=30.0, parking=False),
+            rate_hz=10.0))
         builder.Connect(allocator.GetOutputPort("plan"), generator.GetInputPort("plan"))
         builder.Connect(state, generator.GetInputPort("robot_state"))
         builder.Connect(queues.GetOutputPort("queue_state"),

@@ -1,7 +1,6 @@
 """WaypointGenerators, RoomQueues and fake robots in a small lane loop, in a Simulator."""
 
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -830,86 +829,3 @@ def test_where_a_robot_waits_is_kept_per_roadways_and_place_not_mixed_across_clo
     assert answers == [policy()._spots_reached(roadways.place(place), lanes)
                        for place in (B, A) for lanes in (roadways, closed, roadways, closed)]
     assert answers[0] == (True, ()) and not answers[1][0] and answers[1][1]
-
-
-def hold_world() -> Roadways:
-    """A corridor W (0, 0) - M (6, 0) - J (10, 0) - E (20, 0), every lane single file
-    (segments W-M 0, M-J 1, J-E 2). Location A (0): one queue slot 1.28 m from J, off the
-    lanes; a robot beyond it would wait 1 m towards J, 0.22 m from the lane J-E. Location
-    P (1) south of M, with a parking spot off the lanes 2.24 m from M, beside M-J."""
-    nodes = {"W": [0.0, 0.0], "M": [6.0, 0.0], "J": [10.0, 0.0], "E": [20.0, 0.0]}
-    pairs = [("W", "M"), ("M", "J"), ("J", "E")]
-    edges = [[a, b] for a, b in pairs] + [[b, a] for a, b in pairs]
-    locations = [LocationConfig(id=0, name="A", point=[14.0, 3.0], queue=[[10.8, 1.0]],
-                                exit_node="J", approach_node="J"),
-                 LocationConfig(id=1, name="P", point=[6.0, -3.5], queue=[[4.5, -3.5]],
-                                exit_node="M", approach_node="M", parking=[[7.0, -2.0]])]
-    return Roadways(RoadwaysConfig(nodes=nodes, edges=edges,
-                                   single_file=[list(pair) for pair in pairs]), locations)
-
-
-def _to_a(t, room: RoomQueue, states) -> _Inputs:
-    """``_Inputs`` with r0's plan one stop at A and the queues' rooms ``(room, P's)``."""
-    inputs = _Inputs(t, QueueState(rooms=(room, RoomQueue(1)),
-                                   segments=(SegmentHold(),) * 3), states)
-    inputs.plan = FleetPlan((RobotPlan("r0", (Stop("a", 0),)),))
-    return inputs
-
-
-def test_a_robot_whose_queue_place_is_on_single_file_lanes_holds_back_off_them():
-    # r0 drives W - M - J to A's one slot. r1 holds A, at its point; r2 waits at the slot:
-    # r0's place, 1 m back towards J, stands in J-E, where A's holder will have to pass.
-    # It holds back at P's parking spot beside M (put into its route: M, the spot, M), and
-    # asks only for the segments on its way there; before, it drove on into J-E.
-    policy = WaypointPolicy(["r0", "r1", "r2"], 0, hold_world(), None, WaypointParams())
-    route = ((0.0, 0.0), (6.0, 0.0), (10.0, 0.0), (10.8, 1.0))
-    s = _Drive(phase=RobotMode.DRIVE, stop=Stop("a", 0), route=route, index=1)
-    busy = RoomQueue(0, holder="r1", waiting=("r2",))
-    others = [[14.0, 3.0, 0.0, 0.0], [10.8, 1.0, 0.0, 0.0]]
-    off = policy.update(s, _to_a(1.0, busy, [[3.0, 0.0, 0.0, 1.0], *others]))
-    assert off.held and off.hold == 2
-    assert off.route == ((0.0, 0.0), (6.0, 0.0), (7.0, -2.0), (6.0, 0.0), (10.0, 0.0),
-                         (10.8, 1.0))
-    assert [k for k, _ in off.lanes.segments] == [0, 1]
-    assert policy.outputs(off).queue_request.room is None
-    # A wall between M and the spot (``sight``), or ``hold_back`` off: it drives on.
-    for blind in (WaypointPolicy(["r0", "r1", "r2"], 0, hold_world(), None, WaypointParams(),
-                                 sight=lambda a, b: False),
-                  WaypointPolicy(["r0", "r1", "r2"], 0, hold_world(), None,
-                                 WaypointParams(hold_back=False))):
-        on = blind.update(s, _to_a(1.0, busy, [[3.0, 0.0, 0.0, 1.0], *others]))
-        assert not on.held and on.route == route and 2 in dict(on.lanes.segments)
-    # At the spot it stands (target inactive), asking for no segment.
-    there = policy.update(replace(off, index=2), _to_a(2.0, busy, [[7.0, -1.8, 0.0, 0.0],
-                                                                   *others]))
-    assert there.held and there.waiting and there.lanes == NOTHING
-    assert not policy.outputs(there).target.active
-    # The holder waiting at the head slot: the robot waiting would stand one slot back
-    # (the queue phase), so r0 still holds back; with the holder at the point, A's slot
-    # is r0's.
-    coming = RoomQueue(0, holder="r2")
-    assert policy.update(there, _to_a(3.0, coming, [[7.0, -1.8, 0.0, 0.0], others[1],
-                                                    others[1]])).held
-    free = policy.update(there, _to_a(3.0, RoomQueue(0, holder="r1"),
-                                      [[7.0, -1.8, 0.0, 0.0], *others]))
-    assert not free.held and not free.waiting and free.index == 3
-    assert free.route == off.route and 2 in dict(free.lanes.segments)  # on to M, J, A
-
-
-def test_a_robot_off_the_single_file_lanes_holds_back_where_it_stands():
-    # As above, r0 setting out from P's queue slot, off the lanes: it stands there. A
-    # place off the lanes not yet set out for leaves the route once A's slot frees.
-    policy = WaypointPolicy(["r0", "r1", "r2"], 0, hold_world(), None, WaypointParams())
-    route = ((4.5, -3.5), (6.0, 0.0), (10.0, 0.0), (10.8, 1.0))
-    s = _Drive(phase=RobotMode.DRIVE, stop=Stop("a", 0), route=route, index=1)
-    busy = RoomQueue(0, holder="r1", waiting=("r2",))
-    others = [[14.0, 3.0, 0.0, 0.0], [10.8, 1.0, 0.0, 0.0]]
-    stands = policy.update(s, _to_a(1.0, busy, [[4.5, -3.5, 0.0, 0.0], *others]))
-    assert stands.held and stands.hold == -1 and stands.waiting and stands.lanes == NOTHING
-    assert stands.route == route
-    spliced = replace(s, route=route[:2] + ((7.0, -2.0),) + route[1:], held=True, hold=2)
-    back = policy.update(spliced, _to_a(1.0, RoomQueue(0, holder="r1"),
-                                        [[4.5, -3.5, 0.0, 1.0], *others]))
-    assert back.route == route and back.index == 1 and not back.held
-    # Driven on, it does not hold back again on this route.
-    assert not policy.update(back, _to_a(1.1, busy, [[4.6, -3.2, 0.0, 1.0], *others])).held
