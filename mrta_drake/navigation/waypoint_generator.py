@@ -52,7 +52,9 @@ class WaypointParams:
     distances in m, times in s."""
 
     waypoint_tolerance: float = 1.0  # a waypoint is reached within this distance
-    reach_tolerance: float = 1.0  # a location's point is reached within this distance
+    reach_tolerance: float = 1.0  # a location's point is reached within this distance, or
+    # within half the distance to the nearest other location's point where that is less
+    # (``WaypointPolicy._reach``)
     service_time: float = 1.0  # standing at the point, holding the room, to finish a stop
     request_distance: float = 3.0  # ask for a place in the queue this close to its tail slot
     release_distance: float = 5.0  # give a room back this far from its point
@@ -331,7 +333,7 @@ class WaypointPolicy:
       holder drives in all the same; with ``door_wait`` off, at once. The mirror: a robot
       about to leave the room it stands in (on its point or a parking spot) while another
       robot holds the room and moves there waits, target inactive, until it stops moving.
-    - serve: within ``reach_tolerance`` of the point and holding the room, stand for
+    - serve: at the point (within its reach, ``_at``) and holding the room, stand for
       ``service_time``; the stop is then done (a ``Visit`` at that time) and the next begins.
       A stop at the location the robot is already at starts here (requesting the room);
       until it holds the room its target is inactive, so a robot parked in the room does not
@@ -370,7 +372,7 @@ class WaypointPolicy:
     current stop is elsewhere and it is more than ``release_distance`` from the room's
     point or waits at a slot of that stop's queue (within ``waypoint_tolerance``: out of the
     room, it must not keep it from the robots queueing for it while it queues nearby), or,
-    with no stop left, once it is more than ``reach_tolerance`` from the point
+    with no stop left, once it is no longer at the point (``_at``)
     (at once where there is no parking spot, or where another robot stands on the spot it
     drives to: every spot was taken). It keeps naming that room in ``release`` until the
     queues no longer show it as the holder.
@@ -417,6 +419,11 @@ class WaypointPolicy:
         self._roadways = roadways
         self._params = params
         self._start_location = start_location
+        # Each location's reach (m): ``reach_tolerance``, but at most half the distance to
+        # the nearest other location's point, so that a robot at one point is at no other
+        # (two reach discs meet at most in one point; docs/worlds.md, "Other Open-RMF maps").
+        self._reach = {i: min(params.reach_tolerance, spacing / 2)
+                       for i, spacing in roadways.point_spacing.items()}
         self._spots_cache: dict[tuple, tuple[bool, tuple]] = {}  # ``_spots_reached``'s
         self._refuges: tuple | None = None  # ``_refuge``'s candidate spots, made when needed
         # The outputs of the state last read: most updates keep the state object as it is.
@@ -534,8 +541,7 @@ class WaypointPolicy:
             if s.phase in (RobotMode.PARK, RobotMode.HOME):
                 return self._keep_spot(s, robots, lanes)
             place = None if s.last_location is None else self._roadways.place(s.last_location)
-            if (not self._params.parking or place is None
-                    or _distance(robots.xy, place.point) > self._params.reach_tolerance):
+            if not self._params.parking or place is None or not self._at(robots.xy, place):
                 return _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0,
                                 since=None)
             others = np.delete(robots.states[:, :2], self._index, axis=0)
@@ -573,7 +579,7 @@ class WaypointPolicy:
         lanes to the start spot (``_home_spot``), unless there is none or it is by the
         point; else stand (idle)."""
         home = self._home_spot(place, lanes, others)
-        if home is None or _distance(home, place.point) <= self._params.reach_tolerance:
+        if home is None or self._at(home, place):
             return _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0, since=None)
         route = _points(lanes.leg_to_spot(place.id, home))
         return replace(s, phase=RobotMode.HOME, stop=None, route=route, index=0, since=None)
@@ -792,9 +798,8 @@ class WaypointPolicy:
 
     def _start(self, s: _Drive, stop: Stop, xy, lanes: Roadways, t: float) -> _Drive:
         """Begin ``stop`` from standing (at the start, or after finishing a stop)."""
-        roadways, tolerance = self._roadways, self._params.reach_tolerance
         parked = s.phase == RobotMode.PARK
-        if (_distance(xy, roadways.place(stop.location).point) <= tolerance
+        if (self._at(xy, self._roadways.place(stop.location))
                 or (parked and s.last_location == stop.location)):
             return replace(s, phase=RobotMode.SERVE, stop=stop, route=(), index=0, since=None)
         return self._drive_to(s, stop, self._way_from(s, stop, xy), lanes, t)
@@ -803,19 +808,16 @@ class WaypointPolicy:
         """How to reach ``stop`` from standing at ``xy``, as a function of the roadways:
         the leg from the last location when on its point (or parked there), else the lanes
         from the nearest roadway node."""
-        roadways, tolerance = self._roadways, self._params.reach_tolerance
+        roadways = self._roadways
         parked = s.phase == RobotMode.PARK
         last = s.last_location
         if last is None:  # e.g. a robot placed on a location's point without start_location
-            last = next(
-                (i for i in roadways.location_ids
-                 if _distance(xy, roadways.place(i).point) <= tolerance),
-                None,
-            )
+            last = next((i for i in roadways.location_ids if self._at(xy, roadways.place(i))),
+                        None)
         if (
             last is not None
             and last != stop.location
-            and (parked or _distance(xy, roadways.place(last).point) <= tolerance)
+            and (parked or self._at(xy, roadways.place(last)))
         ):
             def route(lanes):
                 return _points_or_none(lanes.leg(last, stop.location))
@@ -901,8 +903,7 @@ class WaypointPolicy:
         s = _changed(s, waiting=(s.phase == RobotMode.SERVE and not holding)
                      or (s.phase == RobotMode.ENTER and waits)
                      or self._held_at_door(s, robots, queues))
-        if (s.phase == RobotMode.SERVE and holding
-                and _distance(xy, place.point) <= params.reach_tolerance):
+        if s.phase == RobotMode.SERVE and holding and self._at(xy, place):
             since = t if s.since is None else s.since
             if t - since < params.service_time - 1e-9:
                 return _changed(s, since=since)
@@ -1054,8 +1055,8 @@ class WaypointPolicy:
                      <= self._params.parking_clearance).any())
 
     def _held_at_door(self, s: _Drive, robots: _Robots, queues: QueueState) -> bool:
-        """Whether the robot, about to leave the room it stands in (within
-        ``reach_tolerance`` of its point or a parking spot, driving to the first waypoint of
+        """Whether the robot, about to leave the room it stands in (at its point, ``_at``,
+        or within ``reach_tolerance`` of a parking spot, driving to the first waypoint of
         its leg), waits for the room's holder, another robot, moving in the doorway
         (``_door_busy``): the mirror of an entering holder's wait (with ``door_wait``)."""
         if (not self._params.door_wait or s.phase != RobotMode.DRIVE or s.index != 0
@@ -1065,10 +1066,16 @@ class WaypointPolicy:
         if queue is None or queue.holder in (None, self._robot):
             return False
         place = self._roadways.place(s.last_location)
-        if min(_distance(robots.xy, spot) for spot in (place.point, *place.parking)) > \
-                self._params.reach_tolerance:
+        if not self._at(robots.xy, place) and all(
+                _distance(robots.xy, spot) > self._params.reach_tolerance
+                for spot in place.parking):
             return False
         return self._door_busy(place, robots.states)
+
+    def _at(self, xy, place) -> bool:
+        """Whether ``xy`` (world, m) is at ``place``'s point: within its reach
+        (``reach_tolerance``, less where another location's point is near: ``_reach``)."""
+        return _distance(xy, place.point) <= self._reach[place.id]
 
     def _slot_ahead(self, s: _Drive, place) -> int | None:
         """The queue slot of ``place`` the robot waits at or drives to next, as long as it
@@ -1099,10 +1106,10 @@ class WaypointPolicy:
         through the entry path to the point: one cannot pass it there (soak seed 115: robot2,
         the holder, drove past robot6 standing in the door on its way out, 2.4 cm from the
         jamb). Left out are the robots that stand there for good or wait for the holder,
-        since waiting for them would deadlock: within ``reach_tolerance`` of the point or
-        a parking spot (waiting to serve, parked, or held to leave: ``_held_at_door``),
-        within ``parking_clearance`` of a start spot (at home), in the room's queue, waiting
-        for single-file segments, and broken down."""
+        since waiting for them would deadlock: at the point (``_at``) or within
+        ``reach_tolerance`` of a parking spot (waiting to serve, parked, or held to leave:
+        ``_held_at_door``), within ``parking_clearance`` of a start spot (at home), in the
+        room's queue, waiting for single-file segments, and broken down."""
         states = robots.states
         near = np.abs(states[:, 3]) <= ROBOT_STOPPED_SPEED
         near[self._index] = False
@@ -1113,7 +1120,9 @@ class WaypointPolicy:
         near &= distance_to_polyline(xy, doorway) <= params.door_clearance
         if not near.any():
             return False
-        near &= _nearest(xy, [place.point, *place.parking]) > params.reach_tolerance
+        near &= np.linalg.norm(xy - place.point, axis=1) > self._reach[place.id]
+        if len(place.parking):
+            near &= _nearest(xy, place.parking) > params.reach_tolerance
         if self._starts:
             near &= _nearest(xy, self._starts) > params.parking_clearance
         queue = queues.room(place.id)
@@ -1149,7 +1158,7 @@ class WaypointPolicy:
             if s.stop is None:  # parked: keeps only the room it parked in (its index)
                 place = self._roadways.place(queue.room)
                 if (s.phase != RobotMode.PARK or queue.room != s.last_location
-                        or _distance(robots.xy, place.point) > self._params.reach_tolerance
+                        or not self._at(robots.xy, place)
                         or self._spot_taken(place.parking[s.index], robots.states)):
                     return queue.room
                 continue
