@@ -53,8 +53,8 @@ class WaypointParams:
 
     waypoint_tolerance: float = 1.0  # a waypoint is reached within this distance
     reach_tolerance: float = 1.0  # a location's point is reached within this distance, or
-    # within half the distance to the nearest other location's point where that is less
-    # (``WaypointPolicy._reach``)
+    # within half the distance to the nearest other location's point where that point lies
+    # within it (``WaypointPolicy._reach``)
     service_time: float = 1.0  # standing at the point, holding the room, to finish a stop
     request_distance: float = 3.0  # ask for a place in the queue this close to its tail slot
     release_distance: float = 5.0  # give a room back this far from its point
@@ -419,10 +419,12 @@ class WaypointPolicy:
         self._roadways = roadways
         self._params = params
         self._start_location = start_location
-        # Each location's reach (m): ``reach_tolerance``, but at most half the distance to
-        # the nearest other location's point, so that a robot at one point is at no other
-        # (two reach discs meet at most in one point; docs/worlds.md, "Other Open-RMF maps").
-        self._reach = {i: min(params.reach_tolerance, spacing / 2)
+        # Each location's reach (m): ``reach_tolerance``, but where another location's point
+        # lies within that, half the distance to the nearest one, so that no location's
+        # point is within another's reach: a robot standing on one is at that one alone
+        # (docs/worlds.md, "Other Open-RMF maps").
+        tolerance = params.reach_tolerance
+        self._reach = {i: tolerance if spacing > tolerance else spacing / 2
                        for i, spacing in roadways.point_spacing.items()}
         self._spots_cache: dict[tuple, tuple[bool, tuple]] = {}  # ``_spots_reached``'s
         self._refuges: tuple | None = None  # ``_refuge``'s candidate spots, made when needed
@@ -1074,7 +1076,8 @@ class WaypointPolicy:
 
     def _at(self, xy, place) -> bool:
         """Whether ``xy`` (world, m) is at ``place``'s point: within its reach
-        (``reach_tolerance``, less where another location's point is near: ``_reach``)."""
+        (``reach_tolerance``, less where another location's point lies within it:
+        ``_reach``)."""
         return _distance(xy, place.point) <= self._reach[place.id]
 
     def _slot_ahead(self, s: _Drive, place) -> int | None:
