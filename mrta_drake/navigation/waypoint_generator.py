@@ -52,9 +52,8 @@ class WaypointParams:
     distances in m, times in s."""
 
     waypoint_tolerance: float = 1.0  # a waypoint is reached within this distance
-    reach_tolerance: float = 1.0  # a location's point is reached within this distance, or
-    # within half the distance to the nearest other location's point where that point lies
-    # within it (``WaypointPolicy._reach``)
+    reach_tolerance: float = 1.0  # a location's point is reached within this distance, by
+    # a robot no nearer another location's point (``WaypointPolicy._at``)
     service_time: float = 1.0  # standing at the point, holding the room, to finish a stop
     request_distance: float = 3.0  # ask for a place in the queue this close to its tail slot
     release_distance: float = 5.0  # give a room back this far from its point
@@ -419,13 +418,15 @@ class WaypointPolicy:
         self._roadways = roadways
         self._params = params
         self._start_location = start_location
-        # Each location's reach (m): ``reach_tolerance``, but where another location's point
-        # lies within that, half the distance to the nearest one, so that no location's
-        # point is within another's reach: a robot standing on one is at that one alone
-        # (docs/worlds.md, "Other Open-RMF maps").
-        tolerance = params.reach_tolerance
-        self._reach = {i: tolerance if spacing > tolerance else spacing / 2
-                       for i, spacing in roadways.point_spacing.items()}
+        # Per location with another's point nearer than 2 x ``reach_tolerance``: those
+        # points ((k, 2), m), which a robot at the location must be no nearer (``_at``).
+        reach = 2 * params.reach_tolerance
+        ids = roadways.location_ids
+        points = np.array([roadways.place(i).point for i in ids], dtype=float).reshape(-1, 2)
+        self._rivals = {
+            i: points[(np.linalg.norm(points - points[k], axis=1) < reach)
+                      & (np.arange(len(ids)) != k)]
+            for k, i in enumerate(ids) if roadways.point_spacing[i] < reach}
         self._spots_cache: dict[tuple, tuple[bool, tuple]] = {}  # ``_spots_reached``'s
         self._refuges: tuple | None = None  # ``_refuge``'s candidate spots, made when needed
         # The outputs of the state last read: most updates keep the state object as it is.
@@ -1075,10 +1076,14 @@ class WaypointPolicy:
         return self._door_busy(place, robots.states)
 
     def _at(self, xy, place) -> bool:
-        """Whether ``xy`` (world, m) is at ``place``'s point: within its reach
-        (``reach_tolerance``, less where another location's point lies within it:
-        ``_reach``)."""
-        return _distance(xy, place.point) <= self._reach[place.id]
+        """Whether ``xy`` (world, m) is at ``place``'s point: within ``reach_tolerance`` of
+        it and no nearer another location's point, so that a robot at one location is at
+        no other (docs/worlds.md, "Other Open-RMF maps")."""
+        gap = _distance(xy, place.point)
+        if gap > self._params.reach_tolerance:
+            return False
+        rivals = self._rivals.get(place.id)
+        return rivals is None or gap <= float(np.linalg.norm(rivals - xy, axis=1).min())
 
     def _slot_ahead(self, s: _Drive, place) -> int | None:
         """The queue slot of ``place`` the robot waits at or drives to next, as long as it
@@ -1123,7 +1128,7 @@ class WaypointPolicy:
         near &= distance_to_polyline(xy, doorway) <= params.door_clearance
         if not near.any():
             return False
-        near &= np.linalg.norm(xy - place.point, axis=1) > self._reach[place.id]
+        near &= [not self._at(robot, place) for robot in xy]
         if len(place.parking):
             near &= _nearest(xy, place.parking) > params.reach_tolerance
         if self._starts:
