@@ -240,18 +240,6 @@ class Roadways:
         """The geometry of ``location`` (KeyError if unknown)."""
         return self._places[location]
 
-    @functools.cached_property
-    def point_spacing(self) -> dict[int, float]:
-        """Each location's distance (m) to the nearest other location's point (inf for a
-        lone location): how near a robot must come for it to be at that point and at no
-        other (``WaypointPolicy``'s reach). Computed once; closed views share it."""
-        ids = self.location_ids
-        points = np.array([self.place(i).point for i in ids], dtype=float).reshape(-1, 2)
-        gaps = np.linalg.norm(points[:, None, :] - points[None, :, :], axis=-1)
-        np.fill_diagonal(gaps, np.inf)
-        return {i: float(d) for i, d in zip(ids, gaps.min(axis=1, initial=np.inf),
-                                            strict=True)}
-
     def node_position(self, name: str) -> np.ndarray:
         """World (x, y) of roadway node ``name``, m."""
         return self.graph.nodes[name]["pos"]

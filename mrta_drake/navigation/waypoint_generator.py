@@ -52,8 +52,7 @@ class WaypointParams:
     distances in m, times in s."""
 
     waypoint_tolerance: float = 1.0  # a waypoint is reached within this distance
-    reach_tolerance: float = 1.0  # a location's point is reached within this distance, by
-    # a robot no nearer another location's point (``WaypointPolicy._at``)
+    reach_tolerance: float = 1.0  # a location's point is reached within this distance
     service_time: float = 1.0  # standing at the point, holding the room, to finish a stop
     request_distance: float = 3.0  # ask for a place in the queue this close to its tail slot
     release_distance: float = 5.0  # give a room back this far from its point
@@ -332,7 +331,7 @@ class WaypointPolicy:
       holder drives in all the same; with ``door_wait`` off, at once. The mirror: a robot
       about to leave the room it stands in (on its point or a parking spot) while another
       robot holds the room and moves there waits, target inactive, until it stops moving.
-    - serve: at the point (within its reach, ``_at``) and holding the room, stand for
+    - serve: within ``reach_tolerance`` of the point and holding the room, stand for
       ``service_time``; the stop is then done (a ``Visit`` at that time) and the next begins.
       A stop at the location the robot is already at starts here (requesting the room);
       until it holds the room its target is inactive, so a robot parked in the room does not
@@ -371,7 +370,7 @@ class WaypointPolicy:
     current stop is elsewhere and it is more than ``release_distance`` from the room's
     point or waits at a slot of that stop's queue (within ``waypoint_tolerance``: out of the
     room, it must not keep it from the robots queueing for it while it queues nearby), or,
-    with no stop left, once it is no longer at the point (``_at``)
+    with no stop left, once it is more than ``reach_tolerance`` from the point
     (at once where there is no parking spot, or where another robot stands on the spot it
     drives to: every spot was taken). It keeps naming that room in ``release`` until the
     queues no longer show it as the holder.
@@ -418,15 +417,6 @@ class WaypointPolicy:
         self._roadways = roadways
         self._params = params
         self._start_location = start_location
-        # Per location with another's point nearer than 2 x ``reach_tolerance``: those
-        # points ((k, 2), m), which a robot at the location must be no nearer (``_at``).
-        reach = 2 * params.reach_tolerance
-        ids = roadways.location_ids
-        points = np.array([roadways.place(i).point for i in ids], dtype=float).reshape(-1, 2)
-        self._rivals = {
-            i: points[(np.linalg.norm(points - points[k], axis=1) < reach)
-                      & (np.arange(len(ids)) != k)]
-            for k, i in enumerate(ids) if roadways.point_spacing[i] < reach}
         self._spots_cache: dict[tuple, tuple[bool, tuple]] = {}  # ``_spots_reached``'s
         self._refuges: tuple | None = None  # ``_refuge``'s candidate spots, made when needed
         # The outputs of the state last read: most updates keep the state object as it is.
@@ -544,7 +534,8 @@ class WaypointPolicy:
             if s.phase in (RobotMode.PARK, RobotMode.HOME):
                 return self._keep_spot(s, robots, lanes)
             place = None if s.last_location is None else self._roadways.place(s.last_location)
-            if not self._params.parking or place is None or not self._at(robots.xy, place):
+            if (not self._params.parking or place is None
+                    or _distance(robots.xy, place.point) > self._params.reach_tolerance):
                 return _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0,
                                 since=None)
             others = np.delete(robots.states[:, :2], self._index, axis=0)
@@ -582,7 +573,7 @@ class WaypointPolicy:
         lanes to the start spot (``_home_spot``), unless there is none or it is by the
         point; else stand (idle)."""
         home = self._home_spot(place, lanes, others)
-        if home is None or self._at(home, place):
+        if home is None or _distance(home, place.point) <= self._params.reach_tolerance:
             return _changed(s, phase=RobotMode.IDLE, stop=None, route=(), index=0, since=None)
         route = _points(lanes.leg_to_spot(place.id, home))
         return replace(s, phase=RobotMode.HOME, stop=None, route=route, index=0, since=None)
@@ -801,8 +792,9 @@ class WaypointPolicy:
 
     def _start(self, s: _Drive, stop: Stop, xy, lanes: Roadways, t: float) -> _Drive:
         """Begin ``stop`` from standing (at the start, or after finishing a stop)."""
+        roadways, tolerance = self._roadways, self._params.reach_tolerance
         parked = s.phase == RobotMode.PARK
-        if (self._at(xy, self._roadways.place(stop.location))
+        if (_distance(xy, roadways.place(stop.location).point) <= tolerance
                 or (parked and s.last_location == stop.location)):
             return replace(s, phase=RobotMode.SERVE, stop=stop, route=(), index=0, since=None)
         return self._drive_to(s, stop, self._way_from(s, stop, xy), lanes, t)
@@ -811,16 +803,19 @@ class WaypointPolicy:
         """How to reach ``stop`` from standing at ``xy``, as a function of the roadways:
         the leg from the last location when on its point (or parked there), else the lanes
         from the nearest roadway node."""
-        roadways = self._roadways
+        roadways, tolerance = self._roadways, self._params.reach_tolerance
         parked = s.phase == RobotMode.PARK
         last = s.last_location
         if last is None:  # e.g. a robot placed on a location's point without start_location
-            last = next((i for i in roadways.location_ids if self._at(xy, roadways.place(i))),
-                        None)
+            last = next(
+                (i for i in roadways.location_ids
+                 if _distance(xy, roadways.place(i).point) <= tolerance),
+                None,
+            )
         if (
             last is not None
             and last != stop.location
-            and (parked or self._at(xy, roadways.place(last)))
+            and (parked or _distance(xy, roadways.place(last).point) <= tolerance)
         ):
             def route(lanes):
                 return _points_or_none(lanes.leg(last, stop.location))
@@ -906,7 +901,8 @@ class WaypointPolicy:
         s = _changed(s, waiting=(s.phase == RobotMode.SERVE and not holding)
                      or (s.phase == RobotMode.ENTER and waits)
                      or self._held_at_door(s, robots, queues))
-        if s.phase == RobotMode.SERVE and holding and self._at(xy, place):
+        if (s.phase == RobotMode.SERVE and holding
+                and _distance(xy, place.point) <= params.reach_tolerance):
             since = t if s.since is None else s.since
             if t - since < params.service_time - 1e-9:
                 return _changed(s, since=since)
@@ -1058,8 +1054,8 @@ class WaypointPolicy:
                      <= self._params.parking_clearance).any())
 
     def _held_at_door(self, s: _Drive, robots: _Robots, queues: QueueState) -> bool:
-        """Whether the robot, about to leave the room it stands in (at its point, ``_at``,
-        or within ``reach_tolerance`` of a parking spot, driving to the first waypoint of
+        """Whether the robot, about to leave the room it stands in (within
+        ``reach_tolerance`` of its point or a parking spot, driving to the first waypoint of
         its leg), waits for the room's holder, another robot, moving in the doorway
         (``_door_busy``): the mirror of an entering holder's wait (with ``door_wait``)."""
         if (not self._params.door_wait or s.phase != RobotMode.DRIVE or s.index != 0
@@ -1069,21 +1065,10 @@ class WaypointPolicy:
         if queue is None or queue.holder in (None, self._robot):
             return False
         place = self._roadways.place(s.last_location)
-        if not self._at(robots.xy, place) and all(
-                _distance(robots.xy, spot) > self._params.reach_tolerance
-                for spot in place.parking):
+        if min(_distance(robots.xy, spot) for spot in (place.point, *place.parking)) > \
+                self._params.reach_tolerance:
             return False
         return self._door_busy(place, robots.states)
-
-    def _at(self, xy, place) -> bool:
-        """Whether ``xy`` (world, m) is at ``place``'s point: within ``reach_tolerance`` of
-        it and no nearer another location's point, so that a robot at one location is at
-        no other (docs/worlds.md, "Other Open-RMF maps")."""
-        gap = _distance(xy, place.point)
-        if gap > self._params.reach_tolerance:
-            return False
-        rivals = self._rivals.get(place.id)
-        return rivals is None or gap <= float(np.linalg.norm(rivals - xy, axis=1).min())
 
     def _slot_ahead(self, s: _Drive, place) -> int | None:
         """The queue slot of ``place`` the robot waits at or drives to next, as long as it
@@ -1114,10 +1099,10 @@ class WaypointPolicy:
         through the entry path to the point: one cannot pass it there (soak seed 115: robot2,
         the holder, drove past robot6 standing in the door on its way out, 2.4 cm from the
         jamb). Left out are the robots that stand there for good or wait for the holder,
-        since waiting for them would deadlock: at the point (``_at``) or within
-        ``reach_tolerance`` of a parking spot (waiting to serve, parked, or held to leave:
-        ``_held_at_door``), within ``parking_clearance`` of a start spot (at home), in the
-        room's queue, waiting for single-file segments, and broken down."""
+        since waiting for them would deadlock: within ``reach_tolerance`` of the point or
+        a parking spot (waiting to serve, parked, or held to leave: ``_held_at_door``),
+        within ``parking_clearance`` of a start spot (at home), in the room's queue, waiting
+        for single-file segments, and broken down."""
         states = robots.states
         near = np.abs(states[:, 3]) <= ROBOT_STOPPED_SPEED
         near[self._index] = False
@@ -1128,9 +1113,7 @@ class WaypointPolicy:
         near &= distance_to_polyline(xy, doorway) <= params.door_clearance
         if not near.any():
             return False
-        near &= [not self._at(robot, place) for robot in xy]
-        if len(place.parking):
-            near &= _nearest(xy, place.parking) > params.reach_tolerance
+        near &= _nearest(xy, [place.point, *place.parking]) > params.reach_tolerance
         if self._starts:
             near &= _nearest(xy, self._starts) > params.parking_clearance
         queue = queues.room(place.id)
@@ -1166,7 +1149,7 @@ class WaypointPolicy:
             if s.stop is None:  # parked: keeps only the room it parked in (its index)
                 place = self._roadways.place(queue.room)
                 if (s.phase != RobotMode.PARK or queue.room != s.last_location
-                        or not self._at(robots.xy, place)
+                        or _distance(robots.xy, place.point) > self._params.reach_tolerance
                         or self._spot_taken(place.parking[s.index], robots.states)):
                     return queue.room
                 continue

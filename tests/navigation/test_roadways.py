@@ -36,14 +36,6 @@ def loop_world():
     return RoadwaysConfig(nodes=nodes, edges=edges), locations
 
 
-def test_point_spacing_is_each_locations_distance_to_the_nearest_other_point():
-    config, locations = loop_world()
-    assert Roadways(config, locations).point_spacing == {0: 10.0, 1: 10.0, 2: 10.0}
-    near = replace(locations[2], point=[16.0, 5.0], entry=[[16.0, 2.5]])
-    assert Roadways(config, [*locations[:2], near]).point_spacing == {0: 10.0, 1: 1.0, 2: 1.0}
-    assert Roadways(config, locations[:1]).point_spacing == {0: math.inf}
-
-
 def test_legs_follow_one_way_lanes_and_end_at_the_queue_tail():
     roadways = Roadways(*loop_world())
     # A to B lies against the westbound lane: out of A, round the west end, east, back west.

@@ -36,16 +36,15 @@ from mrta_drake.payloads import (
 )
 from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig
 
-A, B, C, D = 0, 1, 2, 3
+A, B, C = 0, 1, 2
 
 
-def loop_world(parking: bool = False, overflow=(), twin: bool = False) -> Roadways:
+def loop_world(parking: bool = False, overflow=()) -> Roadways:
     """As in test_roadways: an eastbound lane at y = 0 and a westbound one at y = 1.5 joined
     at x = 0 and 30; rooms A, B, C at x = 5, 15, 25, point at y = 5, door at y = 2.5, three
     queue slots east of the door on the westbound lane; with ``parking``, a parking spot 2 m
     east of each point; ``overflow``: each location's overflow spots, (dx, y) m from its
-    point's x; with ``twin``, room D as well, its point 1 m east of A's (as the racks of a
-    warehouse), its queue and door 1 m east of A's."""
+    point's x."""
     xs = (0, 10, 20, 30)
     nodes = {f"S{x}": [x, 0.0] for x in xs} | {f"N{x}": [x, 1.5] for x in xs}
     edges = [["S0", "S10"], ["S10", "S20"], ["S20", "S30"], ["S30", "N30"],
@@ -59,10 +58,6 @@ def loop_world(parking: bool = False, overflow=(), twin: bool = False) -> Roadwa
         )
         for i, x in enumerate((5, 15, 25))
     ]
-    if twin:
-        locations.append(LocationConfig(
-            id=D, point=[6.0, 5.0], queue=[[7.0, 1.5], [8.0, 1.5], [9.0, 1.5]],
-            entry=[[6.0, 2.5]], exit_node="N0", approach_node="N10"))
     return Roadways(RoadwaysConfig(nodes=nodes, edges=edges), locations)
 
 
@@ -118,11 +113,11 @@ class World:
     """Robots ``r0, r1, ...`` starting on the points of ``starts`` (location ids)."""
 
     def __init__(self, starts, plan_source, start_known=True, params=None, parking=False,
-                 homes=None, at=None, overflow=(), twin=False):
+                 homes=None, at=None, overflow=()):
         """``homes``: start spots (x, y) off the locations instead, one per robot (each
         robot's home; all of them its spots); ``at``: where the robots stand at first (x, y)
-        if not there; ``overflow``, ``twin``: as ``loop_world``'s."""
-        self.roadways = roadways = loop_world(parking, overflow, twin)
+        if not there; ``overflow``: as ``loop_world``'s."""
+        self.roadways = roadways = loop_world(parking, overflow)
         self.robots = [f"r{i}" for i in range(len(starts))]
         builder = DiagramBuilder()
         plan = builder.AddSystem(plan_source)
@@ -314,17 +309,6 @@ def test_a_stop_where_the_robot_stands_is_served_in_place():
     # It then leaves A by its door, on A's leg to B.
     currents = [targets[0].current for t, _, _, targets in world.log if t > visits[0].time]
     assert currents[0] == (5.0, 2.5)
-
-
-def test_a_robot_at_one_point_drives_to_serve_another_nearer_than_reach_tolerance():
-    # D's point is 1 m from A's, within reach_tolerance (1 m): the robot standing on A is
-    # nearer A's point, so not at D; it drives round to D's door and serves D nearer D.
-    world = World([A], fixed([D]), twin=True)
-    world.run(until=90.0)
-    (visit,) = world.progress(0).visits
-    assert visit.location == D and visit.time > 30.0
-    _, _, positions, _ = next(entry for entry in world.log if entry[0] >= visit.time)
-    assert world.distance(positions, 0, D) < world.distance(positions, 0, A)
 
 
 def test_a_robot_done_at_a_room_parks_off_the_point_and_frees_the_room():
