@@ -30,6 +30,7 @@ from mrta_drake.payloads import (
     WaypointTarget,
     frozen_array,
 )
+from mrta_drake.robots.relocation import Applied
 from mrta_drake.scenario.disturbances import blockage_obstacles
 from mrta_drake.stack.fleet_inputs import PerRobotInputs
 from mrta_drake.world.obstacles import Cylinder, Obstacles
@@ -54,15 +55,15 @@ class PlannerServiceParams:
 class _ServiceState:
     """The block's abstract state: the paths it outputs, the targets they were planned
     for, the time (s) of the next periodic re-plan, what they were planned around
-    (``PlannerService._closures``), per robot the sequence number of the last relocation
-    seen (() for none yet) and the indices of the robots whose target predates their
-    relocation (``stale``)."""
+    (``PlannerService._closures``), the relocations seen (``Applied``; None before the
+    first) and the indices of the robots whose target predates their relocation
+    (``stale``)."""
 
     paths: FleetPaths
     targets: tuple[WaypointTarget | None, ...]
     next_replan: float
     closed: tuple = ()
-    relocated: tuple[int, ...] = ()
+    relocated: Applied | None = None
     stale: frozenset[int] = frozenset()
 
     def __deepcopy__(self, memo):
@@ -207,7 +208,7 @@ class PlannerService(LeafSystem):
         changed = {k for k, (target, was) in enumerate(zip(targets, old.targets, strict=True))
                    if target is not was and target != was}
         relocated, moved = self._relocated(context, old.relocated)
-        stale = (old.stale | (moved - changed)) - changed
+        stale = (old.stale | moved) - changed
         due = [k for k in range(len(targets)) if replan_all or k in changed or k in moved]
         if not due:
             return EventStatus.DidNothing()
@@ -233,17 +234,17 @@ class PlannerService(LeafSystem):
                           relocated, frozenset(stale)))
         return EventStatus.Succeeded()
 
-    def _relocated(self, context, seen: tuple[int, ...]) -> tuple[tuple[int, ...], set[int]]:
-        """Per robot the sequence number of its last relocation (``seen``: those known
-        before, () for none), and the indices of the robots relocated since."""
+    def _relocated(self, context, seen: Applied | None) -> tuple[Applied | None, set[int]]:
+        """The relocations seen (``seen``: those known before, None for none), and the
+        indices of the robots relocated since."""
         if not self._relocations.HasValue(context):
             return seen, set()
-        moves = self._relocations.Eval(context).moves
-        if not any(moves):
+        relocations = self._relocations.Eval(context)
+        if not any(relocations.moves):
             return seen, set()
-        known = seen or (0,) * len(self._robots)
-        now = tuple(known[k] if move is None else move[0] for k, move in enumerate(moves))
-        return now, {k for k, (a, b) in enumerate(zip(now, known, strict=True)) if a > b}
+        seen = seen or Applied((0,) * len(self._robots))
+        moves = seen.new_moves(relocations)
+        return seen.after(moves), {k for k, move in enumerate(moves) if move is not None}
 
     def _targets_now(self, context) -> tuple[tuple[WaypointTarget, ...], frozenset[str]]:
         """Each robot's target: its waypoint generator's, or its back-off spot while the

@@ -342,7 +342,7 @@ class Roadways:
     def legs_from(self, from_location: int) -> Iterator[tuple[int, np.ndarray | None]]:
         """``(to_location, leg)`` for every other location in ``location_ids`` order: the
         legs out of ``from_location`` from one search of the lanes for all of them, for
-        all-pairs uses (``travel_time_estimate``) of large buildings. Each is
+        all-pairs uses of large buildings (the import's start spots). Each is
         ``leg(from_location, to_location)``, or where two ways are equally short possibly
         the other one; not cached."""
         start = self.place(from_location)

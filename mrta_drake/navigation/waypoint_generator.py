@@ -946,8 +946,8 @@ class WaypointPolicy:
         if s.phase == RobotMode.HOME and s.index == 0:
             out = self._leaving(robots.xy, s.route[0], queues)
             if out:
-                wanted = Need(tuple(sorted((out | dict(wanted.segments)).items())),
-                              wanted.hold, wanted.stops)
+                segments = out | dict(wanted.segments)
+                wanted = replace(wanted, segments=tuple(sorted(segments.items())))
         if not wanted.hold:
             return wanted
         # Held back inside a lane (farther than stand_distance from every roadway node), it
@@ -1009,7 +1009,7 @@ class WaypointPolicy:
         to its spot)."""
         here = standing(self._roadways, robots.xy, robots.xy, self._held(queues),
                         self._params.single_file)
-        return Need(here.segments, True, here.stops, here.standing)
+        return replace(here, hold=True)
 
     def _held(self, queues: QueueState) -> dict[int, bool]:
         """The single-file segments the robot holds, each with the way it holds it

@@ -27,7 +27,6 @@ joined by the lifts (``levels_import``).
 """
 
 import dataclasses
-import itertools
 import math
 import os
 import shutil
@@ -305,10 +304,11 @@ def controller_params(roadways: RoadwaysConfig, floor_plan: FloorPlan) -> dict:
 
 
 def _has_two_way_corridors(roadways: RoadwaysConfig) -> bool:
-    """Whether some lane of ``roadways`` lies in no single-file segment."""
-    single_file = {frozenset(pair) for segment in roadways.single_file
-                   for pair in itertools.pairwise(segment)}
-    return any(frozenset((a, b)) not in single_file for a, b in roadways.edges)
+    """Whether some lane of ``roadways`` lies in no single-file segment (a segment holds
+    every lane between two of its nodes, as ``Roadways`` reads it)."""
+    segments = [set(segment) for segment in roadways.single_file]
+    return any(not any(a in nodes and b in nodes for nodes in segments)
+               for a, b in roadways.edges)
 
 
 def _heading(lines, node: str) -> float:
