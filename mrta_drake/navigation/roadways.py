@@ -13,7 +13,7 @@ edges: each corridor has one lane per direction).
 import copy
 import functools
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import networkx as nx
@@ -346,23 +346,13 @@ class Roadways:
         ``leg(from_location, to_location)``, or where two ways are equally short possibly
         the other one; not cached."""
         start = self.place(from_location)
-        avoid = self._past_queue(start)
         out = np.array(self.way_out(start), dtype=float).reshape(-1, 2)
         row, xy = self._node_rows
-        around = {} if avoid is None else nx.single_source_dijkstra_path(
-            nx.restricted_view(self.graph, [], [avoid]), start.exit_node, weight="length")
-        anyway = None
-        for to_location in self.location_ids:
-            if to_location == from_location:
-                continue
-            target = self.place(to_location)
-            names = around.get(target.approach_node)
-            if names is None:
-                if anyway is None:
-                    anyway = nx.single_source_dijkstra_path(self.graph, start.exit_node,
-                                                            weight="length")
-                names = anyway.get(target.approach_node)
-            yield to_location, None if names is None else _without_repeats(np.concatenate(
+        others = [self.place(b) for b in self.location_ids if b != from_location]
+        paths = self._ways(start.exit_node, self._past_queue(start),
+                           [p.approach_node for p in others], nx.single_source_dijkstra_path)
+        for target, names in zip(others, paths, strict=True):
+            yield target.id, None if names is None else _without_repeats(np.concatenate(
                 [out, xy[[row[n] for n in names]], target.tail[None]]))
 
     @functools.cached_property
@@ -385,14 +375,37 @@ class Roadways:
         ``to_location``'s queue, or None if the lanes do not lead there; not along the lane
         ``avoid`` (from, to nodes) where another way leads there."""
         target = self.place(to_location)
-        names = None
+        for graph in self._graphs_avoiding(avoid):
+            names = _shortest(graph, node, target.approach_node)
+            if names is not None:
+                return _without_repeats([self.node_position(n) for n in names] + [target.tail])
+        return None
+
+    def _graphs_avoiding(self, avoid: tuple[str, str] | None) -> Iterator[nx.DiGraph]:
+        """The lane graphs to search in turn for a way off the lane ``avoid`` (from, to
+        nodes) where another way leads: without that lane, then the whole graph (only the
+        whole graph where ``avoid`` is None)."""
         if avoid is not None:
-            names = _shortest(nx.restricted_view(self.graph, [], [avoid]), node,
-                              target.approach_node)
-        names = names or _shortest(self.graph, node, target.approach_node)
-        if names is None:
-            return None
-        return _without_repeats([self.node_position(n) for n in names] + [target.tail])
+            yield nx.restricted_view(self.graph, [], [avoid])
+        yield self.graph
+
+    def _ways(self, node: str, avoid: tuple[str, str] | None, targets: Sequence[str],
+              search: Callable[..., dict]) -> list:
+        """For each of the roadway nodes ``targets``, what ``search`` (a networkx
+        single-source Dijkstra, weighted by ``length``: paths or lengths by node) gives for
+        it from ``node``, in the first of ``_graphs_avoiding(avoid)`` whose lanes lead there
+        (None where none does); a graph is searched only where the ones before leave some
+        target unreached."""
+        found: list = [None] * len(targets)
+        left = range(len(targets))
+        for graph in self._graphs_avoiding(avoid):
+            if not left:
+                break
+            reached = search(graph, node, weight="length")
+            for k in left:
+                found[k] = reached.get(targets[k])
+            left = [k for k in left if found[k] is None]
+        return found
 
     def way_out(self, place: Place) -> list[np.ndarray]:
         """The points (m) a robot leaving ``place`` drives before its exit node: the point,
@@ -497,24 +510,17 @@ class Roadways:
         approach = [p.approach_node for p in places]
         to_tail = np.array([math.dist(self.node_position(p.approach_node), p.tail)
                             for p in places])
-        searched: dict[tuple, dict] = {}
-
-        def distances(node: str, avoid) -> dict:
-            if (node, avoid) not in searched:
-                graph = self.graph if avoid is None else nx.restricted_view(
-                    self.graph, [], [avoid])
-                searched[node, avoid] = nx.single_source_dijkstra_path_length(
-                    graph, node, weight="length")
-            return searched[node, avoid]
-
+        along_from: dict[tuple, np.ndarray] = {}  # by exit node and lane avoided
         lengths = np.zeros((len(ids), len(ids)))
         for i, start in enumerate(places):
             out = _polyline_length(np.array(
                 [*self.way_out(start), self.node_position(start.exit_node)], dtype=float))
-            avoid = self._past_queue(start)
-            around, anyway = distances(start.exit_node, avoid), distances(start.exit_node, None)
-            along = np.array([around.get(n, anyway.get(n, math.inf)) for n in approach])
-            lengths[i] = out + along + to_tail
+            key = (start.exit_node, self._past_queue(start))
+            if key not in along_from:
+                along_from[key] = np.array(
+                    [math.inf if d is None else d for d in self._ways(
+                        *key, approach, nx.single_source_dijkstra_path_length)])
+            lengths[i] = out + along_from[key] + to_tail
             lengths[i, i] = 0.0
         lengths.flags.writeable = False
         return lengths

@@ -242,12 +242,15 @@ def _gap(xy, points) -> float:
 
 def _legs_passing(navigation: BuildingNavigation, points: np.ndarray) -> np.ndarray:
     """How many legs between two task locations pass within ``ROUTE_BERTH`` m of each of
-    ``points`` (k, 2), m."""
-    roadways = Roadways(navigation.roadways, navigation.locations)
+    ``points`` (k, 2), m; no legs are searched where there are no points (a warehouse whose
+    lane nodes are all task locations or on single-file segments)."""
     counts = np.zeros(len(points), dtype=int)
+    if not len(points):
+        return counts
+    roadways = Roadways(navigation.roadways, navigation.locations)
     for a in roadways.location_ids:
         for _, leg in roadways.legs_from(a):
-            if leg is None or len(leg) < 2 or not len(points):
+            if leg is None or len(leg) < 2:
                 continue
             counts += distance_to_polyline(points, leg) <= ROUTE_BERTH
     return counts

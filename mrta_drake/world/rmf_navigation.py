@@ -263,6 +263,7 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
                         dtype=float)
     single = {(a, b) for segment in lanes.single_file
               for a in segment.nodes for b in segment.nodes if graph.has_edge(a, b)}
+    rooms = _Rooms.of_lanes(graph, single)
     points = [np.asarray(roadways.nodes[lines.vertex_node[i]], dtype=float)
               for i in candidates]
     for k, i in enumerate(candidates):  # on a passage: served beside it where there is room
@@ -273,8 +274,8 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
     locations, moved, dropped = [], 0, 0
     for location_id, (i, point) in enumerate(zip(candidates, points, strict=True)):
         node = lines.vertex_node[i]
-        queue, entry, approach, zone = _queue(graph, node, holding, single, floor_plan,
-                                              _Aside(segments, taken), params)
+        queue, entry, approach, zone = _queue(graph, node, holding, single, rooms,
+                                              floor_plan, _Aside(segments, taken), params)
         if len(entry) and not zone and _off_lanes(np.array(queue[:1]), segments)[0] \
                 >= params.slot_lane_gap - 0.01:
             entry = []  # from a head slot beside the lanes straight to the point
@@ -332,8 +333,28 @@ class _Aside:
     taken: list
 
 
+@dataclass(frozen=True)
+class _Rooms:
+    """A level's lanes, taken both ways, split at the single-file lanes: ``of`` each node's
+    room (the nodes it reaches without single-file lanes), ``stretch_of`` each single-file
+    lane end's stretch (the nodes single-file lanes join it to), by node."""
+
+    of: dict[str, set[str]]
+    stretch_of: dict[str, set[str]]
+
+    @classmethod
+    def of_lanes(cls, graph: nx.DiGraph, single: set[tuple[str, str]]) -> "_Rooms":
+        """The rooms and stretches of ``graph``, its single-file lanes ``single`` ((from,
+        to) nodes)."""
+        lanes = nx.restricted_view(graph.to_undirected(as_view=True), [], single)
+        return cls({n: room for room in nx.connected_components(lanes) for n in room},
+                   {n: part for part in nx.connected_components(nx.Graph(list(single)))
+                    for n in part})
+
+
 def _queue(graph: nx.DiGraph, node: str, holding: set[str], single: set[tuple[str, str]],
-           floor_plan: FloorPlan, aside: _Aside, params: BuildingNavigationParams):
+           rooms: "_Rooms", floor_plan: FloorPlan, aside: _Aside,
+           params: BuildingNavigationParams):
     """Queue slots (head first), entry points and approach node of the location at
     ``node``: slots laid back along the lanes that lead to it, beside those lanes where they
     are single file (``single``: their (from, to) nodes; ``_slot_at``). The head slot is
@@ -348,7 +369,7 @@ def _queue(graph: nx.DiGraph, node: str, holding: set[str], single: set[tuple[st
     robots, seed 1, three rooms so blocked from 350 s to the end, 9 of 22 tasks done).
     Where no slot fits beside the single-file lanes, the other ways back from where the
     lanes first branch are tried, then the first one's lanes."""
-    door = _door_path(graph, node, single, params.zone_length)
+    door = _door_path(graph, node, single, rooms, params.zone_length)
     for turn in (0, 1, 2, 0):
         path = _approach_path(graph, node, single, turn, door)
         positions = [graph.nodes[n]["pos"] for n in path]
@@ -424,9 +445,7 @@ def _beside(vertex: np.ndarray, aside: "_Aside", floor_plan: FloorPlan,
     ok = sd(spots) >= params.slot_clearance
     if near.any():
         ok &= _off_lanes(spots, aside.lanes[near]) >= params.slot_lane_gap - 1e-9
-    if aside.taken:
-        gaps = np.linalg.norm(spots[:, None, :] - np.asarray(aside.taken)[None], axis=2)
-        ok &= gaps.min(axis=1) >= params.slot_spacing - 1e-9
+    ok &= _spaced(spots, aside.taken, params.slot_spacing)
     for spot in spots[ok]:
         line = vertex + np.linspace(0.0, 1.0, 12)[:, None] * (spot - vertex)
         if sd(line).min() >= params.slot_clearance - 0.2:
@@ -458,7 +477,6 @@ def _slot_at(path, positions, along, distance: float, single: set[tuple[str, str
     on = _at(positions, along, distance)
     sd = floor_plan.obstacles.signed_distance
     k = min(int(np.searchsorted(along, distance, side="right")) - 1, len(path) - 2)
-    taken = np.asarray(aside.taken, dtype=float).reshape(-1, 2)
     if (path[k + 1], path[k]) not in single:
         return on if sd([on])[0] >= params.slot_clearance else None
     u = (positions[k + 1] - positions[k]) / max(along[k + 1] - along[k], 1e-9)
@@ -468,9 +486,7 @@ def _slot_at(path, positions, along, distance: float, single: set[tuple[str, str
     spots = spots[np.argsort(np.concatenate([offsets, offsets]), kind="stable")]
     ok = ((sd(spots) >= params.slot_clearance)
           & (_off_lanes(spots, aside.lanes) >= params.slot_lane_gap - 1e-9))
-    if len(taken):
-        gaps = np.linalg.norm(spots[:, None, :] - taken[None], axis=2)
-        ok &= gaps.min(axis=1) >= params.slot_spacing - 1e-9
+    ok &= _spaced(spots, aside.taken, params.slot_spacing)
     for spot in spots[ok]:
         line = on + np.linspace(0.0, 1.0, 12)[:, None] * (spot - on)
         if sd(line).min() >= params.slot_clearance - 0.2:
@@ -478,18 +494,16 @@ def _slot_at(path, positions, along, distance: float, single: set[tuple[str, str
     return None
 
 
-def _door_path(graph: nx.DiGraph, node: str, single: set[tuple[str, str]],
+def _door_path(graph: nx.DiGraph, node: str, single: set[tuple[str, str]], rooms: "_Rooms",
                reach: float) -> list[str]:
     """The path back against the lanes from ``node`` out of the room holding it, to the
     node past its door, at most ``reach`` m long: a room is the part of ``graph`` that
-    ``node`` reaches without single-file lanes (``single``), a door the one single-file
-    stretch that joins it to the rest; [] where there is no such room (``node`` on a
+    ``node`` reaches without single-file lanes (``single``; ``rooms``), a door the one
+    single-file stretch that joins it to the rest; [] where there is no such room (``node`` on a
     passage, in a spur of single-file lanes, or in a part with several ways out)."""
     lanes = graph.to_undirected(as_view=True)
-    room = nx.node_connected_component(nx.restricted_view(lanes, [], single), node)
-    stretch = nx.Graph(list(single))
-    doors = set().union(*(nx.node_connected_component(stretch, n) for n in room
-                          if n in stretch)) - room
+    room = rooms.of[node]
+    doors = set().union(*(rooms.stretch_of[n] for n in room if n in rooms.stretch_of)) - room
     beyond = {n for n in doors
               if any(m not in room and (n, m) not in single for m in lanes.neighbors(n))}
     if len(beyond) != 1:
@@ -570,10 +584,8 @@ def _parking(point: np.ndarray, lanes: np.ndarray, floor_plan: FloorPlan, taken:
     spots = point + params.parking_distance * np.column_stack([np.cos(angles),
                                                                np.sin(angles)])
     obstacles = floor_plan.obstacles
-    clear = obstacles.signed_distance(spots) >= params.slot_clearance
-    if taken:
-        gaps = np.linalg.norm(spots[:, None, :] - np.asarray(taken, dtype=float)[None], axis=2)
-        clear &= gaps.min(axis=1) >= params.slot_spacing - 1e-9
+    clear = ((obstacles.signed_distance(spots) >= params.slot_clearance)
+             & _spaced(spots, taken, params.slot_spacing))
     off_lanes = _off_lanes(spots, lanes)
     chosen = []
     for k in np.argsort(-off_lanes, kind="stable"):
@@ -626,11 +638,10 @@ def _overflow(tail, approach, floor_plan: FloorPlan, aside: _Aside,
         if back >= length:
             chosen.append(_listed(spot))
             continue
-        taken = np.asarray(aside.taken + chosen + [list(tail)] + [list(approach)] * int(
-            backs[-1] >= length), dtype=float).reshape(-1, 2)
+        taken = aside.taken + chosen + [list(tail)] + [list(approach)] * int(
+            backs[-1] >= length)
         around = spot + ring if too_near else spot[None]
-        ok = np.linalg.norm(around[:, None] - taken[None], axis=2).min(axis=1) \
-            >= params.slot_spacing - 1e-9
+        ok = _spaced(around, taken, params.slot_spacing)
         if too_near:
             ok &= ((sd(around) >= params.slot_clearance)
                    & (_off_lanes(around, aside.lanes) >= params.slot_lane_gap - 1e-9))
@@ -646,6 +657,19 @@ def _overflow(tail, approach, floor_plan: FloorPlan, aside: _Aside,
 
 def _listed(xy) -> list[float]:
     return [round(float(xy[0]), 3), round(float(xy[1]), 3)]
+
+
+def _spaced(spots: np.ndarray, taken: list, spacing: float) -> np.ndarray:
+    """Whether each of ``spots`` (k >= 1, 2) keeps ``spacing`` (m, less 1e-9) from every
+    one of the points ``taken`` (m); only those within ``spacing`` of the spots' bounding
+    box are measured (each other one is farther than ``spacing`` from every spot)."""
+    taken = np.asarray(taken, dtype=float).reshape(-1, 2)
+    low, high = spots.min(axis=0) - spacing, spots.max(axis=0) + spacing
+    taken = taken[np.all((taken >= low) & (taken <= high), axis=1)]
+    if not len(taken):
+        return np.ones(len(spots), dtype=bool)
+    gaps = np.linalg.norm(spots[:, None, :] - taken[None], axis=2)
+    return gaps.min(axis=1) >= spacing - 1e-9
 
 
 def _off_lanes(points: np.ndarray, lanes: np.ndarray) -> np.ndarray:

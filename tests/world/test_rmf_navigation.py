@@ -12,6 +12,7 @@ from mrta_drake.world.obstacles import Obstacles
 from mrta_drake.world.rmf_building import load_building
 from mrta_drake.world.rmf_navigation import (
     BuildingNavigationParams,
+    _spaced,
     centre_lines,
     level_navigation,
 )
@@ -276,3 +277,14 @@ def test_waiting_spots_beyond_a_queue_keep_clear_of_furniture():
     # Where the line is clear, no spots are written: the waypoint generator's own apply.
     _, floor_plan, navigation = derived("one_level", "L1")
     assert all(not location.overflow for location in navigation.locations)
+
+
+def test_spacing_measured_to_the_near_taken_points_only_is_the_same():
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        spots = rng.uniform(-2.0, 2.0, (int(rng.integers(1, 40)), 2))
+        taken = rng.uniform(-6.0, 6.0, (int(rng.integers(0, 30)), 2))
+        taken[:3] = spots[0] + [1.0, 0.0]  # exactly the spacing off a spot
+        every = np.linalg.norm(spots[:, None] - taken[None], axis=2).min(axis=1, initial=9.0)
+        spaced = _spaced(spots, list(taken), 1.0)
+        np.testing.assert_array_equal(spaced, every >= 1.0 - 1e-9)
