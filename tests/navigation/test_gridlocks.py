@@ -176,12 +176,15 @@ def test_a_holder_leaving_through_the_segment_where_its_next_robot_queues_is_fre
     assert stuck == [[], [R]] and orders == ()
     assert queues.room(R).holder == "r1" and queues.room(R).waiting == ("r0",)
     assert queues.segment_waiting == ("r1",)
-    # The watchdog sends r0 (no holder) off the segment; r1 leaves, r0 serves R after it.
+    # A cycle of waits: the watchdog sends r0 (no holder, standing in the segment r1 asks
+    # for) off the segment once the cycle has lasted cycle_time, long before a gridlock's
+    # gridlock_time; r1 leaves, r0 serves R after it.
     visits, orders, _ = _gridlock_run([H, R], [[R], [R, H]], until=150.0)
     assert visits == [[R], [R, H]]
     assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
     params = WatchdogParams()
-    assert 30.0 + params.gridlock_time <= orders[0].issued <= 30.0 + params.gridlock_time + 25
+    assert orders[0].issued - orders[0].stalled_since == pytest.approx(params.cycle_time)
+    assert 30.0 + params.cycle_time <= orders[0].issued < 30.0 + params.gridlock_time
 
 
 def test_the_robot_in_the_segment_and_the_one_before_the_holder_in_line_give_way_at_once():
@@ -202,7 +205,7 @@ def test_the_robot_in_the_segment_and_the_one_before_the_holder_in_line_give_way
     assert orders[1].blockers == ("r1",)
 
 
-@pytest.mark.parametrize("field", ["gridlock_time", "gridlock_cooldown"])
+@pytest.mark.parametrize("field", ["gridlock_time", "gridlock_cooldown", "cycle_time"])
 def test_gridlock_params_must_be_positive(field):
     with pytest.raises(InputError, match=field):
         WatchdogParams(**{field: 0.0})
