@@ -208,20 +208,23 @@ class DeadlockWatchdog(LeafSystem):
        stands in, so the others get them; when it ends, it asks again, at the queues' tails. Every
        member's gridlock time starts again, so the others get another ``gridlock_time``
        to move before the next orders.
-    6. Cycles of waits, before step 5's gridlocks: among the robots standing still (not
-       moving, at no lift, under no order, and no room's holder waiting for nothing and
-       without a goal, which serves), robot A waits for robot B when B is one it waits
-       for in step 5's sense or B stands in a single-file segment A asks for (a room's
-       holder, granted its way, kept off it by a robot queueing for its room in it);
-       robots waiting for each other round a cycle (``standstills.wait_cycles``) wait for
-       good, so a cycle that has lasted ``cycle_time`` (each robot's time in one counted
-       as in step 5) is broken at once: for the first robot of the cycle (rooms' holders
-       first, then by priority, highest first) that other robots of the cycle stand in
-       the way of (in segments it asks for), none of them a room's holder, broken down,
-       or one that missed an order within ``retry_window``, those robots give way
-       (``releases`` orders, as in step 5, to spots off the other members' ways and the
-       lanes of the segments they ask for, off every single-file lane where there is
-       such a spot), all at once, or none if one of them has no spot.
+    6. Cycles of waits, before step 5's gridlocks: among the robots standing still (at
+       no lift, under no order, no room's holder waiting for nothing and without a goal,
+       which serves, and not going: moving with a goal it got ``progress_distance``
+       nearer within ``cycle_time``; a robot rocking on the spot is still), robot A
+       waits for robot B when B is one it waits for in step 5's sense or B stands in a
+       single-file segment A asks for (a room's holder, granted its way, kept off it by
+       a robot queueing for its room in it); robots waiting for each other round a
+       cycle (``standstills.wait_cycles``) wait for good, so a cycle that has lasted
+       ``cycle_time`` (each robot's time in one counted as in step 5) is broken at once:
+       for the first robot of the cycle (rooms' holders first, then by priority, highest
+       first) that other robots of the cycle stand in the way of (in segments it asks
+       for), none of them a room's holder, broken down, or one that missed an order
+       within ``retry_window``, those robots give way (``releases`` orders, as in step
+       5, to spots off the other members' ways and the lanes of the segments they ask
+       for, off every single-file lane where there is such a spot), all at once, or
+       none if one of them has no spot; the robots before the freed one in the
+       segments' line asking for one of its segments stand (as in step 5).
 
     ``costmap``: the static costmap the spots are checked against (the way to a spot
     keeps to its ``FREE`` cells). ``priorities``: per robot, smaller keeps its way
@@ -311,7 +314,7 @@ class DeadlockWatchdog(LeafSystem):
                 anchors[k] = None
         gridlocked, cycled = old.gridlocked, old.cycled
         if self._queue_state.HasValue(context):
-            gridlocked, cycled, given = self._gridlocks(context, states, targets, old,
+            gridlocked, cycled, given = self._gridlocks(context, states, targets, old, anchors,
                                                         backing, history, misses, now)
             for order in given:
                 active, history = active + (order,), history + (order,)
@@ -325,9 +328,10 @@ class DeadlockWatchdog(LeafSystem):
             _WatchdogState(tuple(anchors), orders, misses, gridlocked, cycled))
         return EventStatus.Succeeded()
 
-    def _gridlocks(self, context, states, targets, old: _WatchdogState, backing, history,
-                   misses, now) -> tuple[tuple[float | None, ...], tuple[float | None, ...],
-                                         tuple[BackOff, ...]]:
+    def _gridlocks(self, context, states, targets, old: _WatchdogState, anchors, backing,
+                   history, misses, now
+                   ) -> tuple[tuple[float | None, ...], tuple[float | None, ...],
+                              tuple[BackOff, ...]]:
         """Steps 5 and 6 (class docstring): since when each robot has been in a gridlock
         of waits and in a cycle of waits after this update, and the orders that break one
         (none, or those of one gridlock or cycle per update)."""
@@ -338,12 +342,17 @@ class DeadlockWatchdog(LeafSystem):
         moving = {robot for k, robot in enumerate(self._robots)
                   if abs(states[k, 3]) > ROBOT_STOPPED_SPEED}
         live = moving | {robot for robot in holders if not waits.get(robot)}
+        at_lifts = set()
         if self._lift_state.HasValue(context):
             for lift in self._lift_state.Eval(context).lifts:
-                live.update(lift.waiting, lift.riders)
-                moving.update(lift.waiting, lift.riders)
+                at_lifts.update(lift.waiting, lift.riders)
+        live |= at_lifts
+        going = {robot for robot, anchor in zip(self._robots, anchors, strict=True)
+                 if robot in moving and anchor is not None
+                 and now - anchor.since < self._params.cycle_time - 1e-9}
         cycled, given = self._cycles(context, states, targets, requests, queues, waits,
-                                     holders, moving, backing, old.cycled, misses, now)
+                                     holders, going | at_lifts, backing, old.cycled, misses,
+                                     now)
         groups = gridlocks(waits, stalled_waits(waits, live))
         member = {robot for group in groups for robot in group}
         since = [(s if s is not None else now) if robot in member else None
@@ -367,16 +376,16 @@ class DeadlockWatchdog(LeafSystem):
                 return tuple(since), cycled, given
         return tuple(since), cycled, ()
 
-    def _cycles(self, context, states, targets, requests, queues, waits, holders, moving,
+    def _cycles(self, context, states, targets, requests, queues, waits, holders, going,
                 backing, since, misses, now
                 ) -> tuple[tuple[float | None, ...], tuple[BackOff, ...]]:
         """Step 6 (class docstring): since when each robot has been in a cycle of waits
-        among the robots standing still (``standstills.wait_cycles``; not ``moving``, at a
+        among the robots standing still (``standstills.wait_cycles``; not ``going``, at a
         lift, or ``backing`` off; a room's holder waiting for nothing and without a goal
         serves), and the orders that break one cycle that lasted ``cycle_time`` (or
         none)."""
         still = [robot for k, robot in enumerate(self._robots)
-                 if robot not in moving and robot not in backing
+                 if robot not in going and robot not in backing
                  and not (robot in holders and not waits.get(robot)
                           and not self._has_goal(states[k], targets[k]))]
         asks = {request.robot: {k for k, _ in request.segments} for request in requests}

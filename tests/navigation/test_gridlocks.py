@@ -16,7 +16,7 @@ from mrta_drake.navigation.deadlock_watchdog import DeadlockWatchdog, WatchdogPa
 from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.room_queues import RoomQueues
 from mrta_drake.navigation.single_file import Need, SingleFileParams, stop_segments
-from mrta_drake.navigation.standstills import gridlocks, waits_for
+from mrta_drake.navigation.standstills import gridlocks, wait_cycles, waits_for
 from mrta_drake.navigation.waypoint_generator import (
     WaypointGenerator,
     WaypointParams,
@@ -58,6 +58,18 @@ def test_gridlocks_join_stalled_waits_with_the_robots_they_wait_for():
     stalled = stalled_waits(waits, set())
     assert gridlocks(waits, stalled) == [("a", "b", "h"), ("c", "d", "e"), ("f", "g")]
     assert gridlocks(waits, stalled_waits(waits, {"g", "e"})) == [("a", "b", "h")]
+
+
+def test_wait_cycles_count_a_robot_standing_in_a_segment_another_asks_for():
+    # a holds a room and its segments 0 and 1 (granted: it waits for nobody) but b, which
+    # waits for a's room, stands in segment 1: a waits for b as surely as b for a.
+    waits = {"b": {"a"}, "c": {"b"}, "d": {"e"}}
+    asks = {"a": {0, 1}, "b": {1}, "c": {1}, "e": {2}}
+    stands = {"b": {1}, "d": {2}}
+    assert wait_cycles(waits, asks, stands, ["a", "b", "c", "d", "e"]) == [
+        ("a", "b"), ("d", "e")]  # c only waits behind the cycle
+    assert wait_cycles(waits, asks, stands, ["b", "c", "d", "e"]) == [("d", "e")]  # a moves
+    assert wait_cycles(waits, asks, {}, ["a", "b", "c", "d", "e"]) == []  # a chain
 
 
 def test_waits_for_names_the_holders_or_the_robots_first_in_line():
