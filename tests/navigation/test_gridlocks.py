@@ -252,3 +252,31 @@ def test_a_robot_giving_way_leaves_its_rooms_queue():
     generator.GetInputPort("back_offs").FixValue(context, BackOffOrders((order,), (order,)))
     step((30.0, 10.0), 0.0)
     assert generator.GetOutputPort("queue_request").Eval(context).room is None
+
+
+def test_robots_rocking_on_the_spot_in_a_cycle_of_waits_are_freed_within_seconds():
+    # r1 holds room 0 and waits for segment 0, where r0 stands waiting for the room: a
+    # cycle of waits. Both rock on the spot (0.1 m/s, never getting anywhere): moving, so
+    # no gridlock of waits, yet standing still; r0 gives way once r1 has made no progress
+    # for cycle_time and the cycle has lasted cycle_time.
+    watchdog = DeadlockWatchdog(["r0", "r1"], [0.22, 0.22],
+                                Costmap.from_obstacles(Obstacles(), BOUNDS), rate_hz=2.0)
+    context = watchdog.CreateDefaultContext()
+    watchdog.GetInputPort("robot_state").FixValue(
+        context, [0.0, 0.0, 0.0, 0.1, 3.0, 0.0, 0.0, -0.1])
+    watchdog.GetInputPort("target_r0").FixValue(context, WaypointTarget("r0"))
+    watchdog.GetInputPort("target_r1").FixValue(
+        context, WaypointTarget("r1", True, (-8.0, 0.0), None, True))
+    watchdog.GetInputPort("queue_state").FixValue(context, QueueState(
+        (RoomQueue(0, "r1", ("r0",)),), segments=(SegmentHold(("r0",)),),
+        segment_waiting=("r1",)))
+    watchdog.GetInputPort("queue_request_r0").FixValue(
+        context, QueueRequest("r0", 0, segments=((0, True),), standing=(0,)))
+    watchdog.GetInputPort("queue_request_r1").FixValue(
+        context, QueueRequest("r1", segments=((0, True),)))
+    simulator = Simulator(watchdog, context)
+    simulator.AdvanceTo(15.0)
+    orders = watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
+    params = WatchdogParams()
+    assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
+    assert orders[0].issued == pytest.approx(2 * params.cycle_time)
