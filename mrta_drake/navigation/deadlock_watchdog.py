@@ -20,6 +20,7 @@ from mrta_drake.navigation.standstills import (
     in_ways,
     near_walls,
     next_anchor,
+    wait_cycles,
     waits_for,
     yield_order,
 )
@@ -64,7 +65,10 @@ class WatchdogParams:
     uses a lift) that lasts ``gridlock_time`` is broken by one of its robots giving way
     (``DeadlockWatchdog``, step 5), and a robot that gave way is not chosen again for
     ``gridlock_cooldown``: shorter than the run recorder's ``STUCK_TIME`` (30 s), it ends
-    such a gridlock before it counts as a deadlock. ``enabled`` off: no watchdog in the
+    such a gridlock before it counts as a deadlock. A cycle of waits among robots standing
+    still (a robot waiting for a room or segment another holds, or for a segment another
+    stands in, and so on back to it) is a deadlock for certain: one that lasts
+    ``cycle_time`` is broken at once (step 6). ``enabled`` off: no watchdog in the
     diagram (as in the paper)."""
 
     enabled: bool = True
@@ -80,10 +84,11 @@ class WatchdogParams:
     retry_window: float = 120.0
     gridlock_time: float = 20.0
     gridlock_cooldown: float = 60.0
+    cycle_time: float = 3.0
 
     def __post_init__(self):
         require_positive(self, "standstill_time", "yield_time", "retry_window",
-                         "gridlock_time", "gridlock_cooldown", unit=" s")
+                         "gridlock_time", "gridlock_cooldown", "cycle_time", unit=" s")
         require_positive(self, "progress_distance", "goal_tolerance", "search_reach",
                          "wall_clearance", "back_off_distance", unit=" m")
         require_non_negative(self, "block_gap", "spot_clearance", unit=" m")
@@ -96,12 +101,14 @@ class WatchdogParams:
 class _WatchdogState:
     """Each robot's ``Anchor`` (None: no goal, or backing off), the orders, the orders
     missed within the retry window (each as ordered, ``until`` the time it ended), and
-    since when each robot has been in a gridlock of waits (s; None: it is in none)."""
+    since when each robot has been in a gridlock of waits and in a cycle of waits (s;
+    None: it is in none)."""
 
     anchors: tuple[Anchor | None, ...]
     orders: BackOffOrders = NO_BACK_OFFS
     misses: tuple[BackOff, ...] = ()
     gridlocked: tuple[float | None, ...] = ()
+    cycled: tuple[float | None, ...] = ()
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the state can share it
@@ -201,6 +208,23 @@ class DeadlockWatchdog(LeafSystem):
        stands in, so the others get them; when it ends, it asks again, at the queues' tails. Every
        member's gridlock time starts again, so the others get another ``gridlock_time``
        to move before the next orders.
+    6. Cycles of waits, before step 5's gridlocks: among the robots standing still (at
+       no lift, under no order, no room's holder waiting for nothing and without a goal,
+       which serves, and not going: moving with a goal it got ``progress_distance``
+       nearer within ``cycle_time``; a robot rocking on the spot is still), robot A
+       waits for robot B when B is one it waits for in step 5's sense or B stands in a
+       single-file segment A asks for (a room's holder, granted its way, kept off it by
+       a robot queueing for its room in it); robots waiting for each other round a
+       cycle (``standstills.wait_cycles``) wait for good, so a cycle that has lasted
+       ``cycle_time`` (each robot's time in one counted as in step 5) is broken at once:
+       for the first robot of the cycle (rooms' holders first, then by priority, highest
+       first) that other robots of the cycle stand in the way of (in segments it asks
+       for), none of them a room's holder, broken down, or one that missed an order
+       within ``retry_window``, those robots give way (``releases`` orders, as in step
+       5, to spots off the other members' ways and the lanes of the segments they ask
+       for, off every single-file lane where there is such a spot), all at once, or
+       none if one of them has no spot; the robots before the freed one in the
+       segments' line asking for one of its segments stand (as in step 5).
 
     ``costmap``: the static costmap the spots are checked against (the way to a spot
     keeps to its ``FREE`` cells). ``priorities``: per robot, smaller keeps its way
@@ -225,7 +249,8 @@ class DeadlockWatchdog(LeafSystem):
             (np.asarray(lane, dtype=float), 0.0) for k in range(roadways.segment_count)
             for lane in segment_lanes(roadways, k)]
         self._state_index = self.DeclareAbstractState(
-            Value[object](_WatchdogState((None,) * n, gridlocked=(None,) * n)))
+            Value[object](_WatchdogState((None,) * n, gridlocked=(None,) * n,
+                                         cycled=(None,) * n)))
         self._robot_state = self.DeclareVectorInputPort(
             "robot_state", BasicVector(ROBOT_STATE_SIZE * n))
         self._targets = PerRobotInputs(self, "target", "targets", self._robots, WaypointTarget)
@@ -287,41 +312,55 @@ class DeadlockWatchdog(LeafSystem):
                 active, history = active + (order,), history + (order,)
                 backing.add(order.robot)
                 anchors[k] = None
-        gridlocked = old.gridlocked
+        gridlocked, cycled = old.gridlocked, old.cycled
         if self._queue_state.HasValue(context):
-            gridlocked, given = self._gridlocks(context, states, targets, old.gridlocked,
-                                                backing, history, now)
+            gridlocked, cycled, given = self._gridlocks(context, states, targets, old, anchors,
+                                                        backing, history, misses, now)
             for order in given:
                 active, history = active + (order,), history + (order,)
                 anchors[self._robots.index(order.robot)] = None
         orders = (old.orders if (active, history) == (old.orders.active, old.orders.history)
                   else BackOffOrders(active, history))
         if (tuple(anchors) == old.anchors and orders is old.orders and misses == old.misses
-                and gridlocked == old.gridlocked):
+                and gridlocked == old.gridlocked and cycled == old.cycled):
             return EventStatus.DidNothing()
         state.get_mutable_abstract_state(self._state_index).set_value(
-            _WatchdogState(tuple(anchors), orders, misses, gridlocked))
+            _WatchdogState(tuple(anchors), orders, misses, gridlocked, cycled))
         return EventStatus.Succeeded()
 
-    def _gridlocks(self, context, states, targets, since, backing, history, now
-                   ) -> tuple[tuple[float | None, ...], tuple[BackOff, ...]]:
-        """Step 5 (class docstring): since when each robot has been in a gridlock of waits
-        after this update, and the orders that break one (none, or those of one gridlock
-        per update)."""
+    def _gridlocks(self, context, states, targets, old: _WatchdogState, anchors, backing,
+                   history, misses, now
+                   ) -> tuple[tuple[float | None, ...], tuple[float | None, ...],
+                              tuple[BackOff, ...]]:
+        """Steps 5 and 6 (class docstring): since when each robot has been in a gridlock
+        of waits and in a cycle of waits after this update, and the orders that break one
+        (none, or those of one gridlock or cycle per update)."""
         queues: QueueState = self._queue_state.Eval(context)
         requests = self._requests.values(context)
         waits = waits_for(queues, requests)
         holders = {queue.holder for queue in queues.rooms} - {None}
-        live = {robot for k, robot in enumerate(self._robots)
-                if abs(states[k, 3]) > ROBOT_STOPPED_SPEED
-                or (robot in holders and not waits.get(robot))}
+        moving = {robot for k, robot in enumerate(self._robots)
+                  if abs(states[k, 3]) > ROBOT_STOPPED_SPEED}
+        live = moving | {robot for robot in holders if not waits.get(robot)}
+        at_lifts = set()
         if self._lift_state.HasValue(context):
             for lift in self._lift_state.Eval(context).lifts:
-                live.update(lift.waiting, lift.riders)
+                at_lifts.update(lift.waiting, lift.riders)
+        live |= at_lifts
+        going = {robot for robot, anchor in zip(self._robots, anchors, strict=True)
+                 if robot in moving and anchor is not None
+                 and now - anchor.since < self._params.cycle_time - 1e-9}
+        cycled, given = self._cycles(context, states, targets, requests, queues, waits,
+                                     holders, going | at_lifts, backing, old.cycled, misses,
+                                     now)
         groups = gridlocks(waits, stalled_waits(waits, live))
         member = {robot for group in groups for robot in group}
         since = [(s if s is not None else now) if robot in member else None
-                 for robot, s in zip(self._robots, since, strict=True)]
+                 for robot, s in zip(self._robots, old.gridlocked, strict=True)]
+        if given:  # the cycle's robots (each order's blockers) get time to move again
+            freed = {robot for order in given for robot in (order.robot, *order.blockers)}
+            return tuple(now if robot in freed and s is not None else s
+                         for robot, s in zip(self._robots, since, strict=True)), cycled, given
         p = self._params
         for group in groups:
             index = [self._robots.index(robot) for robot in group]
@@ -334,8 +373,66 @@ class DeadlockWatchdog(LeafSystem):
             if given:
                 for k in index:
                     since[k] = now
-                return tuple(since), given
-        return tuple(since), ()
+                return tuple(since), cycled, given
+        return tuple(since), cycled, ()
+
+    def _cycles(self, context, states, targets, requests, queues, waits, holders, going,
+                backing, since, misses, now
+                ) -> tuple[tuple[float | None, ...], tuple[BackOff, ...]]:
+        """Step 6 (class docstring): since when each robot has been in a cycle of waits
+        among the robots standing still (``standstills.wait_cycles``; not ``going``, at a
+        lift, or ``backing`` off; a room's holder waiting for nothing and without a goal
+        serves), and the orders that break one cycle that lasted ``cycle_time`` (or
+        none)."""
+        still = [robot for k, robot in enumerate(self._robots)
+                 if robot not in going and robot not in backing
+                 and not (robot in holders and not waits.get(robot)
+                          and not self._has_goal(states[k], targets[k]))]
+        asks = {request.robot: {k for k, _ in request.segments} for request in requests}
+        stands = {request.robot: set(request.standing) for request in requests}
+        cycles = wait_cycles(waits, asks, stands, still)
+        member = {robot for cycle in cycles for robot in cycle}
+        since = tuple((s if s is not None else now) if robot in member else None
+                      for robot, s in zip(self._robots, since, strict=True))
+        for cycle in cycles:
+            began = min(since[self._robots.index(robot)] for robot in cycle)
+            if now - began < self._params.cycle_time - 1e-9:
+                continue
+            given = self._free_cycle(context, cycle, asks, stands, holders, states,
+                                     targets, requests, queues, backing, misses, began, now)
+            if given:
+                return tuple(now if robot in cycle else s
+                             for robot, s in zip(self._robots, since, strict=True)), given
+        return since, ()
+
+    def _free_cycle(self, context, cycle, asks, stands, holders, states, targets, requests,
+                    queues, backing, misses, began, now) -> tuple[BackOff, ...]:
+        """The ``releases`` orders that break ``cycle`` (class docstring, step 6), or ()
+        when none of its robots can be freed: for the first of its robots (the rooms'
+        holders first, then by priority, highest first) that the others stand in the way
+        of (in single-file segments it asks for), and none of them a room's holder,
+        broken down or one that missed an order within ``retry_window``, they all go
+        to spots off the others' ways, and the robots before it in the segments' line
+        asking for one of those segments stand (as in step 5)."""
+        broken = (self._disturbances.Eval(context).broken
+                  if self._disturbances.HasValue(context) else ())
+        broken = {self._robots[k] for k in broken}
+        stay = holders | broken | {order.robot for order in misses}
+        for robot in sorted(cycle, key=lambda r: (r not in holders, self._priorities[
+                self._robots.index(r)], self._robots.index(r))):
+            blockers = [other for other in cycle
+                        if other != robot and not asks[robot].isdisjoint(stands[other])]
+            if not blockers or not stay.isdisjoint(blockers):
+                continue
+            given = self._orders(context, blockers, cycle, robot, states, targets, requests,
+                                 began, now)
+            if not given:
+                continue
+            line = queues.segment_waiting
+            ahead = ({j for j in line[:line.index(robot)] if not asks[j].isdisjoint(
+                asks[robot])} if robot in line else set()) - set(blockers) - broken - backing
+            return given + self._stand(ahead, robot, states, began, now)
+        return ()
 
     def _give_way(self, context, group, waits, holders, states, targets, requests, history,
                   queues, backing, stalled_since, now) -> tuple[BackOff, ...]:
@@ -369,11 +466,7 @@ class DeadlockWatchdog(LeafSystem):
                                  robot, states, targets, requests, stalled_since, now)
             if inside and not given:
                 continue
-            return given + tuple(  # those before it in the line stand, asking for nothing
-                BackOff(j, (float(states[self._robots.index(j), 0]),
-                            float(states[self._robots.index(j), 1])),
-                        now, now + p.yield_time, (robot,), stalled_since, releases=True)
-                for j in sorted(ahead, key=self._robots.index))
+            return given + self._stand(ahead, robot, states, stalled_since, now)
         for robot in sorted((may - recent).intersection(group),
                             key=lambda r: (-rank[r][2], rank[r][3])):
             given = self._orders(context, [robot], group, None, states, targets, requests,
@@ -381,6 +474,14 @@ class DeadlockWatchdog(LeafSystem):
             if given:
                 return given
         return ()
+
+    def _stand(self, robots, freed, states, stalled_since, now) -> tuple[BackOff, ...]:
+        """``releases`` orders for ``robots`` (names) to stand where they are, asking for
+        nothing, while ``freed`` gets the segments they wait for before it in the line."""
+        return tuple(BackOff(robot, (float(states[k, 0]), float(states[k, 1])), now,
+                             now + self._params.yield_time, (freed,), stalled_since,
+                             releases=True)
+                     for k, robot in enumerate(self._robots) if robot in robots)
 
     def _orders(self, context, robots, group, freed, states, targets, requests,
                 stalled_since, now) -> tuple[BackOff, ...]:

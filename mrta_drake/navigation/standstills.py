@@ -89,6 +89,24 @@ def gridlocks(waits: Mapping[str, Collection[str]], stalled: Collection[str]
                              for other in waits.get(robot, ())))
 
 
+def wait_cycles(waits: Mapping[str, Collection[str]], asks: Mapping[str, Collection[int]],
+                stands: Mapping[str, Collection[int]], still: Collection[str]
+                ) -> list[tuple[str, ...]]:
+    """The cycles of waits among the robots standing ``still`` (neither moving nor serving):
+    robot a waits for robot b when b is one it waits for (``waits``, ``waits_for``'s) or
+    b stands in a single-file segment a asks for (``stands``, ``asks``: robot -> segment
+    indices): a room's holder kept off its way by a robot queueing for its room in that
+    way waits for it as surely as for a segment's holder. Robots that wait for each other,
+    transitively both ways, wait for good: each such group of two or more (the strongly
+    connected components), sorted, the groups by their first member."""
+    graph = nx.DiGraph()
+    graph.add_nodes_from(still)
+    graph.add_edges_from((a, b) for a in still for b in still if a != b and (
+        b in waits.get(a, ()) or not set(asks.get(a, ())).isdisjoint(stands.get(b, ()))))
+    return sorted(tuple(sorted(group)) for group in nx.strongly_connected_components(graph)
+                  if len(group) > 1)
+
+
 def yield_order(group: tuple[int, ...], idle: np.ndarray, stalled: np.ndarray,
                 priorities: np.ndarray, in_way=None) -> list[int]:
     """Who of ``group`` is asked to yield first: robots standing in a stalled robot's way

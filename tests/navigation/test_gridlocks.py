@@ -16,7 +16,7 @@ from mrta_drake.navigation.deadlock_watchdog import DeadlockWatchdog, WatchdogPa
 from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.room_queues import RoomQueues
 from mrta_drake.navigation.single_file import Need, SingleFileParams, stop_segments
-from mrta_drake.navigation.standstills import gridlocks, waits_for
+from mrta_drake.navigation.standstills import gridlocks, wait_cycles, waits_for
 from mrta_drake.navigation.waypoint_generator import (
     WaypointGenerator,
     WaypointParams,
@@ -58,6 +58,18 @@ def test_gridlocks_join_stalled_waits_with_the_robots_they_wait_for():
     stalled = stalled_waits(waits, set())
     assert gridlocks(waits, stalled) == [("a", "b", "h"), ("c", "d", "e"), ("f", "g")]
     assert gridlocks(waits, stalled_waits(waits, {"g", "e"})) == [("a", "b", "h")]
+
+
+def test_wait_cycles_count_a_robot_standing_in_a_segment_another_asks_for():
+    # a holds a room and its segments 0 and 1 (granted: it waits for nobody) but b, which
+    # waits for a's room, stands in segment 1: a waits for b as surely as b for a.
+    waits = {"b": {"a"}, "c": {"b"}, "d": {"e"}}
+    asks = {"a": {0, 1}, "b": {1}, "c": {1}, "e": {2}}
+    stands = {"b": {1}, "d": {2}}
+    assert wait_cycles(waits, asks, stands, ["a", "b", "c", "d", "e"]) == [
+        ("a", "b"), ("d", "e")]  # c only waits behind the cycle
+    assert wait_cycles(waits, asks, stands, ["b", "c", "d", "e"]) == [("d", "e")]  # a moves
+    assert wait_cycles(waits, asks, {}, ["a", "b", "c", "d", "e"]) == []  # a chain
 
 
 def test_waits_for_names_the_holders_or_the_robots_first_in_line():
@@ -176,12 +188,15 @@ def test_a_holder_leaving_through_the_segment_where_its_next_robot_queues_is_fre
     assert stuck == [[], [R]] and orders == ()
     assert queues.room(R).holder == "r1" and queues.room(R).waiting == ("r0",)
     assert queues.segment_waiting == ("r1",)
-    # The watchdog sends r0 (no holder) off the segment; r1 leaves, r0 serves R after it.
+    # A cycle of waits: the watchdog sends r0 (no holder, standing in the segment r1 asks
+    # for) off the segment once the cycle has lasted cycle_time, long before a gridlock's
+    # gridlock_time; r1 leaves, r0 serves R after it.
     visits, orders, _ = _gridlock_run([H, R], [[R], [R, H]], until=150.0)
     assert visits == [[R], [R, H]]
     assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
     params = WatchdogParams()
-    assert 30.0 + params.gridlock_time <= orders[0].issued <= 30.0 + params.gridlock_time + 25
+    assert orders[0].issued - orders[0].stalled_since == pytest.approx(params.cycle_time)
+    assert 30.0 + params.cycle_time <= orders[0].issued < 30.0 + params.gridlock_time
 
 
 def test_the_robot_in_the_segment_and_the_one_before_the_holder_in_line_give_way_at_once():
@@ -202,7 +217,7 @@ def test_the_robot_in_the_segment_and_the_one_before_the_holder_in_line_give_way
     assert orders[1].blockers == ("r1",)
 
 
-@pytest.mark.parametrize("field", ["gridlock_time", "gridlock_cooldown"])
+@pytest.mark.parametrize("field", ["gridlock_time", "gridlock_cooldown", "cycle_time"])
 def test_gridlock_params_must_be_positive(field):
     with pytest.raises(InputError, match=field):
         WatchdogParams(**{field: 0.0})
@@ -237,3 +252,31 @@ def test_a_robot_giving_way_leaves_its_rooms_queue():
     generator.GetInputPort("back_offs").FixValue(context, BackOffOrders((order,), (order,)))
     step((30.0, 10.0), 0.0)
     assert generator.GetOutputPort("queue_request").Eval(context).room is None
+
+
+def test_robots_rocking_on_the_spot_in_a_cycle_of_waits_are_freed_within_seconds():
+    # r1 holds room 0 and waits for segment 0, where r0 stands waiting for the room: a
+    # cycle of waits. Both rock on the spot (0.1 m/s, never getting anywhere): moving, so
+    # no gridlock of waits, yet standing still; r0 gives way once r1 has made no progress
+    # for cycle_time and the cycle has lasted cycle_time.
+    watchdog = DeadlockWatchdog(["r0", "r1"], [0.22, 0.22],
+                                Costmap.from_obstacles(Obstacles(), BOUNDS), rate_hz=2.0)
+    context = watchdog.CreateDefaultContext()
+    watchdog.GetInputPort("robot_state").FixValue(
+        context, [0.0, 0.0, 0.0, 0.1, 3.0, 0.0, 0.0, -0.1])
+    watchdog.GetInputPort("target_r0").FixValue(context, WaypointTarget("r0"))
+    watchdog.GetInputPort("target_r1").FixValue(
+        context, WaypointTarget("r1", True, (-8.0, 0.0), None, True))
+    watchdog.GetInputPort("queue_state").FixValue(context, QueueState(
+        (RoomQueue(0, "r1", ("r0",)),), segments=(SegmentHold(("r0",)),),
+        segment_waiting=("r1",)))
+    watchdog.GetInputPort("queue_request_r0").FixValue(
+        context, QueueRequest("r0", 0, segments=((0, True),), standing=(0,)))
+    watchdog.GetInputPort("queue_request_r1").FixValue(
+        context, QueueRequest("r1", segments=((0, True),)))
+    simulator = Simulator(watchdog, context)
+    simulator.AdvanceTo(15.0)
+    orders = watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
+    params = WatchdogParams()
+    assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
+    assert orders[0].issued == pytest.approx(2 * params.cycle_time)
