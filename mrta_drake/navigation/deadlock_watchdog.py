@@ -341,7 +341,8 @@ class DeadlockWatchdog(LeafSystem):
         holders = {queue.holder for queue in queues.rooms} - {None}
         moving = {robot for k, robot in enumerate(self._robots)
                   if abs(states[k, 3]) > ROBOT_STOPPED_SPEED}
-        live = moving | {robot for robot in holders if not waits.get(robot)}
+        serving = self._serving(states, targets, queues)
+        live = moving | serving
         at_lifts = set()
         if self._lift_state.HasValue(context):
             for lift in self._lift_state.Eval(context).lifts:
@@ -350,9 +351,9 @@ class DeadlockWatchdog(LeafSystem):
         going = {robot for robot, anchor in zip(self._robots, anchors, strict=True)
                  if robot in moving and anchor is not None
                  and now - anchor.since < self._params.cycle_time - 1e-9}
-        cycled, given = self._cycles(context, states, targets, requests, queues, waits,
-                                     holders, going | at_lifts, backing, old.cycled, misses,
-                                     now)
+        cycled, given = self._cycles(requests, queues, waits, holders, serving,
+                                     going | at_lifts, backing, old.cycled, misses, context,
+                                     states, targets, now)
         groups = gridlocks(waits, stalled_waits(waits, live))
         member = {robot for group in groups for robot in group}
         since = [(s if s is not None else now) if robot in member else None
@@ -376,18 +377,15 @@ class DeadlockWatchdog(LeafSystem):
                 return tuple(since), cycled, given
         return tuple(since), cycled, ()
 
-    def _cycles(self, context, states, targets, requests, queues, waits, holders, going,
-                backing, since, misses, now
+    def _cycles(self, requests, queues, waits, holders, serving, going, backing, since,
+                misses, context, states, targets, now
                 ) -> tuple[tuple[float | None, ...], tuple[BackOff, ...]]:
         """Step 6 (class docstring): since when each robot has been in a cycle of waits
-        among the robots standing still (``standstills.wait_cycles``; not ``going``, at a
-        lift, or ``backing`` off; a room's holder waiting for nothing and without a goal
-        serves), and the orders that break one cycle that lasted ``cycle_time`` (or
-        none)."""
-        still = [robot for k, robot in enumerate(self._robots)
-                 if robot not in going and robot not in backing
-                 and not (robot in holders and not waits.get(robot)
-                          and not self._has_goal(states[k], targets[k]))]
+        among the robots standing still (``standstills.wait_cycles``; not ``serving``,
+        ``going``, at a lift, or ``backing`` off), and the orders that break one cycle
+        that lasted ``cycle_time`` (or none)."""
+        still = [robot for robot in self._robots
+                 if robot not in going and robot not in backing and robot not in serving]
         asks = {request.robot: {k for k, _ in request.segments} for request in requests}
         stands = {request.robot: set(request.standing) for request in requests}
         cycles = wait_cycles(waits, asks, stands, still)
@@ -525,6 +523,19 @@ class DeadlockWatchdog(LeafSystem):
         if self._roadways is None:
             return []
         return [lane for k, _ in request.segments for lane in segment_lanes(self._roadways, k)]
+
+    def _serving(self, states, targets, queues: QueueState) -> set[str]:
+        """The robots serving, as the run recorder counts them (its ``SERVE`` mode): each
+        holding a room, waiting for no segment, its target active with no waypoint after
+        the current one, and within ``goal_tolerance`` of it. A holder standing with its
+        target inactive (nothing to do for now) serves nothing: robots waiting for its
+        room wait for one that stands."""
+        holders = {queue.holder for queue in queues.rooms} - {None}
+        return {robot for k, (robot, target) in enumerate(zip(self._robots, targets,
+                                                                strict=True))
+                if robot in holders and robot not in queues.segment_waiting
+                and target.active and target.current is not None and target.next is None
+                and not self._has_goal(states[k], target)}
 
     def _has_goal(self, robot_state: np.ndarray, target: WaypointTarget) -> bool:
         return (target.active and target.current is not None
