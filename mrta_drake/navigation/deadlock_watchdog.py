@@ -1,6 +1,7 @@
 """A fleet manager's deadlock watchdog: robots standing blocked by each other are sent, one
 at a time, to a free spot nearby to let the others pass."""
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
@@ -100,14 +101,14 @@ class WatchdogParams:
 @dataclass(frozen=True)
 class _WatchdogState:
     """Each robot's ``Anchor`` (None: no goal, or backing off), the orders, the orders
-    missed within the retry window (each as ordered, ``until`` the time it ended), and
-    since when each robot has been in a gridlock of waits and in a cycle of waits (s;
-    None: it is in none)."""
+    missed within the retry window (each as ordered, ``until`` the time it ended), where
+    and since when each robot has counted as in a gridlock of waits (an ``Anchor``; None:
+    it is in none, step 5), and since when in a cycle of waits (s; None: in none)."""
 
     anchors: tuple[Anchor | None, ...]
     orders: BackOffOrders = NO_BACK_OFFS
     misses: tuple[BackOff, ...] = ()
-    gridlocked: tuple[float | None, ...] = ()
+    gridlocked: tuple[Anchor | None, ...] = ()
     cycled: tuple[float | None, ...] = ()
 
     def __deepcopy__(self, memo):
@@ -183,11 +184,12 @@ class DeadlockWatchdog(LeafSystem):
        robot each waits for (``results.deadlocks.stalled_waits``: a robot asking for
        segments of a driving holder and of one standing for good is stalled, as the run
        recorder counts it; live: moving faster than
-       ``ROBOT_STOPPED_SPEED``, at a lift (waiting for it or riding), or holding a room
-       and waiting for nothing: serving, entering, or waiting at its door, which
-       ``WaypointParams.door_patience`` bounds) are joined with the robots they wait for
-       (``standstills.gridlocks``). A robot is in a gridlock since the update it first
-       was, without a break. A gridlock in which a robot has been for ``gridlock_time``,
+       ``ROBOT_STOPPED_SPEED``, at a lift (waiting for it or riding), or serving as the
+       recorder counts it: holding a room, its target active, within ``goal_tolerance``
+       of its last waypoint, waiting for no segment) are joined with the robots they wait
+       for (``standstills.gridlocks``). A robot is in a gridlock since the update it
+       first was; a break while it still waits, within ``progress_distance`` of where it
+       stood, does not end that but does not count (as the run recorder counts). A gridlock in which a robot has been for ``gridlock_time``,
        and no member backs off, is broken by robots giving way (orders with
        ``releases``). A robot may give way if it holds no room (a holder serves, enters
        or leaves: undoing that costs a visit) and is not broken down (e.g. one waiting,
@@ -209,8 +211,7 @@ class DeadlockWatchdog(LeafSystem):
        member's gridlock time starts again, so the others get another ``gridlock_time``
        to move before the next orders.
     6. Cycles of waits, before step 5's gridlocks: among the robots standing still (at
-       no lift, under no order, no room's holder waiting for nothing and without a goal,
-       which serves, and not going: moving with a goal it got ``progress_distance``
+       no lift, under no order, not serving (step 5), and not going: moving with a goal it got ``progress_distance``
        nearer within ``cycle_time``; a robot rocking on the spot is still), robot A
        waits for robot B when B is one it waits for in step 5's sense or B stands in a
        single-file segment A asks for (a room's holder, granted its way, kept off it by
@@ -244,6 +245,7 @@ class DeadlockWatchdog(LeafSystem):
         self._priorities = (np.arange(n, dtype=float) if priorities is None
                             else np.asarray(priorities, dtype=float).reshape(n))
         self._roadways = roadways
+        self._period = 1.0 / rate_hz
         # Every single-file segment's lane, as a way (radius 0) a spot keeps clear of.
         self._all_lanes = [] if roadways is None else [
             (np.asarray(lane, dtype=float), 0.0) for k in range(roadways.segment_count)
@@ -355,27 +357,45 @@ class DeadlockWatchdog(LeafSystem):
                                      going | at_lifts, backing, old.cycled, misses, context,
                                      states, targets, now)
         groups = gridlocks(waits, stalled_waits(waits, live))
-        member = {robot for group in groups for robot in group}
-        since = [(s if s is not None else now) if robot in member else None
-                 for robot, s in zip(self._robots, old.gridlocked, strict=True)]
+        since = self._gridlock_anchors(old.gridlocked, groups, waits, states, now)
         if given:  # the cycle's robots (each order's blockers) get time to move again
             freed = {robot for order in given for robot in (order.robot, *order.blockers)}
-            return tuple(now if robot in freed and s is not None else s
-                         for robot, s in zip(self._robots, since, strict=True)), cycled, given
+            return tuple(replace(a, since=now) if robot in freed and a is not None else a
+                         for robot, a in zip(self._robots, since, strict=True)), cycled, given
         p = self._params
         for group in groups:
             index = [self._robots.index(robot) for robot in group]
-            if (backing.intersection(group)
-                    or now - min(since[k] for k in index) < p.gridlock_time - 1e-9):
+            began = min(since[k].since for k in index)
+            if backing.intersection(group) or now - began < p.gridlock_time - 1e-9:
                 continue
             given = self._give_way(context, group, waits, holders, states, targets,
-                                   requests, history, queues, backing,
-                                   min(since[k] for k in index), now)
+                                   requests, history, queues, backing, began, now)
             if given:
                 for k in index:
-                    since[k] = now
+                    since[k] = replace(since[k], since=now)
                 return tuple(since), cycled, given
         return tuple(since), cycled, ()
+
+    def _gridlock_anchors(self, old, groups, waits, states, now) -> list[Anchor | None]:
+        """Each robot's gridlock anchor after this update (step 5): a robot in one of
+        ``groups`` keeps its anchor (a new one, from ``now``, if it had none); one out of
+        them that still waits (``waits``) within ``progress_distance`` of its anchor keeps
+        it, moved on by the update's period (its time out of a gridlock does not count:
+        the run recorder counts a robot standing through stalled waits with flowing ones
+        between them stuck once the stalled stretches add up: office seed 13, a room's
+        holder stepping about at the door every few seconds); others have none."""
+        member = {robot for group in groups for robot in group}
+        anchors = []
+        for k, (robot, anchor) in enumerate(zip(self._robots, old, strict=True)):
+            if robot in member:
+                anchor = anchor or Anchor((float(states[k, 0]), float(states[k, 1])), now)
+            elif (anchor is not None and waits.get(robot)
+                  and math.dist(anchor.xy, states[k, :2]) <= self._params.progress_distance):
+                anchor = replace(anchor, since=anchor.since + self._period)
+            else:
+                anchor = None
+            anchors.append(anchor)
+        return anchors
 
     def _cycles(self, requests, queues, waits, holders, serving, going, backing, since,
                 misses, context, states, targets, now
