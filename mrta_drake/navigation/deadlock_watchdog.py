@@ -177,55 +177,54 @@ class DeadlockWatchdog(LeafSystem):
        misses within ``retry_window`` are asked first (a stable sort of ``yield_order``),
        and a robot's spots keep ``progress_distance`` from those it missed, so a
        standstill is never met with the same order again and again.
-    5. Gridlocks of waits, from the facts the run recorder uses (``standstills.waits_for``:
+    5. Gridlocksof waits, from the facts the run recorder uses (``standstills.waits_for``:
        the robots waiting for a room wait for its holder; those waiting for single-file
        segments for the segments' holders, or the robots before them in the segments'
-       queue): the waiting robots whose waits lead to no robot *live*, through every
-       robot each waits for (``results.deadlocks.stalled_waits``: a robot asking for
-       segments of a driving holder and of one standing for good is stalled, as the run
-       recorder counts it; live: moving faster than
-       ``ROBOT_STOPPED_SPEED``, at a lift (waiting for it or riding), or serving as the
-       recorder counts it: holding a room, its target active, within ``goal_tolerance``
-       of its last waypoint, waiting for no segment) are joined with the robots they wait
-       for (``standstills.gridlocks``). A robot is in a gridlock since the update it
-       first was; a break while it still waits, within ``progress_distance`` of where it
-       stood, does not end that but does not count (as the run recorder counts). A gridlock in which a robot has been for ``gridlock_time``,
-       and no member backs off, is broken by robots giving way (orders with
-       ``releases``). A robot may give way if it holds no room (a holder serves, enters
-       or leaves: undoing that costs a visit) and is not broken down (e.g. one waiting,
-       or standing at home in a segment others wait for); it moves off only if it has
-       not given way within ``gridlock_cooldown``. The members waiting
-       for segments are taken in turn (first the holders of rooms other members wait
-       for, then other holders, then by priority, highest first) until one can be
-       freed: the robots holding segments it asks for go, each to the spot
-       ``standstills.back_off_spot`` finds clear of the other members' ways (their
-       targets' ways and the lanes of the segments they ask for) and of the spots given
-       before it, and where there is one, off every single-file segment's lane (standing
-       on one it would hold it); the robots before it in the segments' line asking for
-       one of them (holders too: they keep their rooms) stand where they are (else they
-       would take the segments first and gridlock with it in turn); all at once, or none
-       if one of those going has no spot. A gridlock of room waits only: the first robot
-       that may give way, lowest priority first, goes to a spot. While its order is in
-       force a robot asks for no room (it leaves the queue) and only for the segments it
-       stands in, so the others get them; when it ends, it asks again, at the queues' tails. Every
-       member's gridlock time starts again, so the others get another ``gridlock_time``
-       to move before the next orders.
-    6. Cycles of waits, before step 5's gridlocks: among the robots standing still (at
-       no lift, under no order, not serving (step 5), and not going: moving with a goal it got ``progress_distance``
-       nearer within ``cycle_time``; a robot rocking on the spot is still), robot A
-       waits for robot B when B is one it waits for in step 5's sense or B stands in a
-       single-file segment A asks for (a room's holder, granted its way, kept off it by
-       a robot queueing for its room in it); robots waiting for each other round a
-       cycle (``standstills.wait_cycles``) wait for good, so a cycle that has lasted
+       queue): the waiting robots whose waits lead to no robot *live*, through every robot
+       each waits for (``results.deadlocks.stalled_waits``: a robot asking for segments of
+       a driving holder and of one standing for good is stalled, as the run recorder counts
+       it; live: moving faster than ``ROBOT_STOPPED_SPEED``, at a lift (waiting for it or
+       riding), or serving as the recorder counts it: holding a room, its target active,
+       within ``goal_tolerance`` of its last waypoint, waiting for no segment) are joined
+       with the robots they wait for (``standstills.gridlocks``). A robot is in a gridlock
+       since the update it first was; a break while it still waits, within
+       ``progress_distance`` of where it stood, does not end that but does not count (as
+       the run recorder counts). A gridlock in which a robot has been for
+       ``gridlock_time``, and no member backs off, is broken by robots giving way (orders
+       with ``releases``). A robot may give way if it holds no room (a holder serves,
+       enters or leaves: undoing that costs a visit) and is not broken down (e.g. one
+       waiting, or standing at home in a segment others wait for); it moves off only if it
+       has not given way within ``gridlock_cooldown``. The members waiting for segments are
+       taken in turn (first the holders of rooms other members wait for, then other
+       holders, then by priority, highest first) until one can be freed: the robots holding
+       segments it asks for go, each to the spot ``standstills.back_off_spot`` finds clear
+       of the other members' ways (their targets' ways and the lanes of the segments they
+       ask for) and of the spots given before it, and where there is one, off every
+       single-file segment's lane (standing on one it would hold it); the robots before it
+       in the segments' line asking for one of them (holders too: they keep their rooms)
+       stand where they are (else they would take the segments first and gridlock with it
+       in turn); all at once, or none if one of those going has no spot. A gridlock of room
+       waits only: the first robot that may give way, lowest priority first, goes to a
+       spot. While its order is in force a robot asks for no room (it leaves the queue) and
+       only for the segments it stands in, so the others get them; when it ends, it asks
+       again, at the queues' tails. Every member's gridlock time starts again, so the
+       others get another ``gridlock_time`` to move before the next orders.
+    6. Cyclesof waits, before step 5's gridlocks: among the robots standing still (at no
+       lift, under no order, not serving (step 5), and not going: moving with a goal it got
+       ``progress_distance`` nearer within ``cycle_time``; a robot rocking on the spot is
+       still), robot A waits for robot B when B is one it waits for in step 5's sense or B
+       stands in a single-file segment A asks for (a room's holder, granted its way, kept
+       off it by a robot queueing for its room in it); robots waiting for each other round
+       a cycle (``standstills.wait_cycles``) wait for good, so a cycle that has lasted
        ``cycle_time`` (each robot's time in one counted as in step 5) is broken at once:
        for the first robot of the cycle (rooms' holders first, then by priority, highest
-       first) that other robots of the cycle stand in the way of (in segments it asks
-       for), none of them a room's holder, broken down, or one that missed an order
-       within ``retry_window``, those robots give way (``releases`` orders, as in step
-       5, to spots off the other members' ways and the lanes of the segments they ask
-       for, off every single-file lane where there is such a spot), all at once, or
-       none if one of them has no spot; the robots before the freed one in the
-       segments' line asking for one of its segments stand (as in step 5).
+       first) that other robots of the cycle stand in the way of (in segments it asks for),
+       none of them a room's holder, broken down, or one that missed an order within
+       ``retry_window``, those robots give way (``releases`` orders, as in step 5, to spots
+       off the other members' ways and the lanes of the segments they ask for, off every
+       single-file lane where there is such a spot), all at once, or none if one of them
+       has no spot; the robots before the freed one in the segments' line asking for one of
+       its segments stand (as in step 5).
 
     ``costmap``: the static costmap the spots are checked against (the way to a spot
     keeps to its ``FREE`` cells). ``priorities``: per robot, smaller keeps its way
