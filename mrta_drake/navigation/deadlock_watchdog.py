@@ -316,7 +316,9 @@ class DeadlockWatchdog(LeafSystem):
         gridlocked, cycled = old.gridlocked, old.cycled
         if self._queue_state.HasValue(context):
             gridlocked, cycled, given = self._gridlocks(context, states, targets, old, anchors,
-                                                        backing, history, misses, now)
+                                                        active, history, misses, now)
+            ordered = {order.robot for order in given}  # a standstill order made releases
+            active = tuple(order for order in active if order.robot not in ordered)
             for order in given:
                 active, history = active + (order,), history + (order,)
                 anchors[self._robots.index(order.robot)] = None
@@ -329,7 +331,7 @@ class DeadlockWatchdog(LeafSystem):
             _WatchdogState(tuple(anchors), orders, misses, gridlocked, cycled))
         return EventStatus.Succeeded()
 
-    def _gridlocks(self, context, states, targets, old: _WatchdogState, anchors, backing,
+    def _gridlocks(self, context, states, targets, old: _WatchdogState, anchors, active,
                    history, misses, now
                    ) -> tuple[tuple[float | None, ...], tuple[float | None, ...],
                               tuple[BackOff, ...]]:
@@ -339,6 +341,7 @@ class DeadlockWatchdog(LeafSystem):
         queues: QueueState = self._queue_state.Eval(context)
         requests = self._requests.values(context)
         waits = waits_for(queues, requests)
+        backing = {order.robot for order in active}
         holders = {queue.holder for queue in queues.rooms} - {None}
         moving = {robot for k, robot in enumerate(self._robots)
                   if abs(states[k, 3]) > ROBOT_STOPPED_SPEED}
@@ -365,10 +368,12 @@ class DeadlockWatchdog(LeafSystem):
         for group in groups:
             index = [self._robots.index(robot) for robot in group]
             began = min(since[k].since for k in index)
-            if backing.intersection(group) or now - began < p.gridlock_time - 1e-9:
+            if now - began < p.gridlock_time - 1e-9:
                 continue
-            given = self._give_way(context, group, waits, holders, states, targets,
-                                   requests, history, queues, backing, began, now)
+            given = (self._releasing(group, active, waits, holders, now)
+                     if backing.intersection(group) else
+                     self._give_way(context, group, waits, holders, states, targets,
+                                    requests, history, queues, backing, began, now))
             if given:
                 for k in index:
                     since[k] = replace(since[k], since=now)
@@ -450,6 +455,24 @@ class DeadlockWatchdog(LeafSystem):
                 asks[robot])} if robot in line else set()) - set(blockers) - broken - backing
             return given + self._stand(ahead, robot, states, began, now)
         return ()
+
+    def _releasing(self, group, active, waits, holders, now) -> tuple[BackOff, ...]:
+        """Step 5 for a gridlock ``group`` with robots backing off: when each of them
+        stands at its spot under a standstill order (step 3: it keeps its claims), holds
+        no room and is waited for by others of the group, those orders go on as
+        ``releases`` orders (until they would have ended), so the segments they hold go
+        to the robots waiting (office seed 1: a robot sent aside by the standstill rule
+        stood its ``yield_time`` holding four segments the lounge's holder waited for);
+        else ()."""
+        orders = [order for order in active if order.robot in group]
+        waited = {other for robot in group for other in waits.get(robot, ())}
+        if not all(not order.releases and order.arrived is not None
+                   and order.robot not in holders and order.robot in waited
+                   for order in orders):
+            return ()
+        return tuple(replace(order, issued=now, releases=True, blockers=tuple(
+            robot for robot in self._robots if order.robot in waits.get(robot, ())))
+            for order in orders)
 
     def _give_way(self, context, group, waits, holders, states, targets, requests, history,
                   queues, backing, stalled_since, now) -> tuple[BackOff, ...]:

@@ -12,7 +12,11 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from mrta_drake.allocation.fixed_sequence_allocator import FixedSequenceAllocator
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.costmap import Costmap
-from mrta_drake.navigation.deadlock_watchdog import DeadlockWatchdog, WatchdogParams
+from mrta_drake.navigation.deadlock_watchdog import (
+    DeadlockWatchdog,
+    WatchdogParams,
+    _WatchdogState,
+)
 from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.room_queues import RoomQueues
 from mrta_drake.navigation.single_file import Need, SingleFileParams, stop_segments
@@ -320,3 +324,34 @@ def test_a_gridlocks_time_goes_on_through_a_break_in_which_its_robot_still_waits
     orders = _holder_standing_idle([still] * 8 + [stirring] * 2 + [still])
     assert [(o.robot, o.releases) for o in orders] == [("r0", True)]
     assert orders[0].issued == pytest.approx(WatchdogParams().gridlock_time + 2.0)
+
+
+def test_a_robot_standing_aside_holding_segments_others_wait_for_lets_them_go():
+    # r1 was sent aside by the standstill rule (an order without releases: it keeps its
+    # claims) and stands at its spot holding segment 0, which r0 waits for: once the
+    # gridlock has lasted gridlock_time, r1's order goes on as a releases order (same spot,
+    # same end), so r0 gets the segment.
+    watchdog = DeadlockWatchdog(["r0", "r1"], [0.22, 0.22],
+                                Costmap.from_obstacles(Obstacles(), BOUNDS), rate_hz=2.0)
+    context = watchdog.CreateDefaultContext()
+    aside = BackOff("r1", (3.0, 0.0), 0.0, 100.0, ("r2",), 0.0, arrived=0.0)
+    context.get_mutable_abstract_state(0).set_value(_WatchdogState(
+        (None, None), BackOffOrders((aside,), (aside,)), gridlocked=(None, None),
+        cycled=(None, None)))
+    watchdog.GetInputPort("robot_state").FixValue(
+        context, [0.0, 0.0, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0])
+    watchdog.GetInputPort("target_r0").FixValue(
+        context, WaypointTarget("r0", True, (0.0, 0.0), None, True))
+    watchdog.GetInputPort("target_r1").FixValue(context, WaypointTarget("r1"))
+    watchdog.GetInputPort("queue_state").FixValue(context, QueueState(
+        segments=(SegmentHold(("r1",)),), segment_waiting=("r0",)))
+    watchdog.GetInputPort("queue_request_r0").FixValue(
+        context, QueueRequest("r0", segments=((0, True),)))
+    watchdog.GetInputPort("queue_request_r1").FixValue(
+        context, QueueRequest("r1", segments=((0, True),)))
+    simulator = Simulator(watchdog, context)
+    simulator.AdvanceTo(30.0)
+    orders = watchdog.GetOutputPort("back_offs").Eval(simulator.get_context())
+    assert orders.active == (replace(aside, issued=WatchdogParams().gridlock_time,
+                                     blockers=("r0",), releases=True),)
+    assert orders.history == (aside, orders.active[0])
