@@ -191,24 +191,26 @@ class DeadlockWatchdog(LeafSystem):
        ``progress_distance`` of where it stood, does not end that but does not count (as
        the run recorder counts). A gridlock in which a robot has been for
        ``gridlock_time``, and no member backs off, is broken by robots giving way (orders
-       with ``releases``). A robot may give way if it holds no room (a holder serves,
-       enters or leaves: undoing that costs a visit) and is not broken down (e.g. one
-       waiting, or standing at home in a segment others wait for); it moves off only if it
-       has not given way within ``gridlock_cooldown``. The members waiting for segments are
-       taken in turn (first the holders of rooms other members wait for, then other
-       holders, then by priority, highest first) until one can be freed: the robots holding
-       segments it asks for go, each to the spot ``standstills.back_off_spot`` finds clear
-       of the other members' ways (their targets' ways and the lanes of the segments they
-       ask for) and of the spots given before it, and where there is one, off every
-       single-file segment's lane (standing on one it would hold it); the robots before it
-       in the segments' line asking for one of them (holders too: they keep their rooms)
-       stand where they are (else they would take the segments first and gridlock with it
-       in turn); all at once, or none if one of those going has no spot. A gridlock of room
-       waits only: the first robot that may give way, lowest priority first, goes to a
-       spot. While its order is in force a robot asks for no room (it leaves the queue) and
-       only for the segments it stands in, so the others get them; when it ends, it asks
-       again, at the queues' tails. Every member's gridlock time starts again, so the
-       others get another ``gridlock_time`` to move before the next orders.
+       with ``releases``); one whose members backing off each stand at their spots under a
+       step 3 order, hold no room and are waited for, by those orders going on as
+       ``releases`` orders (``_releasing``). A robot may give way if it holds no room (a
+       holder serves, enters or leaves: undoing that costs a visit) and is not broken down
+       (e.g. one waiting, or standing at home in a segment others wait for); it moves off
+       only if it has not given way within ``gridlock_cooldown``. The members waiting for
+       segments are taken in turn (first the holders of rooms other members wait for, then
+       other holders, then by priority, highest first) until one can be freed: the robots
+       holding segments it asks for go, each to the spot ``standstills.back_off_spot``
+       finds clear of the other members' ways (their targets' ways and the lanes of the
+       segments they ask for) and of the spots given before it, and where there is one, off
+       every single-file segment's lane (standing on one it would hold it); the robots
+       before it in the segments' line asking for one of them (holders too: they keep their
+       rooms) stand where they are (else they would take the segments first and gridlock
+       with it in turn); all at once, or none if one of those going has no spot. A gridlock
+       of room waits only: the first robot that may give way, lowest priority first, goes
+       to a spot. While its order is in force a robot asks for no room (it leaves the
+       queue) and only for the segments it stands in, so the others get them; when it ends,
+       it asks again, at the queues' tails. Every member's gridlock time starts again, so
+       the others get another ``gridlock_time`` to move before the next orders.
     6. Cyclesof waits, before step 5's gridlocks: among the robots standing still (at no
        lift, under no order, not serving (step 5), and not going: moving with a goal it got
        ``progress_distance`` nearer within ``cycle_time``; a robot rocking on the spot is
