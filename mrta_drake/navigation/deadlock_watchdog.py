@@ -177,7 +177,7 @@ class DeadlockWatchdog(LeafSystem):
        misses within ``retry_window`` are asked first (a stable sort of ``yield_order``),
        and a robot's spots keep ``progress_distance`` from those it missed, so a
        standstill is never met with the same order again and again.
-    5. Gridlocksof waits, from the facts the run recorder uses (``standstills.waits_for``:
+    5. Gridlocks of waits, from the facts the run recorder uses (``standstills.waits_for``:
        the robots waiting for a room wait for its holder; those waiting for single-file
        segments for the segments' holders, or the robots before them in the segments'
        queue): the waiting robots whose waits lead to no robot *live*, through every robot
@@ -211,7 +211,7 @@ class DeadlockWatchdog(LeafSystem):
        queue) and only for the segments it stands in, so the others get them; when it ends,
        it asks again, at the queues' tails. Every member's gridlock time starts again, so
        the others get another ``gridlock_time`` to move before the next orders.
-    6. Cyclesof waits, before step 5's gridlocks: among the robots standing still (at no
+    6. Cycles of waits, before step 5's gridlocks: among the robots standing still (at no
        lift, under no order, not serving (step 5), and not going: moving with a goal it got
        ``progress_distance`` nearer within ``cycle_time``; a robot rocking on the spot is
        still), robot A waits for robot B when B is one it waits for in step 5's sense or B
@@ -335,7 +335,7 @@ class DeadlockWatchdog(LeafSystem):
 
     def _gridlocks(self, context, states, targets, old: _WatchdogState, anchors, active,
                    history, misses, now
-                   ) -> tuple[tuple[float | None, ...], tuple[float | None, ...],
+                   ) -> tuple[tuple[Anchor | None, ...], tuple[float | None, ...],
                               tuple[BackOff, ...]]:
         """Steps 5 and 6 (class docstring): since when each robot has been in a gridlock
         of waits and in a cycle of waits after this update, and the orders that break one
