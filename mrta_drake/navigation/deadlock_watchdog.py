@@ -337,9 +337,10 @@ class DeadlockWatchdog(LeafSystem):
                    history, misses, now
                    ) -> tuple[tuple[Anchor | None, ...], tuple[float | None, ...],
                               tuple[BackOff, ...]]:
-        """Steps 5 and 6 (class docstring): since when each robot has been in a gridlock
-        of waits and in a cycle of waits after this update, and the orders that break one
-        (none, or those of one gridlock or cycle per update)."""
+        """Steps 5 and 6 (class docstring), ``active`` the orders in force: each robot's
+        gridlock anchor and since when it has been in a cycle of waits after this update,
+        and the orders that break one (none, or those of one gridlock or cycle per
+        update)."""
         queues: QueueState = self._queue_state.Eval(context)
         requests = self._requests.values(context)
         waits = waits_for(queues, requests)
