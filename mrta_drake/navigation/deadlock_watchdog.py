@@ -1,6 +1,7 @@
 """A fleet manager's deadlock watchdog: robots standing blocked by each other are sent, one
 at a time, to a free spot nearby to let the others pass."""
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
@@ -100,14 +101,14 @@ class WatchdogParams:
 @dataclass(frozen=True)
 class _WatchdogState:
     """Each robot's ``Anchor`` (None: no goal, or backing off), the orders, the orders
-    missed within the retry window (each as ordered, ``until`` the time it ended), and
-    since when each robot has been in a gridlock of waits and in a cycle of waits (s;
-    None: it is in none)."""
+    missed within the retry window (each as ordered, ``until`` the time it ended), where
+    and since when each robot has counted as in a gridlock of waits (an ``Anchor``; None:
+    it is in none, step 5), and since when in a cycle of waits (s; None: in none)."""
 
     anchors: tuple[Anchor | None, ...]
     orders: BackOffOrders = NO_BACK_OFFS
     misses: tuple[BackOff, ...] = ()
-    gridlocked: tuple[float | None, ...] = ()
+    gridlocked: tuple[Anchor | None, ...] = ()
     cycled: tuple[float | None, ...] = ()
 
     def __deepcopy__(self, memo):
@@ -179,52 +180,53 @@ class DeadlockWatchdog(LeafSystem):
     5. Gridlocks of waits, from the facts the run recorder uses (``standstills.waits_for``:
        the robots waiting for a room wait for its holder; those waiting for single-file
        segments for the segments' holders, or the robots before them in the segments'
-       queue): the waiting robots whose waits lead to no robot *live*, through every
-       robot each waits for (``results.deadlocks.stalled_waits``: a robot asking for
-       segments of a driving holder and of one standing for good is stalled, as the run
-       recorder counts it; live: moving faster than
-       ``ROBOT_STOPPED_SPEED``, at a lift (waiting for it or riding), or holding a room
-       and waiting for nothing: serving, entering, or waiting at its door, which
-       ``WaypointParams.door_patience`` bounds) are joined with the robots they wait for
-       (``standstills.gridlocks``). A robot is in a gridlock since the update it first
-       was, without a break. A gridlock in which a robot has been for ``gridlock_time``,
-       and no member backs off, is broken by robots giving way (orders with
-       ``releases``). A robot may give way if it holds no room (a holder serves, enters
-       or leaves: undoing that costs a visit) and is not broken down (e.g. one waiting,
-       or standing at home in a segment others wait for); it moves off only if it has
-       not given way within ``gridlock_cooldown``. The members waiting
-       for segments are taken in turn (first the holders of rooms other members wait
-       for, then other holders, then by priority, highest first) until one can be
-       freed: the robots holding segments it asks for go, each to the spot
-       ``standstills.back_off_spot`` finds clear of the other members' ways (their
-       targets' ways and the lanes of the segments they ask for) and of the spots given
-       before it, and where there is one, off every single-file segment's lane (standing
-       on one it would hold it); the robots before it in the segments' line asking for
-       one of them (holders too: they keep their rooms) stand where they are (else they
-       would take the segments first and gridlock with it in turn); all at once, or none
-       if one of those going has no spot. A gridlock of room waits only: the first robot
-       that may give way, lowest priority first, goes to a spot. While its order is in
-       force a robot asks for no room (it leaves the queue) and only for the segments it
-       stands in, so the others get them; when it ends, it asks again, at the queues' tails. Every
-       member's gridlock time starts again, so the others get another ``gridlock_time``
-       to move before the next orders.
-    6. Cycles of waits, before step 5's gridlocks: among the robots standing still (at
-       no lift, under no order, no room's holder waiting for nothing and without a goal,
-       which serves, and not going: moving with a goal it got ``progress_distance``
-       nearer within ``cycle_time``; a robot rocking on the spot is still), robot A
-       waits for robot B when B is one it waits for in step 5's sense or B stands in a
-       single-file segment A asks for (a room's holder, granted its way, kept off it by
-       a robot queueing for its room in it); robots waiting for each other round a
-       cycle (``standstills.wait_cycles``) wait for good, so a cycle that has lasted
+       queue): the waiting robots whose waits lead to no robot *live*, through every robot
+       each waits for (``results.deadlocks.stalled_waits``: a robot asking for segments of
+       a driving holder and of one standing for good is stalled, as the run recorder counts
+       it; live: moving faster than ``ROBOT_STOPPED_SPEED``, at a lift (waiting for it or
+       riding), or serving as the recorder counts it: holding a room, its target active,
+       within ``goal_tolerance`` of its last waypoint, waiting for no segment) are joined
+       with the robots they wait for (``standstills.gridlocks``). A robot is in a gridlock
+       since the update it first was; a break while it still waits, within
+       ``progress_distance`` of where it stood, does not end that but does not count (as
+       the run recorder counts). A gridlock in which a robot has been for
+       ``gridlock_time``, and no member backs off, is broken by robots giving way (orders
+       with ``releases``); one whose members backing off each stand at their spots under a
+       step 3 order, hold no room and are waited for, by those orders going on as
+       ``releases`` orders (``_releasing``). A robot may give way if it holds no room (a
+       holder serves, enters or leaves: undoing that costs a visit) and is not broken down
+       (e.g. one waiting, or standing at home in a segment others wait for); it moves off
+       only if it has not given way within ``gridlock_cooldown``. The members waiting for
+       segments are taken in turn (first the holders of rooms other members wait for, then
+       other holders, then by priority, highest first) until one can be freed: the robots
+       holding segments it asks for go, each to the spot ``standstills.back_off_spot``
+       finds clear of the other members' ways (their targets' ways and the lanes of the
+       segments they ask for) and of the spots given before it, and where there is one, off
+       every single-file segment's lane (standing on one it would hold it); the robots
+       before it in the segments' line asking for one of them (holders too: they keep their
+       rooms) stand where they are (else they would take the segments first and gridlock
+       with it in turn); all at once, or none if one of those going has no spot. A gridlock
+       of room waits only: the first robot that may give way, lowest priority first, goes
+       to a spot. While its order is in force a robot asks for no room (it leaves the
+       queue) and only for the segments it stands in, so the others get them; when it ends,
+       it asks again, at the queues' tails. Every member's gridlock time starts again, so
+       the others get another ``gridlock_time`` to move before the next orders.
+    6. Cycles of waits, before step 5's gridlocks: among the robots standing still (at no
+       lift, under no order, not serving (step 5), and not going: moving with a goal it got
+       ``progress_distance`` nearer within ``cycle_time``; a robot rocking on the spot is
+       still), robot A waits for robot B when B is one it waits for in step 5's sense or B
+       stands in a single-file segment A asks for (a room's holder, granted its way, kept
+       off it by a robot queueing for its room in it); robots waiting for each other round
+       a cycle (``standstills.wait_cycles``) wait for good, so a cycle that has lasted
        ``cycle_time`` (each robot's time in one counted as in step 5) is broken at once:
        for the first robot of the cycle (rooms' holders first, then by priority, highest
-       first) that other robots of the cycle stand in the way of (in segments it asks
-       for), none of them a room's holder, broken down, or one that missed an order
-       within ``retry_window``, those robots give way (``releases`` orders, as in step
-       5, to spots off the other members' ways and the lanes of the segments they ask
-       for, off every single-file lane where there is such a spot), all at once, or
-       none if one of them has no spot; the robots before the freed one in the
-       segments' line asking for one of its segments stand (as in step 5).
+       first) that other robots of the cycle stand in the way of (in segments it asks for),
+       none of them a room's holder, broken down, or one that missed an order within
+       ``retry_window``, those robots give way (``releases`` orders, as in step 5, to spots
+       off the other members' ways and the lanes of the segments they ask for, off every
+       single-file lane where there is such a spot), all at once, or none if one of them
+       has no spot; the robots before the freed one in the segments' line asking for one of
+       its segments stand (as in step 5).
 
     ``costmap``: the static costmap the spots are checked against (the way to a spot
     keeps to its ``FREE`` cells). ``priorities``: per robot, smaller keeps its way
@@ -244,6 +246,7 @@ class DeadlockWatchdog(LeafSystem):
         self._priorities = (np.arange(n, dtype=float) if priorities is None
                             else np.asarray(priorities, dtype=float).reshape(n))
         self._roadways = roadways
+        self._period = 1.0 / rate_hz
         # Every single-file segment's lane, as a way (radius 0) a spot keeps clear of.
         self._all_lanes = [] if roadways is None else [
             (np.asarray(lane, dtype=float), 0.0) for k in range(roadways.segment_count)
@@ -315,7 +318,9 @@ class DeadlockWatchdog(LeafSystem):
         gridlocked, cycled = old.gridlocked, old.cycled
         if self._queue_state.HasValue(context):
             gridlocked, cycled, given = self._gridlocks(context, states, targets, old, anchors,
-                                                        backing, history, misses, now)
+                                                        active, history, misses, now)
+            ordered = {order.robot for order in given}  # a standstill order made releases
+            active = tuple(order for order in active if order.robot not in ordered)
             for order in given:
                 active, history = active + (order,), history + (order,)
                 anchors[self._robots.index(order.robot)] = None
@@ -328,20 +333,23 @@ class DeadlockWatchdog(LeafSystem):
             _WatchdogState(tuple(anchors), orders, misses, gridlocked, cycled))
         return EventStatus.Succeeded()
 
-    def _gridlocks(self, context, states, targets, old: _WatchdogState, anchors, backing,
+    def _gridlocks(self, context, states, targets, old: _WatchdogState, anchors, active,
                    history, misses, now
-                   ) -> tuple[tuple[float | None, ...], tuple[float | None, ...],
+                   ) -> tuple[tuple[Anchor | None, ...], tuple[float | None, ...],
                               tuple[BackOff, ...]]:
-        """Steps 5 and 6 (class docstring): since when each robot has been in a gridlock
-        of waits and in a cycle of waits after this update, and the orders that break one
-        (none, or those of one gridlock or cycle per update)."""
+        """Steps 5 and 6 (class docstring), ``active`` the orders in force: each robot's
+        gridlock anchor and since when it has been in a cycle of waits after this update,
+        and the orders that break one (none, or those of one gridlock or cycle per
+        update)."""
         queues: QueueState = self._queue_state.Eval(context)
         requests = self._requests.values(context)
         waits = waits_for(queues, requests)
+        backing = {order.robot for order in active}
         holders = {queue.holder for queue in queues.rooms} - {None}
         moving = {robot for k, robot in enumerate(self._robots)
                   if abs(states[k, 3]) > ROBOT_STOPPED_SPEED}
-        live = moving | {robot for robot in holders if not waits.get(robot)}
+        serving = self._serving(states, targets, queues)
+        live = moving | serving
         at_lifts = set()
         if self._lift_state.HasValue(context):
             for lift in self._lift_state.Eval(context).lifts:
@@ -350,44 +358,61 @@ class DeadlockWatchdog(LeafSystem):
         going = {robot for robot, anchor in zip(self._robots, anchors, strict=True)
                  if robot in moving and anchor is not None
                  and now - anchor.since < self._params.cycle_time - 1e-9}
-        cycled, given = self._cycles(context, states, targets, requests, queues, waits,
-                                     holders, going | at_lifts, backing, old.cycled, misses,
-                                     now)
+        cycled, given = self._cycles(requests, queues, waits, holders, serving,
+                                     going | at_lifts, backing, old.cycled, misses, context,
+                                     states, targets, now)
         groups = gridlocks(waits, stalled_waits(waits, live))
-        member = {robot for group in groups for robot in group}
-        since = [(s if s is not None else now) if robot in member else None
-                 for robot, s in zip(self._robots, old.gridlocked, strict=True)]
+        since = self._gridlock_anchors(old.gridlocked, groups, waits, states, now)
         if given:  # the cycle's robots (each order's blockers) get time to move again
             freed = {robot for order in given for robot in (order.robot, *order.blockers)}
-            return tuple(now if robot in freed and s is not None else s
-                         for robot, s in zip(self._robots, since, strict=True)), cycled, given
+            return tuple(replace(a, since=now) if robot in freed and a is not None else a
+                         for robot, a in zip(self._robots, since, strict=True)), cycled, given
         p = self._params
         for group in groups:
             index = [self._robots.index(robot) for robot in group]
-            if (backing.intersection(group)
-                    or now - min(since[k] for k in index) < p.gridlock_time - 1e-9):
+            began = min(since[k].since for k in index)
+            if now - began < p.gridlock_time - 1e-9:
                 continue
-            given = self._give_way(context, group, waits, holders, states, targets,
-                                   requests, history, queues, backing,
-                                   min(since[k] for k in index), now)
+            given = (self._releasing(group, active, waits, holders, now)
+                     if backing.intersection(group) else
+                     self._give_way(context, group, waits, holders, states, targets,
+                                    requests, history, queues, backing, began, now))
             if given:
                 for k in index:
-                    since[k] = now
+                    since[k] = replace(since[k], since=now)
                 return tuple(since), cycled, given
         return tuple(since), cycled, ()
 
-    def _cycles(self, context, states, targets, requests, queues, waits, holders, going,
-                backing, since, misses, now
+    def _gridlock_anchors(self, old, groups, waits, states, now) -> list[Anchor | None]:
+        """Each robot's gridlock anchor after this update (step 5): a robot in one of
+        ``groups`` keeps its anchor (a new one, from ``now``, if it had none); one out of
+        them that still waits (``waits``) within ``progress_distance`` of its anchor keeps
+        it, moved on by the update's period (its time out of a gridlock does not count:
+        the run recorder counts a robot standing through stalled waits with flowing ones
+        between them stuck once the stalled stretches add up: office seed 13, a room's
+        holder stepping about at the door every few seconds); others have none."""
+        member = {robot for group in groups for robot in group}
+        anchors = []
+        for k, (robot, anchor) in enumerate(zip(self._robots, old, strict=True)):
+            if robot in member:
+                anchor = anchor or Anchor((float(states[k, 0]), float(states[k, 1])), now)
+            elif (anchor is not None and waits.get(robot)
+                  and math.dist(anchor.xy, states[k, :2]) <= self._params.progress_distance):
+                anchor = replace(anchor, since=anchor.since + self._period)
+            else:
+                anchor = None
+            anchors.append(anchor)
+        return anchors
+
+    def _cycles(self, requests, queues, waits, holders, serving, going, backing, since,
+                misses, context, states, targets, now
                 ) -> tuple[tuple[float | None, ...], tuple[BackOff, ...]]:
         """Step 6 (class docstring): since when each robot has been in a cycle of waits
-        among the robots standing still (``standstills.wait_cycles``; not ``going``, at a
-        lift, or ``backing`` off; a room's holder waiting for nothing and without a goal
-        serves), and the orders that break one cycle that lasted ``cycle_time`` (or
-        none)."""
-        still = [robot for k, robot in enumerate(self._robots)
-                 if robot not in going and robot not in backing
-                 and not (robot in holders and not waits.get(robot)
-                          and not self._has_goal(states[k], targets[k]))]
+        among the robots standing still (``standstills.wait_cycles``; not ``serving``,
+        ``going``, at a lift, or ``backing`` off), and the orders that break one cycle
+        that lasted ``cycle_time`` (or none)."""
+        still = [robot for robot in self._robots
+                 if robot not in going and robot not in backing and robot not in serving]
         asks = {request.robot: {k for k, _ in request.segments} for request in requests}
         stands = {request.robot: set(request.standing) for request in requests}
         cycles = wait_cycles(waits, asks, stands, still)
@@ -433,6 +458,24 @@ class DeadlockWatchdog(LeafSystem):
                 asks[robot])} if robot in line else set()) - set(blockers) - broken - backing
             return given + self._stand(ahead, robot, states, began, now)
         return ()
+
+    def _releasing(self, group, active, waits, holders, now) -> tuple[BackOff, ...]:
+        """Step 5 for a gridlock ``group`` with robots backing off: when each of them
+        stands at its spot under a standstill order (step 3: it keeps its claims), holds
+        no room and is waited for by others of the group, those orders go on as
+        ``releases`` orders (until they would have ended), so the segments they hold go
+        to the robots waiting (office seed 1: a robot sent aside by the standstill rule
+        stood its ``yield_time`` holding four segments the lounge's holder waited for);
+        else ()."""
+        orders = [order for order in active if order.robot in group]
+        waited = {other for robot in group for other in waits.get(robot, ())}
+        if not all(not order.releases and order.arrived is not None
+                   and order.robot not in holders and order.robot in waited
+                   for order in orders):
+            return ()
+        return tuple(replace(order, issued=now, releases=True, blockers=tuple(
+            robot for robot in self._robots if order.robot in waits.get(robot, ())))
+            for order in orders)
 
     def _give_way(self, context, group, waits, holders, states, targets, requests, history,
                   queues, backing, stalled_since, now) -> tuple[BackOff, ...]:
@@ -525,6 +568,19 @@ class DeadlockWatchdog(LeafSystem):
         if self._roadways is None:
             return []
         return [lane for k, _ in request.segments for lane in segment_lanes(self._roadways, k)]
+
+    def _serving(self, states, targets, queues: QueueState) -> set[str]:
+        """The robots serving, as the run recorder counts them (its ``SERVE`` mode): each
+        holding a room, waiting for no segment, its target active with no waypoint after
+        the current one, and within ``goal_tolerance`` of it. A holder standing with its
+        target inactive (nothing to do for now) serves nothing: robots waiting for its
+        room wait for one that stands."""
+        holders = {queue.holder for queue in queues.rooms} - {None}
+        return {robot for k, (robot, target) in enumerate(zip(self._robots, targets,
+                                                                strict=True))
+                if robot in holders and robot not in queues.segment_waiting
+                and target.active and target.current is not None and target.next is None
+                and not self._has_goal(states[k], target)}
 
     def _has_goal(self, robot_state: np.ndarray, target: WaypointTarget) -> bool:
         return (target.active and target.current is not None

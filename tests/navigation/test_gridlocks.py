@@ -12,7 +12,11 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from mrta_drake.allocation.fixed_sequence_allocator import FixedSequenceAllocator
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.costmap import Costmap
-from mrta_drake.navigation.deadlock_watchdog import DeadlockWatchdog, WatchdogParams
+from mrta_drake.navigation.deadlock_watchdog import (
+    DeadlockWatchdog,
+    WatchdogParams,
+    _WatchdogState,
+)
 from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.room_queues import RoomQueues
 from mrta_drake.navigation.single_file import Need, SingleFileParams, stop_segments
@@ -280,3 +284,74 @@ def test_robots_rocking_on_the_spot_in_a_cycle_of_waits_are_freed_within_seconds
     params = WatchdogParams()
     assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
     assert orders[0].issued == pytest.approx(2 * params.cycle_time)
+
+
+def _holder_standing_idle(r1_states):
+    """The watchdog alone: r1 holds room 0 standing at (3, 0) with its target inactive, r0
+    waits for the room at (0, 0) (at its slot, no goal); r1's state (x, y, theta, v) is
+    ``r1_states[k]`` from ``k`` seconds on. The orders given by 45 s."""
+    watchdog = DeadlockWatchdog(["r0", "r1"], [0.22, 0.22],
+                                Costmap.from_obstacles(Obstacles(), BOUNDS), rate_hz=2.0)
+    context = watchdog.CreateDefaultContext()
+    watchdog.GetInputPort("target_r0").FixValue(
+        context, WaypointTarget("r0", True, (0.0, 0.0), None, True))
+    watchdog.GetInputPort("target_r1").FixValue(context, WaypointTarget("r1"))
+    watchdog.GetInputPort("queue_state").FixValue(
+        context, QueueState((RoomQueue(0, "r1", ("r0",)),)))
+    watchdog.GetInputPort("queue_request_r0").FixValue(context, QueueRequest("r0", 0))
+    watchdog.GetInputPort("queue_request_r1").FixValue(context, QueueRequest("r1", 0))
+    simulator = Simulator(watchdog, context)
+    for k, r1 in enumerate((*r1_states, r1_states[-1])):
+        watchdog.GetInputPort("robot_state").FixValue(
+            simulator.get_mutable_context(), [0.0, 0.0, 0.0, 0.0, *r1])
+        simulator.AdvanceTo(45.0 if k == len(r1_states) else k + 1.0)
+    return watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
+
+
+def test_a_robot_waiting_for_a_holder_standing_with_nothing_to_do_gives_way():
+    # A room's holder with its target inactive serves nothing (the run recorder counts the
+    # robot waiting for it as stuck): a gridlock of waits, broken after gridlock_time.
+    orders = _holder_standing_idle([(3.0, 0.0, 0.0, 0.0)])
+    assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
+    assert orders[0].issued == pytest.approx(WatchdogParams().gridlock_time)
+
+
+def test_a_gridlocks_time_goes_on_through_a_break_in_which_its_robot_still_waits():
+    # The holder stirs for 2 s (moving: live, so r0's wait leads somewhere) and stands
+    # again where it stood: r0, waiting where it stood all along, is in the gridlock since
+    # 0 s, the 2 s not counted.
+    still, stirring = (3.0, 0.0, 0.0, 0.0), (3.1, 0.0, 0.0, 0.2)
+    orders = _holder_standing_idle([still] * 8 + [stirring] * 2 + [still])
+    assert [(o.robot, o.releases) for o in orders] == [("r0", True)]
+    assert orders[0].issued == pytest.approx(WatchdogParams().gridlock_time + 2.0)
+
+
+def test_a_robot_standing_aside_holding_segments_others_wait_for_lets_them_go():
+    # r1 was sent aside by the standstill rule (an order without releases: it keeps its
+    # claims) and stands at its spot holding segment 0, which r0 waits for: once the
+    # gridlock has lasted gridlock_time, r1's order goes on as a releases order (same spot,
+    # same end), so r0 gets the segment.
+    watchdog = DeadlockWatchdog(["r0", "r1"], [0.22, 0.22],
+                                Costmap.from_obstacles(Obstacles(), BOUNDS), rate_hz=2.0)
+    context = watchdog.CreateDefaultContext()
+    aside = BackOff("r1", (3.0, 0.0), 0.0, 100.0, ("r2",), 0.0, arrived=0.0)
+    context.get_mutable_abstract_state(0).set_value(_WatchdogState(
+        (None, None), BackOffOrders((aside,), (aside,)), gridlocked=(None, None),
+        cycled=(None, None)))
+    watchdog.GetInputPort("robot_state").FixValue(
+        context, [0.0, 0.0, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0])
+    watchdog.GetInputPort("target_r0").FixValue(
+        context, WaypointTarget("r0", True, (0.0, 0.0), None, True))
+    watchdog.GetInputPort("target_r1").FixValue(context, WaypointTarget("r1"))
+    watchdog.GetInputPort("queue_state").FixValue(context, QueueState(
+        segments=(SegmentHold(("r1",)),), segment_waiting=("r0",)))
+    watchdog.GetInputPort("queue_request_r0").FixValue(
+        context, QueueRequest("r0", segments=((0, True),)))
+    watchdog.GetInputPort("queue_request_r1").FixValue(
+        context, QueueRequest("r1", segments=((0, True),)))
+    simulator = Simulator(watchdog, context)
+    simulator.AdvanceTo(30.0)
+    orders = watchdog.GetOutputPort("back_offs").Eval(simulator.get_context())
+    assert orders.active == (replace(aside, issued=WatchdogParams().gridlock_time,
+                                     blockers=("r0",), releases=True),)
+    assert orders.history == (aside, orders.active[0])
