@@ -69,6 +69,8 @@ class WaypointParams:
     lift_wait_distance: float = 3.0  # wait for it this far back along the route from the
     # cabin's point, one more metre per robot ahead in its queue
     single_file: SingleFileParams = SingleFileParams()  # holding single-file segments
+    step_aside: bool = True  # a robot queueing in a single-file segment another robot waits
+    # for makes way for it (``WaypointPolicy._step_aside``; off: it stays at its place)
     on_lane: float = 0.05  # a start spot this near a lane is on it (``initial_state``)
 
     def __post_init__(self):
@@ -89,7 +91,9 @@ class _Drive:
     single-file segments it needs now, and whether it stands until it holds them.
     ``door_since``: holding the room and not yet through its door, since when the doorway
     has been taken (``WaypointPolicy._door_busy``; s), else None. ``giving_way``: a
-    ``releases`` order of the deadlock watchdog is in force for the robot."""
+    ``releases`` order of the deadlock watchdog is in force for the robot. ``aside``: the
+    single-file segments a robot with a stop left its queue place in for other robots
+    (phase home, ``WaypointPolicy._step_aside``), until they are free."""
 
     phase: RobotMode = RobotMode.IDLE
     stop: Stop | None = None
@@ -108,6 +112,7 @@ class _Drive:
     lanes: Need = NOTHING
     door_since: float | None = None
     giving_way: bool = False
+    aside: tuple[int, ...] = ()
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the state can share it
@@ -529,6 +534,8 @@ class WaypointPolicy:
     def _follow_plan(self, s: _Drive, stop: Stop | None, robots: _Robots, lanes: Roadways,
                      queues: QueueState, t: float) -> _Drive:
         if stop is None:
+            if s.phase == RobotMode.HOME:  # its stop dropped while aside: just waiting there
+                s = _changed(s, stop=None, aside=())
             if lanes.segment_count and (away := self._make_way(s, robots, lanes, queues)):
                 return away
             if s.phase in (RobotMode.PARK, RobotMode.HOME):
@@ -548,6 +555,17 @@ class WaypointPolicy:
         xy = robots.xy
         if s.stop is None:
             return self._start(s, stop, xy, lanes, t)
+        if (stop.location == s.stop.location and lanes.segment_count
+                and self._params.step_aside
+                and (away := self._step_aside(s, robots, lanes, queues))):
+            return replace(away, stop=stop)
+        if s.phase == RobotMode.HOME:  # aside: back to the queue once its segments are free
+            queue = queues.room(stop.location)
+            if (stop.location == s.stop.location and self._wanted(s.aside, queues)
+                    and (queue is None or queue.holder != self._robot)):
+                return _changed(s, stop=stop)
+            return replace(self._drive_to(s, stop, self._way_from(s, stop, xy), lanes, t),
+                           aside=())
         if stop.location == s.stop.location or (s.phase == RobotMode.LIFT and s.lift_slot < 0):
             return _changed(s, stop=stop)  # a rider takes the lanes again once out
         old = self._roadways.place(s.stop.location)
@@ -620,18 +638,61 @@ class WaypointPolicy:
                 return None
         elif s.phase != RobotMode.IDLE:
             return None
-        wanted = {k for k, hold in enumerate(queues.segments)
-                  if any(robot != self._robot for robot in (*hold.waiting, *hold.holders))}
-        here = stands_in(self._roadways, xy, self._params.single_file)
-        if not wanted or wanted.isdisjoint(here):
-            return None
-        askers = {robot for k in wanted.intersection(here) for robot in
-                  (*queues.segments[k].waiting, *queues.segments[k].holders)} - {self._robot}
-        route = self._refuge(xy, here, robots.states, lanes, queues, wanted,
-                             robots.states[[self._names.index(r) for r in sorted(askers)], :2])
+        needers = {k: {*hold.waiting, *hold.holders} for k, hold in enumerate(queues.segments)}
+        route, _ = self._way_out(robots, lanes, queues, needers)
         if route is None:
             return None
         return replace(s, phase=RobotMode.HOME, stop=None, route=route, index=0, since=None)
+
+    def _step_aside(self, s: _Drive, robots: _Robots, lanes: Roadways, queues: QueueState
+                    ) -> _Drive | None:
+        """A robot queueing for its stop's room (not its holder; or aside already, at the
+        end of its way there) standing in a single-file segment another robot waits for
+        (``SegmentHold.waiting``; the room's holder on its way out, a robot driving through)
+        but the robots queueing behind it for the same room makes way as one without a stop
+        (``_way_out``): to ``_refuge``'s spot, phase home, leaving the room's queue (it asks
+        for no room there), its ``aside`` segments kept; back to the queue once no other
+        robot waits for or holds them (``_follow_plan``). None where it need not or finds
+        no such spot (docs/worlds.md, "Queue places in a room holder's way out")."""
+        if s.phase == RobotMode.HOME:
+            if _distance(robots.xy, s.route[-1]) > self._params.single_file.stand_distance:
+                return None
+            fellows = set()
+        elif s.phase == RobotMode.QUEUE:
+            queue = queues.room(s.stop.location)
+            if queue is not None and queue.holder == self._robot:
+                return None
+            fellows = set(() if queue is None else queue.waiting)
+        else:
+            return None
+        needers = {k: set(hold.waiting) - fellows for k, hold in enumerate(queues.segments)}
+        route, left = self._way_out(robots, lanes, queues, needers)
+        if route is None:
+            return None
+        return replace(s, phase=RobotMode.HOME, route=route, index=0, since=None,
+                       aside=tuple(sorted(set(s.aside) | left)))
+
+    def _way_out(self, robots: _Robots, lanes: Roadways, queues: QueueState,
+                 needers: dict[int, set[str]]
+                 ) -> tuple[tuple[tuple[float, float], ...] | None, set[int]]:
+        """Out of the way of ``needers`` (segment index -> the robots that need it; this
+        robot left out): where the robot stands in single-file segments some of them need,
+        ``_refuge``'s way (out of the end away from them, to a spot in no segment another
+        robot waits for or holds) and those segments; else (None, those segments)."""
+        here = stands_in(self._roadways, robots.xy, self._params.single_file)
+        askers = {robot for k in here for robot in needers.get(k, ())} - {self._robot}
+        needed = {k for k in here if needers.get(k, set()) - {self._robot}}
+        if not askers:
+            return None, needed
+        wanted = {k for k in range(len(queues.segments)) if self._wanted((k,), queues)}
+        return self._refuge(robots.xy, here, robots.states, lanes, queues, wanted,
+                            robots.states[[self._names.index(r) for r in sorted(askers)], :2]
+                            ), needed
+
+    def _wanted(self, segments, queues: QueueState) -> bool:
+        """Whether another robot waits for or holds one of ``segments`` (indices)."""
+        return any(robot != self._robot for k in segments
+                   for robot in (*queues.segments[k].waiting, *queues.segments[k].holders))
 
     def _refuge(self, xy, here: tuple[int, ...], states: np.ndarray, lanes: Roadways,
                 queues: QueueState, wanted: set[int], askers: np.ndarray
@@ -853,7 +914,7 @@ class WaypointPolicy:
 
     def _advance(self, s: _Drive, robots: _Robots, t: float, queues: QueueState,
                  stops: tuple[Stop, ...], lanes: Roadways, lifts: LiftState) -> _Drive:
-        if s.stop is None:
+        if s.stop is None or s.phase == RobotMode.HOME:
             return _changed(s, index=self._reached(s, robots.xy)) \
                 if s.phase == RobotMode.HOME else s
         xy = robots.xy
