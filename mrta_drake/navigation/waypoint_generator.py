@@ -370,6 +370,11 @@ class WaypointPolicy:
     it), it drives out of the way (``_make_way``): out of the segment's end away from that
     robot, to the nearest spot in no segment another robot waits for or holds
     (``_refuge``), keeping the segment it drives out of until out of it (``_leaving``).
+    With ``step_aside``, a robot waiting at its queue place (not the room's holder) in a
+    single-file segment another robot waits for (but those queueing behind it) makes way
+    likewise (``_step_aside``): it leaves the queue (giving up the room if granted it as
+    it left), keeps its stop, waits at that spot, and drives back to the queue's tail once
+    no other robot waits for or holds the segments it left.
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
     current stop is elsewhere and it is more than ``release_distance`` from the room's
@@ -560,9 +565,7 @@ class WaypointPolicy:
                 and (away := self._step_aside(s, robots, lanes, queues))):
             return replace(away, stop=stop)
         if s.phase == RobotMode.HOME:  # aside: back to the queue once its segments are free
-            queue = queues.room(stop.location)
-            if (stop.location == s.stop.location and self._wanted(s.aside, queues)
-                    and (queue is None or queue.holder != self._robot)):
+            if stop.location == s.stop.location and self._wanted(s.aside, queues):
                 return _changed(s, stop=stop)
             return replace(self._drive_to(s, stop, self._way_from(s, stop, xy), lanes, t),
                            aside=())
@@ -646,8 +649,9 @@ class WaypointPolicy:
 
     def _step_aside(self, s: _Drive, robots: _Robots, lanes: Roadways, queues: QueueState
                     ) -> _Drive | None:
-        """A robot queueing for its stop's room (not its holder; or aside already, at the
-        end of its way there) standing in a single-file segment another robot waits for
+        """A robot queueing for its stop's room at its queue place (``_at_slot``; not the
+        room's holder; or aside already, at the end of its way there) standing in a
+        single-file segment another robot waits for
         (``SegmentHold.waiting``; the room's holder on its way out, a robot driving through)
         but the robots queueing behind it for the same room makes way as one without a stop
         (``_way_out``): to ``_refuge``'s spot, phase home, leaving the room's queue (it asks
@@ -658,7 +662,7 @@ class WaypointPolicy:
             if _distance(robots.xy, s.route[-1]) > self._params.single_file.stand_distance:
                 return None
             fellows = set()
-        elif s.phase == RobotMode.QUEUE:
+        elif s.phase == RobotMode.QUEUE and self._at_slot(s, robots.xy):
             queue = queues.room(s.stop.location)
             if queue is not None and queue.holder == self._robot:
                 return None
@@ -1215,6 +1219,8 @@ class WaypointPolicy:
                     return queue.room
                 continue
             point = self._roadways.place(queue.room).point
+            if s.phase == RobotMode.HOME:  # aside (``_step_aside``), granted it as it left
+                return queue.room
             if s.stop.location != queue.room and (
                 _distance(robots.xy, point) > self._params.release_distance
                 or self._at_slot(s, robots.xy)

@@ -761,6 +761,10 @@ def test_a_robot_queueing_in_a_segment_another_robot_waits_for_makes_way_and_com
     # At S, J-E still wanted: it waits there; free: back along the lanes to A.
     at_s = replace(away, index=1)
     assert policy.update(at_s, inputs(waiting("r1"), (10.0, 5.0))).phase == RobotMode.HOME
+    # Granted A as it left, it gives A back (the robots queueing get it), and stays aside.
+    granted = QueueState((RoomQueue(0, "r0", ("r2",)),), segments=(
+        SegmentHold(), SegmentHold((), True, ("r1",)), SegmentHold()))
+    assert policy.update(at_s, inputs(granted, (10.0, 5.0))).release == 0
     back = policy.update(at_s, inputs(QueueState((RoomQueue(0, None, ("r2",)),), segments=(
         SegmentHold(),) * 3), (10.0, 5.0)))
     assert back.phase == RobotMode.DRIVE and back.aside == () and back.route[-1] == (12.6, 1.5)
