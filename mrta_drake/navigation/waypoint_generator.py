@@ -92,8 +92,8 @@ class _Drive:
     ``door_since``: holding the room and not yet through its door, since when the doorway
     has been taken (``WaypointPolicy._door_busy``; s), else None. ``giving_way``: a
     ``releases`` order of the deadlock watchdog is in force for the robot. ``aside``: the
-    single-file segments a robot with a stop left its queue place in for other robots
-    (phase home, ``WaypointPolicy._step_aside``), until they are free."""
+    single-file segments a robot with a stop left its queue place in, each with a robot it
+    left it for (phase home, ``WaypointPolicy._step_aside``)."""
 
     phase: RobotMode = RobotMode.IDLE
     stop: Stop | None = None
@@ -112,7 +112,7 @@ class _Drive:
     lanes: Need = NOTHING
     door_since: float | None = None
     giving_way: bool = False
-    aside: tuple[int, ...] = ()
+    aside: tuple[tuple[int, str], ...] = ()
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the state can share it
@@ -374,7 +374,7 @@ class WaypointPolicy:
     single-file segment another robot waits for (but those queueing behind it) makes way
     likewise (``_step_aside``): it leaves the queue (giving up the room if granted it as
     it left), keeps its stop, waits at that spot, and drives back to the queue's tail once
-    no other robot waits for or holds the segments it left.
+    none of the robots it left them for waits for or holds the segments it left.
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
     current stop is elsewhere and it is more than ``release_distance`` from the room's
@@ -564,8 +564,10 @@ class WaypointPolicy:
                 and self._params.step_aside
                 and (away := self._step_aside(s, robots, lanes, queues))):
             return replace(away, stop=stop)
-        if s.phase == RobotMode.HOME:  # aside: back to the queue once its segments are free
-            if stop.location == s.stop.location and self._wanted(s.aside, queues):
+        if s.phase == RobotMode.HOME:  # aside: back to the queue once those it left for are by
+            if stop.location == s.stop.location and any(
+                    robot in (*queues.segments[k].waiting, *queues.segments[k].holders)
+                    for k, robot in s.aside):
                 return _changed(s, stop=stop)
             return replace(self._drive_to(s, stop, self._way_from(s, stop, xy), lanes, t),
                            aside=())
@@ -649,24 +651,25 @@ class WaypointPolicy:
 
     def _step_aside(self, s: _Drive, robots: _Robots, lanes: Roadways, queues: QueueState
                     ) -> _Drive | None:
-        """A robot queueing for its stop's room at its queue place (``_at_slot``; not the
-        room's holder; or aside already, at the end of its way there) standing in a
-        single-file segment another robot waits for
-        (``SegmentHold.waiting``; the room's holder on its way out, a robot driving through)
-        but the robots queueing behind it for the same room makes way as one without a stop
-        (``_way_out``): to ``_refuge``'s spot, phase home, leaving the room's queue (it asks
-        for no room there), its ``aside`` segments kept; back to the queue once no other
-        robot waits for or holds them (``_follow_plan``). None where it need not or finds
-        no such spot (docs/worlds.md, "Queue places in a room holder's way out")."""
+        """A robot queueing for its stop's room at its queue place (``_at_slot``) while
+        another robot holds the room (or aside already, at the end of its way there),
+        standing in a single-file segment another robot waits for (``SegmentHold.waiting``:
+        the room's holder on its way out, a robot driving through) but the robots queueing
+        behind it for the same room, makes way as one without a stop (``_way_out``): to
+        ``_refuge``'s spot, phase home, leaving the room's queue (it asks for no room
+        there), keeping in ``aside`` those segments and the robots it left them for; back
+        to the queue once none of those robots waits for or holds them (``_follow_plan``).
+        None where it need not or finds no such spot (docs/worlds.md, "Queue places in a
+        room holder's way out")."""
         if s.phase == RobotMode.HOME:
             if _distance(robots.xy, s.route[-1]) > self._params.single_file.stand_distance:
                 return None
             fellows = set()
         elif s.phase == RobotMode.QUEUE and self._at_slot(s, robots.xy):
             queue = queues.room(s.stop.location)
-            if queue is not None and queue.holder == self._robot:
+            if queue is None or queue.holder in (None, self._robot):
                 return None
-            fellows = set(() if queue is None else queue.waiting)
+            fellows = set(queue.waiting)
         else:
             return None
         needers = {k: set(hold.waiting) - fellows for k, hold in enumerate(queues.segments)}
@@ -678,14 +681,16 @@ class WaypointPolicy:
 
     def _way_out(self, robots: _Robots, lanes: Roadways, queues: QueueState,
                  needers: dict[int, set[str]]
-                 ) -> tuple[tuple[tuple[float, float], ...] | None, set[int]]:
+                 ) -> tuple[tuple[tuple[float, float], ...] | None, set[tuple[int, str]]]:
         """Out of the way of ``needers`` (segment index -> the robots that need it; this
         robot left out): where the robot stands in single-file segments some of them need,
         ``_refuge``'s way (out of the end away from them, to a spot in no segment another
-        robot waits for or holds) and those segments; else (None, those segments)."""
+        robot waits for or holds) and those (segment, robot) pairs; else (None, the
+        pairs)."""
         here = stands_in(self._roadways, robots.xy, self._params.single_file)
-        askers = {robot for k in here for robot in needers.get(k, ())} - {self._robot}
-        needed = {k for k in here if needers.get(k, set()) - {self._robot}}
+        needed = {(k, robot) for k in here for robot in needers.get(k, ())
+                  if robot != self._robot}
+        askers = {robot for _, robot in needed}
         if not askers:
             return None, needed
         wanted = {k for k in range(len(queues.segments)) if self._wanted((k,), queues)}

@@ -753,12 +753,17 @@ def test_a_robot_queueing_in_a_segment_another_robot_waits_for_makes_way_and_com
             SegmentHold(), SegmentHold(("r0",), True, robots), SegmentHold()))
 
     away = policy.update(queueing, inputs(waiting("r1")))
-    assert away.phase == RobotMode.HOME and away.stop == stop and away.aside == (1,)
+    assert away.phase == RobotMode.HOME and away.stop == stop and away.aside == ((1, "r1"),)
     assert away.route == ((10.0, 0.0), (10.0, 5.0))
     assert policy.outputs(away).queue_request.room is None  # out of A's queue
     # r2, behind it in A's queue, waiting for J-E to move up: r0 keeps its place.
     assert policy.update(queueing, inputs(waiting("r2"))).phase == RobotMode.QUEUE
-    # At S, J-E still wanted: it waits there; free: back along the lanes to A.
+    # With A free it stays in the queue: it is granted A next.
+    free_room = QueueState((RoomQueue(0, None, ("r0", "r2")),), segments=(
+        SegmentHold(), SegmentHold(("r0",), True, ("r1",)), SegmentHold()))
+    assert policy.update(queueing, inputs(free_room)).phase == RobotMode.QUEUE
+    # At S, r1 still waiting for J-E: it waits there; r1 by: back along the lanes to A
+    # (another robot waiting for J-E keeps it there no longer).
     at_s = replace(away, index=1)
     assert policy.update(at_s, inputs(waiting("r1"), (10.0, 5.0))).phase == RobotMode.HOME
     # Granted A as it left, it gives A back (the robots queueing get it), and stays aside.
@@ -766,7 +771,7 @@ def test_a_robot_queueing_in_a_segment_another_robot_waits_for_makes_way_and_com
         SegmentHold(), SegmentHold((), True, ("r1",)), SegmentHold()))
     assert policy.update(at_s, inputs(granted, (10.0, 5.0))).release == 0
     back = policy.update(at_s, inputs(QueueState((RoomQueue(0, None, ("r2",)),), segments=(
-        SegmentHold(),) * 3), (10.0, 5.0)))
+        SegmentHold(), SegmentHold((), True, ("r2",)), SegmentHold())), (10.0, 5.0)))
     assert back.phase == RobotMode.DRIVE and back.aside == () and back.route[-1] == (12.6, 1.5)
     # Without step_aside it stays.
     stays = WaypointPolicy(["r0", "r1", "r2"], 0, spur_world(), None,
