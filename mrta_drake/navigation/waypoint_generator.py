@@ -69,8 +69,6 @@ class WaypointParams:
     lift_wait_distance: float = 3.0  # wait for it this far back along the route from the
     # cabin's point, one more metre per robot ahead in its queue
     single_file: SingleFileParams = SingleFileParams()  # holding single-file segments
-    step_aside: bool = True  # a robot queueing in a single-file segment another robot waits
-    # for makes way for it (``WaypointPolicy._step_aside``; off: it stays at its place)
     on_lane: float = 0.05  # a start spot this near a lane is on it (``initial_state``)
 
     def __post_init__(self):
@@ -91,9 +89,7 @@ class _Drive:
     single-file segments it needs now, and whether it stands until it holds them.
     ``door_since``: holding the room and not yet through its door, since when the doorway
     has been taken (``WaypointPolicy._door_busy``; s), else None. ``giving_way``: a
-    ``releases`` order of the deadlock watchdog is in force for the robot. ``aside``: the
-    single-file segments a robot with a stop left its queue place in, each with a robot it
-    left it for (phase home, ``WaypointPolicy._step_aside``)."""
+    ``releases`` order of the deadlock watchdog is in force for the robot."""
 
     phase: RobotMode = RobotMode.IDLE
     stop: Stop | None = None
@@ -112,7 +108,6 @@ class _Drive:
     lanes: Need = NOTHING
     door_since: float | None = None
     giving_way: bool = False
-    aside: tuple[tuple[int, str], ...] = ()
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the state can share it
@@ -370,11 +365,6 @@ class WaypointPolicy:
     it), it drives out of the way (``_make_way``): out of the segment's end away from that
     robot, to the nearest spot in no segment another robot waits for or holds
     (``_refuge``), keeping the segment it drives out of until out of it (``_leaving``).
-    With ``step_aside``, a robot waiting at its queue place (not the room's holder) in a
-    single-file segment another robot waits for (but those queueing behind it) makes way
-    likewise (``_step_aside``): it leaves the queue (giving up the room if granted it as
-    it left), keeps its stop, waits at that spot, and drives back to the queue's tail once
-    none of the robots it left them for waits for or holds the segments it left.
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
     current stop is elsewhere and it is more than ``release_distance`` from the room's
@@ -539,8 +529,6 @@ class WaypointPolicy:
     def _follow_plan(self, s: _Drive, stop: Stop | None, robots: _Robots, lanes: Roadways,
                      queues: QueueState, t: float) -> _Drive:
         if stop is None:
-            if s.phase == RobotMode.HOME:  # its stop dropped while aside: just waiting there
-                s = _changed(s, stop=None, aside=())
             if lanes.segment_count and (away := self._make_way(s, robots, lanes, queues)):
                 return away
             if s.phase in (RobotMode.PARK, RobotMode.HOME):
@@ -560,17 +548,6 @@ class WaypointPolicy:
         xy = robots.xy
         if s.stop is None:
             return self._start(s, stop, xy, lanes, t)
-        if (stop.location == s.stop.location and lanes.segment_count
-                and self._params.step_aside
-                and (away := self._step_aside(s, robots, lanes, queues))):
-            return replace(away, stop=stop)
-        if s.phase == RobotMode.HOME:  # aside: back to the queue once those it left for are by
-            if stop.location == s.stop.location and any(
-                    robot in (*queues.segments[k].waiting, *queues.segments[k].holders)
-                    for k, robot in s.aside):
-                return _changed(s, stop=stop)
-            return replace(self._drive_to(s, stop, self._way_from(s, stop, xy), lanes, t),
-                           aside=())
         if stop.location == s.stop.location or (s.phase == RobotMode.LIFT and s.lift_slot < 0):
             return _changed(s, stop=stop)  # a rider takes the lanes again once out
         old = self._roadways.place(s.stop.location)
@@ -643,65 +620,18 @@ class WaypointPolicy:
                 return None
         elif s.phase != RobotMode.IDLE:
             return None
-        needers = {k: {*hold.waiting, *hold.holders} for k, hold in enumerate(queues.segments)}
-        route, _ = self._way_out(robots, lanes, queues, needers)
+        wanted = {k for k, hold in enumerate(queues.segments)
+                  if any(robot != self._robot for robot in (*hold.waiting, *hold.holders))}
+        here = stands_in(self._roadways, xy, self._params.single_file)
+        if not wanted or wanted.isdisjoint(here):
+            return None
+        askers = {robot for k in wanted.intersection(here) for robot in
+                  (*queues.segments[k].waiting, *queues.segments[k].holders)} - {self._robot}
+        route = self._refuge(xy, here, robots.states, lanes, queues, wanted,
+                             robots.states[[self._names.index(r) for r in sorted(askers)], :2])
         if route is None:
             return None
         return replace(s, phase=RobotMode.HOME, stop=None, route=route, index=0, since=None)
-
-    def _step_aside(self, s: _Drive, robots: _Robots, lanes: Roadways, queues: QueueState
-                    ) -> _Drive | None:
-        """A robot queueing for its stop's room at its queue place (``_at_slot``) while
-        another robot holds the room (or aside already, at the end of its way there),
-        standing in a single-file segment another robot waits for (``SegmentHold.waiting``:
-        the room's holder on its way out, a robot driving through) but the robots queueing
-        behind it for the same room, makes way as one without a stop (``_way_out``): to
-        ``_refuge``'s spot, phase home, leaving the room's queue (it asks for no room
-        there), keeping in ``aside`` those segments and the robots it left them for; back
-        to the queue once none of those robots waits for or holds them (``_follow_plan``).
-        None where it need not or finds no such spot (docs/worlds.md, "Queue places in a
-        room holder's way out")."""
-        if s.phase == RobotMode.HOME:
-            if _distance(robots.xy, s.route[-1]) > self._params.single_file.stand_distance:
-                return None
-            fellows = set()
-        elif s.phase == RobotMode.QUEUE and self._at_slot(s, robots.xy):
-            queue = queues.room(s.stop.location)
-            if queue is None or queue.holder in (None, self._robot):
-                return None
-            fellows = set(queue.waiting)
-        else:
-            return None
-        needers = {k: set(hold.waiting) - fellows for k, hold in enumerate(queues.segments)}
-        route, left = self._way_out(robots, lanes, queues, needers)
-        if route is None:
-            return None
-        return replace(s, phase=RobotMode.HOME, route=route, index=0, since=None,
-                       aside=tuple(sorted(set(s.aside) | left)))
-
-    def _way_out(self, robots: _Robots, lanes: Roadways, queues: QueueState,
-                 needers: dict[int, set[str]]
-                 ) -> tuple[tuple[tuple[float, float], ...] | None, set[tuple[int, str]]]:
-        """Out of the way of ``needers`` (segment index -> the robots that need it; this
-        robot left out): where the robot stands in single-file segments some of them need,
-        ``_refuge``'s way (out of the end away from them, to a spot in no segment another
-        robot waits for or holds) and those (segment, robot) pairs; else (None, the
-        pairs)."""
-        here = stands_in(self._roadways, robots.xy, self._params.single_file)
-        needed = {(k, robot) for k in here for robot in needers.get(k, ())
-                  if robot != self._robot}
-        askers = {robot for _, robot in needed}
-        if not askers:
-            return None, needed
-        wanted = {k for k in range(len(queues.segments)) if self._wanted((k,), queues)}
-        return self._refuge(robots.xy, here, robots.states, lanes, queues, wanted,
-                            robots.states[[self._names.index(r) for r in sorted(askers)], :2]
-                            ), needed
-
-    def _wanted(self, segments, queues: QueueState) -> bool:
-        """Whether another robot waits for or holds one of ``segments`` (indices)."""
-        return any(robot != self._robot for k in segments
-                   for robot in (*queues.segments[k].waiting, *queues.segments[k].holders))
 
     def _refuge(self, xy, here: tuple[int, ...], states: np.ndarray, lanes: Roadways,
                 queues: QueueState, wanted: set[int], askers: np.ndarray
@@ -923,7 +853,7 @@ class WaypointPolicy:
 
     def _advance(self, s: _Drive, robots: _Robots, t: float, queues: QueueState,
                  stops: tuple[Stop, ...], lanes: Roadways, lifts: LiftState) -> _Drive:
-        if s.stop is None or s.phase == RobotMode.HOME:
+        if s.stop is None:
             return _changed(s, index=self._reached(s, robots.xy)) \
                 if s.phase == RobotMode.HOME else s
         xy = robots.xy
@@ -1224,8 +1154,6 @@ class WaypointPolicy:
                     return queue.room
                 continue
             point = self._roadways.place(queue.room).point
-            if s.phase == RobotMode.HOME:  # aside (``_step_aside``), granted it as it left
-                return queue.room
             if s.stop.location != queue.room and (
                 _distance(robots.xy, point) > self._params.release_distance
                 or self._at_slot(s, robots.xy)

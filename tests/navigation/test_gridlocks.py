@@ -111,11 +111,10 @@ class _Obeying(LeafSystem):
         return WaypointTarget(self._names[i], True, order.point, None, True)
 
 
-def _gridlock_run(starts, routes, until, sees_waits=True, step_aside=False):
+def _gridlock_run(starts, routes, until, sees_waits=True):
     """Robots ``r<i>`` (pass through each other, 1 m/s) starting on the points of
     ``starts`` (location ids) serve ``routes`` on ``_dead_end`` (service 30 s), with the
-    watchdog (seeing the room queues only with ``sees_waits``; the robots queueing in the
-    segment make way for its askers only with ``step_aside``): the robots' visits
+    watchdog (seeing the room queues only with ``sees_waits``): the robots' visits
     (location ids each), the orders given, and the queues at the end."""
     roadways = _dead_end()
     names = [f"r{i}" for i in range(len(starts))]
@@ -139,8 +138,7 @@ def _gridlock_run(starts, routes, until, sees_waits=True, step_aside=False):
     generators = []
     for i, (robot, start) in enumerate(zip(names, starts, strict=True)):
         generator = builder.AddSystem(WaypointGenerator(
-            names, i, roadways, start, WaypointParams(service_time=30.0, parking=False,
-                                                      step_aside=step_aside),
+            names, i, roadways, start, WaypointParams(service_time=30.0, parking=False),
             rate_hz=10.0))
         builder.Connect(allocator.GetOutputPort("plan"), generator.GetInputPort("plan"))
         builder.Connect(state, generator.GetInputPort("robot_state"))
@@ -184,18 +182,6 @@ def test_a_holder_leaving_through_the_segment_where_its_next_robot_queues_is_fre
     assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
     params = WatchdogParams()
     assert 30.0 + params.gridlock_time <= orders[0].issued <= 30.0 + params.gridlock_time + 25
-
-
-def test_the_robot_queueing_in_the_segment_the_holder_leaves_through_makes_way_for_it():
-    # As above, with the robots queueing in a single-file segment making way for the robots
-    # that wait for it (``WaypointParams.step_aside``): r0 drives out of the segment away
-    # from r1 (to W), r1 leaves through it, r0 comes back and serves R, without the
-    # watchdog (the office, seed 8, 97-145 s: robot3, second for coe, stood at v61 in
-    # segment 6, which coe's holder robot5 waited for).
-    visits, orders, queues = _gridlock_run([H, R], [[R], [R, H]], until=150.0,
-                                           sees_waits=False, step_aside=True)
-    assert visits == [[R], [R, H]] and orders == ()
-    assert queues.segment_waiting == ()
 
 
 def test_the_robot_in_the_segment_and_the_one_before_the_holder_in_line_give_way_at_once():

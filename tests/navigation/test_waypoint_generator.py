@@ -1,7 +1,6 @@
 """WaypointGenerators, RoomQueues and fake robots in a small lane loop, in a Simulator."""
 
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -729,54 +728,6 @@ def test_a_robot_without_a_stop_does_not_leave_towards_the_robot_that_needs_its_
     s = policy.update(policy.initial_state(),
                       _Inputs(1.0, held, [[8.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.5]]))
     assert s.phase == RobotMode.HOME and s.route == ((10.0, 0.0), (10.0, 5.0))
-
-
-def test_a_robot_queueing_in_a_segment_another_robot_waits_for_makes_way_and_comes_back():
-    # r0 queues for A (third, on the way from its slot to J), standing in J-E 0.3 m off
-    # its lane; r1, A's holder at its point, waits for J-E (its way out). r0 makes way as
-    # a robot without a stop: out of J-E by J, away from r1, to S (the nearest spot in no
-    # segment r1 waits for), leaving A's queue and keeping its stop (office seed 8,
-    # 97-145 s: coe's second stood at v61 in the segment its holder waited for). Once no
-    # robot waits for or holds J-E it drives back to A.
-    policy = WaypointPolicy(["r0", "r1", "r2"], 0, spur_world(), None, WaypointParams())
-    stop = Stop("a", 0)
-    queueing = _Drive(phase=RobotMode.QUEUE, stop=stop, index=2)
-    states = [[10.9, 0.3, 0.0, 0.0], [14.0, 1.5, 0.0, 0.0], [30.0, 5.0, 0.0, 0.0]]
-
-    def inputs(queues, xy=(10.9, 0.3)):
-        step = _Inputs(10.0, queues, [[*xy, 0.0, 0.0], *states[1:]])
-        step.plan = FleetPlan((RobotPlan("r0", (stop,)),))
-        return step
-
-    def waiting(*robots):
-        return QueueState((RoomQueue(0, "r1", ("r0", "r2")),), segments=(
-            SegmentHold(), SegmentHold(("r0",), True, robots), SegmentHold()))
-
-    away = policy.update(queueing, inputs(waiting("r1")))
-    assert away.phase == RobotMode.HOME and away.stop == stop and away.aside == ((1, "r1"),)
-    assert away.route == ((10.0, 0.0), (10.0, 5.0))
-    assert policy.outputs(away).queue_request.room is None  # out of A's queue
-    # r2, behind it in A's queue, waiting for J-E to move up: r0 keeps its place.
-    assert policy.update(queueing, inputs(waiting("r2"))).phase == RobotMode.QUEUE
-    # With A free it stays in the queue: it is granted A next.
-    free_room = QueueState((RoomQueue(0, None, ("r0", "r2")),), segments=(
-        SegmentHold(), SegmentHold(("r0",), True, ("r1",)), SegmentHold()))
-    assert policy.update(queueing, inputs(free_room)).phase == RobotMode.QUEUE
-    # At S, r1 still waiting for J-E: it waits there; r1 by: back along the lanes to A
-    # (another robot waiting for J-E keeps it there no longer).
-    at_s = replace(away, index=1)
-    assert policy.update(at_s, inputs(waiting("r1"), (10.0, 5.0))).phase == RobotMode.HOME
-    # Granted A as it left, it gives A back (the robots queueing get it), and stays aside.
-    granted = QueueState((RoomQueue(0, "r0", ("r2",)),), segments=(
-        SegmentHold(), SegmentHold((), True, ("r1",)), SegmentHold()))
-    assert policy.update(at_s, inputs(granted, (10.0, 5.0))).release == 0
-    back = policy.update(at_s, inputs(QueueState((RoomQueue(0, None, ("r2",)),), segments=(
-        SegmentHold(), SegmentHold((), True, ("r2",)), SegmentHold())), (10.0, 5.0)))
-    assert back.phase == RobotMode.DRIVE and back.aside == () and back.route[-1] == (12.6, 1.5)
-    # Without step_aside it stays.
-    stays = WaypointPolicy(["r0", "r1", "r2"], 0, spur_world(), None,
-                           WaypointParams(step_aside=False))
-    assert stays.update(queueing, inputs(waiting("r1"))).phase == RobotMode.QUEUE
 
 
 def test_a_robot_held_back_gives_up_the_segments_of_its_run_it_does_not_stand_in():
