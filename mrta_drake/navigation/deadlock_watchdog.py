@@ -442,21 +442,24 @@ class DeadlockWatchdog(LeafSystem):
         broken = (self._disturbances.Eval(context).broken
                   if self._disturbances.HasValue(context) else ())
         broken = {self._robots[k] for k in broken}
-        stay = holders | broken | {order.robot for order in misses}
-        for robot in sorted(cycle, key=lambda r: (r not in holders, self._priorities[
-                self._robots.index(r)], self._robots.index(r))):
-            blockers = [other for other in cycle
-                        if other != robot and not asks[robot].isdisjoint(stands[other])]
-            if not blockers or not stay.isdisjoint(blockers):
-                continue
-            given = self._orders(context, blockers, cycle, robot, states, targets, requests,
-                                 began, now)
-            if not given:
-                continue
-            line = queues.segment_waiting
-            ahead = ({j for j in line[:line.index(robot)] if not asks[j].isdisjoint(
-                asks[robot])} if robot in line else set()) - set(blockers) - broken - backing
-            return given + self._stand(ahead, robot, states, began, now)
+        fixed = broken | {order.robot for order in misses}
+        ranked = sorted(cycle, key=lambda r: (r not in holders, self._priorities[
+            self._robots.index(r)], self._robots.index(r)))
+        for stay in (holders | fixed, fixed):  # rooms' holders last
+            for robot in ranked:
+                blockers = [other for other in cycle
+                            if other != robot and not asks[robot].isdisjoint(stands[other])]
+                if not blockers or not stay.isdisjoint(blockers) or (
+                        stay is fixed and holders.isdisjoint(blockers)):  # tried already
+                    continue
+                given = self._orders(context, blockers, cycle, robot, states, targets,
+                                     requests, began, now)
+                if not given:
+                    continue
+                line = queues.segment_waiting
+                ahead = ({j for j in line[:line.index(robot)] if not asks[j].isdisjoint(
+                    asks[robot])} if robot in line else set()) - set(blockers) - broken - backing
+                return given + self._stand(ahead, robot, states, began, now)
         return ()
 
     def _releasing(self, group, active, waits, holders, now) -> tuple[BackOff, ...]:
