@@ -445,7 +445,8 @@ class DeadlockWatchdog(LeafSystem):
         fixed = broken | {order.robot for order in misses}
         ranked = sorted(cycle, key=lambda r: (r not in holders, self._priorities[
             self._robots.index(r)], self._robots.index(r)))
-        for stay in (holders | fixed, fixed):  # rooms' holders last
+        late = now - began >= self._params.gridlock_time - 1e-9
+        for stay in (holders | fixed, fixed) if late else (holders | fixed,):
             for robot in ranked:
                 blockers = [other for other in cycle
                             if other != robot and not asks[robot].isdisjoint(stands[other])]

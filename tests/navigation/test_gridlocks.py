@@ -378,7 +378,7 @@ def test_a_rooms_holder_standing_in_the_segment_a_cycle_waits_for_gives_way_last
     watchdog.GetInputPort("queue_request_r1").FixValue(
         context, QueueRequest("r1", segments=((0, True),), standing=(0,)))
     simulator = Simulator(watchdog, context)
-    simulator.AdvanceTo(2 * WatchdogParams().cycle_time)
+    simulator.AdvanceTo(WatchdogParams().gridlock_time + 5.0)
     orders = watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
     assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r1", True, ("r0",))]
-    assert orders[0].issued == pytest.approx(WatchdogParams().cycle_time)
+    assert orders[0].issued == pytest.approx(WatchdogParams().gridlock_time)
