@@ -226,7 +226,10 @@ class DeadlockWatchdog(LeafSystem):
        off the other members' ways and the lanes of the segments they ask for, off every
        single-file lane where there is such a spot), all at once, or none if one of them
        has no spot; the robots before the freed one in the segments' line asking for one of
-       its segments stand (as in step 5).
+       its segments stand (as in step 5). Once the cycle has lasted ``gridlock_time`` with
+       no robot so freed, rooms' holders may give way too (last: a holder in a cycle serves
+       nothing, standing off its room's point, at a slot or on its way out; it keeps its
+       room while it stands aside).
 
     ``costmap``: the static costmap the spots are checked against (the way to a spot
     keeps to its ``FREE`` cells). ``priorities``: per robot, smaller keeps its way
@@ -438,7 +441,9 @@ class DeadlockWatchdog(LeafSystem):
         of (in single-file segments it asks for), and none of them a room's holder,
         broken down or one that missed an order within ``retry_window``, they all go
         to spots off the others' ways, and the robots before it in the segments' line
-        asking for one of those segments stand (as in step 5)."""
+        asking for one of those segments stand (as in step 5); with no such robot, once
+        the cycle (since ``began``) has lasted ``gridlock_time``, the same with rooms'
+        holders among those going."""
         broken = (self._disturbances.Eval(context).broken
                   if self._disturbances.HasValue(context) else ())
         broken = {self._robots[k] for k in broken}
