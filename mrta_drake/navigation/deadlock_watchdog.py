@@ -226,7 +226,10 @@ class DeadlockWatchdog(LeafSystem):
        off the other members' ways and the lanes of the segments they ask for, off every
        single-file lane where there is such a spot), all at once, or none if one of them
        has no spot; the robots before the freed one in the segments' line asking for one of
-       its segments stand (as in step 5).
+       its segments stand (as in step 5). Once the cycle has lasted ``gridlock_time`` with
+       no robot so freed, rooms' holders may give way too (last: a holder in a cycle serves
+       nothing, standing off its room's point, at a slot or on its way out; it keeps its
+       room while it stands aside).
 
     ``costmap``: the static costmap the spots are checked against (the way to a spot
     keeps to its ``FREE`` cells). ``priorities``: per robot, smaller keeps its way
@@ -438,25 +441,31 @@ class DeadlockWatchdog(LeafSystem):
         of (in single-file segments it asks for), and none of them a room's holder,
         broken down or one that missed an order within ``retry_window``, they all go
         to spots off the others' ways, and the robots before it in the segments' line
-        asking for one of those segments stand (as in step 5)."""
+        asking for one of those segments stand (as in step 5); with no such robot, once
+        the cycle (since ``began``) has lasted ``gridlock_time``, the same with rooms'
+        holders among those going."""
         broken = (self._disturbances.Eval(context).broken
                   if self._disturbances.HasValue(context) else ())
         broken = {self._robots[k] for k in broken}
-        stay = holders | broken | {order.robot for order in misses}
-        for robot in sorted(cycle, key=lambda r: (r not in holders, self._priorities[
-                self._robots.index(r)], self._robots.index(r))):
-            blockers = [other for other in cycle
-                        if other != robot and not asks[robot].isdisjoint(stands[other])]
-            if not blockers or not stay.isdisjoint(blockers):
-                continue
-            given = self._orders(context, blockers, cycle, robot, states, targets, requests,
-                                 began, now)
-            if not given:
-                continue
-            line = queues.segment_waiting
-            ahead = ({j for j in line[:line.index(robot)] if not asks[j].isdisjoint(
-                asks[robot])} if robot in line else set()) - set(blockers) - broken - backing
-            return given + self._stand(ahead, robot, states, began, now)
+        fixed = broken | {order.robot for order in misses}
+        ranked = sorted(cycle, key=lambda r: (r not in holders, self._priorities[
+            self._robots.index(r)], self._robots.index(r)))
+        late = now - began >= self._params.gridlock_time - 1e-9
+        for stay in (holders | fixed, fixed) if late else (holders | fixed,):
+            for robot in ranked:
+                blockers = [other for other in cycle
+                            if other != robot and not asks[robot].isdisjoint(stands[other])]
+                if not blockers or not stay.isdisjoint(blockers) or (
+                        stay is fixed and holders.isdisjoint(blockers)):  # tried already
+                    continue
+                given = self._orders(context, blockers, cycle, robot, states, targets,
+                                     requests, began, now)
+                if not given:
+                    continue
+                line = queues.segment_waiting
+                ahead = ({j for j in line[:line.index(robot)] if not asks[j].isdisjoint(
+                    asks[robot])} if robot in line else set()) - set(blockers) - broken - backing
+                return given + self._stand(ahead, robot, states, began, now)
         return ()
 
     def _releasing(self, group, active, waits, holders, now) -> tuple[BackOff, ...]:

@@ -355,3 +355,30 @@ def test_a_robot_standing_aside_holding_segments_others_wait_for_lets_them_go():
     assert orders.active == (replace(aside, issued=WatchdogParams().gridlock_time,
                                      blockers=("r0",), releases=True),)
     assert orders.history == (aside, orders.active[0])
+
+
+def test_a_rooms_holder_standing_in_the_segment_a_cycle_waits_for_gives_way_last():
+    # r1 holds room 0 and, leaving, stands in segment 0 (off its room's point, so serving
+    # nothing) waiting for the segment, which r0 holds and asks for, kept out by r1: a
+    # cycle of waits whose only robot in another's way is the holder. No other robot of
+    # the cycle can be moved, so the holder gives way once the cycle has lasted cycle_time.
+    watchdog = DeadlockWatchdog(["r0", "r1"], [0.22, 0.22],
+                                Costmap.from_obstacles(Obstacles(), BOUNDS), rate_hz=2.0)
+    context = watchdog.CreateDefaultContext()
+    watchdog.GetInputPort("robot_state").FixValue(
+        context, [0.0, 0.0, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0])
+    watchdog.GetInputPort("target_r0").FixValue(
+        context, WaypointTarget("r0", True, (8.0, 0.0), None, True))
+    watchdog.GetInputPort("target_r1").FixValue(
+        context, WaypointTarget("r1", True, (-8.0, 0.0), None, True))
+    watchdog.GetInputPort("queue_state").FixValue(context, QueueState(
+        (RoomQueue(0, "r1"),), segments=(SegmentHold(("r0",)),), segment_waiting=("r1",)))
+    watchdog.GetInputPort("queue_request_r0").FixValue(
+        context, QueueRequest("r0", segments=((0, True),)))
+    watchdog.GetInputPort("queue_request_r1").FixValue(
+        context, QueueRequest("r1", segments=((0, True),), standing=(0,)))
+    simulator = Simulator(watchdog, context)
+    simulator.AdvanceTo(WatchdogParams().gridlock_time + 5.0)
+    orders = watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
+    assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r1", True, ("r0",))]
+    assert orders[0].issued == pytest.approx(WatchdogParams().gridlock_time)
