@@ -347,6 +347,7 @@ class DeadlockWatchdog(LeafSystem):
         queues: QueueState = self._queue_state.Eval(context)
         requests = self._requests.values(context)
         waits = waits_for(queues, requests)
+        asks = {request.robot: {k for k, _ in request.segments} for request in requests}
         backing = {order.robot for order in active}
         holders = {queue.holder for queue in queues.rooms} - {None}
         moving = {robot for k, robot in enumerate(self._robots)
@@ -361,7 +362,7 @@ class DeadlockWatchdog(LeafSystem):
         going = {robot for robot, anchor in zip(self._robots, anchors, strict=True)
                  if robot in moving and anchor is not None
                  and now - anchor.since < self._params.cycle_time - 1e-9}
-        cycled, given = self._cycles(requests, queues, waits, holders, serving,
+        cycled, given = self._cycles(requests, asks, queues, waits, holders, serving,
                                      going | at_lifts, backing, old.cycled, misses, context,
                                      states, targets, now)
         groups = gridlocks(waits, stalled_waits(waits, live))
@@ -379,7 +380,7 @@ class DeadlockWatchdog(LeafSystem):
             given = (self._releasing(group, active, waits, holders, now)
                      if backing.intersection(group) else
                      self._give_way(context, group, waits, holders, states, targets,
-                                    requests, history, queues, backing, began, now))
+                                    requests, asks, history, queues, backing, began, now))
             if given:
                 for k in index:
                     since[k] = replace(since[k], since=now)
@@ -407,7 +408,7 @@ class DeadlockWatchdog(LeafSystem):
             anchors.append(anchor)
         return anchors
 
-    def _cycles(self, requests, queues, waits, holders, serving, going, backing, since,
+    def _cycles(self, requests, asks, queues, waits, holders, serving, going, backing, since,
                 misses, context, states, targets, now
                 ) -> tuple[tuple[float | None, ...], tuple[BackOff, ...]]:
         """Step 6 (class docstring): since when each robot has been in a cycle of waits
@@ -416,7 +417,6 @@ class DeadlockWatchdog(LeafSystem):
         that lasted ``cycle_time`` (or none)."""
         still = [robot for robot in self._robots
                  if robot not in going and robot not in backing and robot not in serving]
-        asks = {request.robot: {k for k, _ in request.segments} for request in requests}
         stands = {request.robot: set(request.standing) for request in requests}
         cycles = wait_cycles(waits, asks, stands, still)
         member = {robot for cycle in cycles for robot in cycle}
@@ -444,9 +444,7 @@ class DeadlockWatchdog(LeafSystem):
         asking for one of those segments stand (as in step 5); with no such robot, once
         the cycle (since ``began``) has lasted ``gridlock_time``, the same with rooms'
         holders among those going."""
-        broken = (self._disturbances.Eval(context).broken
-                  if self._disturbances.HasValue(context) else ())
-        broken = {self._robots[k] for k in broken}
+        broken = {self._robots[k] for k in self._disturbances_now(context).broken}
         fixed = broken | {order.robot for order in misses}
         ranked = sorted(cycle, key=lambda r: (r not in holders, self._priorities[
             self._robots.index(r)], self._robots.index(r)))
@@ -462,9 +460,8 @@ class DeadlockWatchdog(LeafSystem):
                                      requests, began, now)
                 if not given:
                     continue
-                line = queues.segment_waiting
-                ahead = ({j for j in line[:line.index(robot)] if not asks[j].isdisjoint(
-                    asks[robot])} if robot in line else set()) - set(blockers) - broken - backing
+                ahead = _before_in_line(queues.segment_waiting, robot, asks) - set(
+                    blockers) - broken - backing
                 return given + self._stand(ahead, robot, states, began, now)
         return ()
 
@@ -486,21 +483,19 @@ class DeadlockWatchdog(LeafSystem):
             robot for robot in self._robots if order.robot in waits.get(robot, ())))
             for order in orders)
 
-    def _give_way(self, context, group, waits, holders, states, targets, requests, history,
-                  queues, backing, stalled_since, now) -> tuple[BackOff, ...]:
+    def _give_way(self, context, group, waits, holders, states, targets, requests, asks,
+                  history, queues, backing, stalled_since, now) -> tuple[BackOff, ...]:
         """The ``releases`` orders that break gridlock ``group`` (class docstring, step 5),
-        or () when no robot may give way with a spot to go to (``backing``: the robots
-        under an order already, given none)."""
+        or () when no robot may give way with a spot to go to (``asks``: the segments each
+        robot asks for; ``backing``: the robots under an order already, given none)."""
         p = self._params
-        broken = (self._disturbances.Eval(context).broken
-                  if self._disturbances.HasValue(context) else ())
+        broken = self._disturbances_now(context).broken
         recent = {order.robot for order in history
                   if order.releases and order.issued > now - p.gridlock_cooldown + 1e-9}
         may = {robot for k, robot in enumerate(self._robots)
                if robot not in holders and k not in broken}
         waiting = {robot for k, robot in enumerate(self._robots)
                    if robot in waits and k not in broken}
-        asks = {request.robot: {k for k, _ in request.segments} for request in requests}
         line = queues.segment_waiting
         awaited = {queue.holder for queue in queues.rooms
                    if not set(queue.waiting).isdisjoint(group)}
@@ -508,9 +503,8 @@ class DeadlockWatchdog(LeafSystem):
                         self._priorities[self._robots.index(robot)], self._robots.index(robot))
                 for robot in group}
         for robot in sorted((r for r in group if r in line), key=rank.get):
-            wanted = asks[robot]
-            inside = {j for k in wanted for j in queues.segments[k].holders} - {robot}
-            ahead = {j for j in line[:line.index(robot)] if asks[j] & wanted} - inside
+            inside = {j for k in asks[robot] for j in queues.segments[k].holders} - {robot}
+            ahead = _before_in_line(line, robot, asks) - inside
             if (not (inside or ahead) or not inside <= may - recent or not ahead <= waiting
                     or not backing.isdisjoint(inside | ahead)):
                 continue
@@ -627,8 +621,7 @@ class DeadlockWatchdog(LeafSystem):
         p = self._params
         idle = np.array([not t.active or t.current is None for t in targets])
         stalled_here = [k for k in group if stalled[k]]
-        broken = (self._disturbances.Eval(context).broken
-                  if self._disturbances.HasValue(context) else ())
+        broken = self._disturbances_now(context).broken
         missed_spots = {k: self._spots_to_avoid(k, misses) for k in group}
         all_ways = [_way(xy[j], targets[j]) for j in range(len(xy))]
         in_way = in_ways(group, stalled, xy, self._radii, all_ways, p.spot_clearance)
@@ -653,6 +646,12 @@ class DeadlockWatchdog(LeafSystem):
                                    tuple(self._robots[j] for j in blockers), since)
         return None
 
+
+    def _disturbances_now(self, context):
+        """The disturbances in force (``NO_DISTURBANCES`` where the input is not
+        connected)."""
+        return (self._disturbances.Eval(context) if self._disturbances.HasValue(context)
+                else NO_DISTURBANCES)
 
     def _spots_to_avoid(self, k: int, misses: tuple[BackOff, ...]) -> np.ndarray:
         """(M, 2) the spots robot ``k`` missed, where it must not be sent again."""
@@ -682,8 +681,7 @@ class DeadlockWatchdog(LeafSystem):
         with np.errstate(invalid="ignore"):  # people absent from the run are NaN
             near = np.flatnonzero(np.linalg.norm(people - xy[k], axis=-1) - radii
                                   - self._radii[k] <= self._params.block_gap)
-        disturbances = (self._disturbances.Eval(context)
-                        if self._disturbances.HasValue(context) else NO_DISTURBANCES)
+        disturbances = self._disturbances_now(context)
         p = self._params
         if k in disturbances.broken or (len(near) == 0 and (
                 k in disturbances.cut_off  # it stands until messages return
@@ -708,6 +706,15 @@ def _way_through(start, through, length: float) -> np.ndarray:
     norm = float(np.hypot(*step))
     end = through if norm < 1e-9 else start + step * (length / norm)
     return np.array([start, end])
+
+
+def _before_in_line(line, robot: str, asks) -> set[str]:
+    """The robots before ``robot`` in the segments' waiting ``line`` (``QueueState``'s
+    ``segment_waiting``) that ask for one of the segments it asks for (``asks``: robot ->
+    segment indices); none when it is not in the line."""
+    if robot not in line:
+        return set()
+    return {j for j in line[:line.index(robot)] if not asks[j].isdisjoint(asks[robot])}
 
 
 def _way(xy, target: WaypointTarget) -> np.ndarray:
