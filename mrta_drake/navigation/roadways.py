@@ -84,6 +84,12 @@ def segment_crosses_box(a, b, box) -> bool:
     return True
 
 
+def single_file_lanes(graph: nx.DiGraph, segment: Sequence[str]) -> list[tuple[str, str]]:
+    """The lanes (from, to) of ``graph`` a single-file segment through the roadway nodes
+    ``segment`` holds: every lane between two of its nodes."""
+    return list(graph.subgraph(segment).edges)
+
+
 def _on_segment(p, a, b, tolerance: float = 1e-3) -> bool:
     """Whether point ``p`` lies on the segment from ``a`` to ``b`` (within ``tolerance``,
     m)."""
@@ -190,7 +196,7 @@ class Roadways:
             if not isinstance(name, str | int) or name not in self.graph:
                 raise InputError(self._file, field, f"unknown node {name!r}")
         order = {name: i for i, name in enumerate(names)}
-        for a, b in self.graph.subgraph(order).edges:
+        for a, b in single_file_lanes(self.graph, names):
             ends = tuple(tuple(float(v) for v in self.node_position(n)) for n in (a, b))
             self._segment_of.setdefault(ends, (k, order[a] < order[b]))
 

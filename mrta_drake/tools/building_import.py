@@ -33,12 +33,13 @@ import shutil
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+import networkx as nx
 import numpy as np
 import yaml
 
 from mrta_drake.control.barriers import SafetyDistances
 from mrta_drake.errors import InputError
-from mrta_drake.navigation.roadways import Roadways
+from mrta_drake.navigation.roadways import Roadways, single_file_lanes
 from mrta_drake.navigation.standstills import distance_to_polyline
 from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig, TasksConfig
 from mrta_drake.scenario.stream_sizing import BATCH_SIZE, LEG_SHARE, StreamSize, size_stream
@@ -307,11 +308,12 @@ def controller_params(roadways: RoadwaysConfig, floor_plan: FloorPlan) -> dict:
 
 
 def _has_two_way_corridors(roadways: RoadwaysConfig) -> bool:
-    """Whether some lane of ``roadways`` lies in no single-file segment (a segment holds
-    every lane between two of its nodes, as ``Roadways`` reads it)."""
-    segments = [set(segment) for segment in roadways.single_file]
-    return any(not any(a in nodes and b in nodes for nodes in segments)
-               for a, b in roadways.edges)
+    """Whether some lane of ``roadways`` lies in no single-file segment
+    (``single_file_lanes``)."""
+    graph = nx.DiGraph(tuple(edge) for edge in roadways.edges)
+    held = {lane for segment in roadways.single_file
+            for lane in single_file_lanes(graph, segment)}
+    return any(lane not in held for lane in graph.edges)
 
 
 def _heading(lines, node: str) -> float:
