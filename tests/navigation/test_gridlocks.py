@@ -4,6 +4,7 @@ broken by the deadlock watchdog (``releases`` orders, step 5 of ``DeadlockWatchd
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 from pydrake.common.value import Value
 from pydrake.systems.analysis import Simulator
@@ -20,7 +21,12 @@ from mrta_drake.navigation.deadlock_watchdog import (
 from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.room_queues import RoomQueues
 from mrta_drake.navigation.single_file import Need, SingleFileParams, stop_segments
-from mrta_drake.navigation.standstills import gridlocks, wait_cycles, waits_for
+from mrta_drake.navigation.standstills import (
+    distance_to_polyline,
+    gridlocks,
+    wait_cycles,
+    waits_for,
+)
 from mrta_drake.navigation.waypoint_generator import (
     WaypointGenerator,
     WaypointParams,
@@ -382,3 +388,34 @@ def test_a_rooms_holder_standing_in_the_segment_a_cycle_waits_for_gives_way_last
     orders = watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
     assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r1", True, ("r0",))]
     assert orders[0].issued == pytest.approx(WatchdogParams().gridlock_time)
+
+
+def test_a_robot_waiting_for_segments_in_the_doorway_of_their_holder_gives_way():
+    # Office seed 2 (docs/worlds.md, "A robot waiting in a room's doorway"): r0 stands in
+    # the doorway of room H waiting for segment 0, held by r1, H's holder, which waits at
+    # its slot for r0 to leave the doorway (QueueRequest.door). The recorder counts r1 as
+    # serving (at its target, holding a room), yet the two wait for each other: r0 gives
+    # way once the cycle has lasted cycle_time, to a spot off H's doorway.
+    roadways = _dead_end()
+    watchdog = DeadlockWatchdog(["r0", "r1"], [0.22, 0.22],
+                                Costmap.from_obstacles(Obstacles(), BOUNDS), rate_hz=2.0,
+                                roadways=roadways)
+    context = watchdog.CreateDefaultContext()
+    watchdog.GetInputPort("robot_state").FixValue(
+        context, [0.8, 0.9, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0])
+    watchdog.GetInputPort("target_r0").FixValue(context, WaypointTarget("r0"))
+    watchdog.GetInputPort("target_r1").FixValue(
+        context, WaypointTarget("r1", True, (3.0, 0.0), None, True))
+    watchdog.GetInputPort("queue_state").FixValue(context, QueueState(
+        (RoomQueue(H, "r1"),), segments=(SegmentHold(("r1",)),), segment_waiting=("r0",)))
+    watchdog.GetInputPort("queue_request_r0").FixValue(
+        context, QueueRequest("r0", segments=((0, True),)))
+    watchdog.GetInputPort("queue_request_r1").FixValue(
+        context, QueueRequest("r1", H, segments=((0, True),), door=("r0",)))
+    simulator = Simulator(watchdog, context)
+    simulator.AdvanceTo(WatchdogParams().gridlock_time + 5.0)
+    orders = watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
+    assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
+    assert orders[0].issued == pytest.approx(WatchdogParams().cycle_time)
+    doorway = roadways.place(H).doorway
+    assert distance_to_polyline(np.array([orders[0].point]), doorway)[0] > 0.22 + 0.22
