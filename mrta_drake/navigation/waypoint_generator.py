@@ -371,11 +371,8 @@ class WaypointPolicy:
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
     current stop is elsewhere and it is more than ``release_distance`` from the room's
-    point, or waits at a slot of that stop's queue (within ``waypoint_tolerance``: out of the
-    room, it must not keep it from the robots queueing for it while it queues nearby), or
-    holds that stop's room and is out of the room it left (``_out_of``: entering the next
-    room, granted it before any slot, it keeps the last from the robots queueing for it no
-    longer than while waiting at a slot), or,
+    point or waits at a slot of that stop's queue (within ``waypoint_tolerance``: out of the
+    room, it must not keep it from the robots queueing for it while it queues nearby), or,
     with no stop left, once it is more than ``reach_tolerance`` from the point
     (at once where there is no parking spot, or where another robot stands on the spot it
     drives to: every spot was taken). It keeps naming that room in ``release`` until the
@@ -1153,9 +1150,6 @@ class WaypointPolicy:
         return index
 
     def _release(self, s: _Drive, robots: _Robots, queues: QueueState) -> int | None:
-        """The room the robot asks to release now, or None (class docstring, "Release")."""
-        next_room = None if s.stop is None else queues.room(s.stop.location)
-        entering = next_room is not None and next_room.holder == self._robot
         for queue in queues.rooms:
             if queue.holder != self._robot:
                 continue
@@ -1170,18 +1164,9 @@ class WaypointPolicy:
             if s.stop.location != queue.room and (
                 _distance(robots.xy, point) > self._params.release_distance
                 or self._at_slot(s, robots.xy)
-                or (entering and self._out_of(queue.room, robots.xy))
             ):
                 return queue.room
         return None
-
-    def _out_of(self, room: int, xy) -> bool:
-        """Whether ``xy`` is out of ``room``: farther than ``door_clearance`` from its
-        doorway (``Place.doorway``) and than ``reach_tolerance`` from its parking spots."""
-        place, params = self._roadways.place(room), self._params
-        return bool(distance_to_polyline(np.array([xy], dtype=float), place.doorway)[0]
-                    > params.door_clearance) and all(
-            _distance(xy, spot) > params.reach_tolerance for spot in place.parking)
 
     def _at_slot(self, s: _Drive, xy) -> bool:
         """Whether the robot waits at its queue slot (within ``waypoint_tolerance``)."""

@@ -441,21 +441,6 @@ def test_a_robot_waiting_at_its_next_stops_queue_releases_the_room_it_left():
     assert queues.room(A).holder is None
 
 
-def test_a_robot_holding_its_next_stops_room_releases_the_room_it_left():
-    # r0 serves A, then B, each for 20 s; r1 waits for A. B is free: r0, granted it as it
-    # comes to B's queue, drives in at once, never waiting at a slot, and stays within
-    # release_distance (30 m here) of A's point all the way. Holding B and out of A's
-    # doorway, it gives A back (before, it kept A until done at B: on the office, seed 11,
-    # robot5 held patrol_D1 while entering patrol_A1, and robot1, queueing for it, waited).
-    params = WaypointParams(service_time=20.0, release_distance=30.0)
-    world = World([A, C], fixed([A, B], [A]), params=params)
-    world.run(until=110.0)
-    holding_b = [(t, q) for t, q, _, _ in world.log if q.room(B).holder == "r0"]
-    assert holding_b, "r0 never held B"
-    assert [v.location for v in world.progress(0).visits] == [A, B]
-    assert world.progress(1).visits[0].time < world.progress(0).visits[1].time
-
-
 def fleet(*routes) -> FleetPlan:
     """Robot ``r<i>`` gets the stops ``routes[i]`` ((key, location) pairs)."""
     return FleetPlan(tuple(RobotPlan(f"r{i}", tuple(Stop(k, loc) for k, loc in stops))
