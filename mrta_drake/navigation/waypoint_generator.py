@@ -1106,11 +1106,8 @@ class WaypointPolicy:
         jamb). Left out are the robots that stand there for good or wait for the holder,
         since waiting for them would deadlock: within ``reach_tolerance`` of the point or
         a parking spot (waiting to serve, parked, or held to leave: ``_held_at_door``),
-        within ``parking_clearance`` of a start spot (at home), in the room's queue, and
-        broken down. A robot waiting there for single-file segments takes the doorway (the
-        holder would drive into it head-on); where it waits for segments the holder holds,
-        the two wait for each other, and the deadlock watchdog sends it aside (its step 6,
-        ``door``)."""
+        within ``parking_clearance`` of a start spot (at home), in the room's queue, waiting
+        for single-file segments, and broken down."""
         states = robots.states
         near = np.abs(states[:, 3]) <= ROBOT_STOPPED_SPEED
         near[self._index] = False
@@ -1124,7 +1121,7 @@ class WaypointPolicy:
         if self._starts:
             near &= _nearest(xy, self._starts) > params.parking_clearance
         queue = queues.room(place.id)
-        waiting = () if queue is None else queue.waiting
+        waiting = {*queues.segment_waiting, *(() if queue is None else queue.waiting)}
         broken = robots.broken
         return tuple(self._names[k] for k in np.flatnonzero(near)
                      if self._names[k] not in waiting and k not in broken)

@@ -584,11 +584,14 @@ def test_a_holder_driving_in_on_single_file_segments_stands_where_it_is():
 
 def test_a_holder_does_not_wait_for_the_robots_that_wait_for_it_or_stand_for_good():
     # Each of these stands in B's doorway yet is no reason to wait (it would deadlock): on
-    # the point to serve there after r0, in B's queue, broken down, or at its start spot.
+    # the point to serve there after r0, in B's queue, waiting for single-file segments,
+    # broken down, or at its start spot.
     door = (15.5, 2.0)  # between B's first slot and its entry point
     cases = [
         (RoomQueue(B, holder="r0"), (15.0, 4.3), Disturbances(), ()),
         (RoomQueue(B, holder="r0", waiting=("r1",)), door, Disturbances(), ()),
+        (QueueState((RoomQueue(B, holder="r0"),), segment_waiting=("r1",)), door,
+         Disturbances(), ()),
         (RoomQueue(B, holder="r0"), door, Disturbances(breakdowns=(Breakdown(1, 0.0),)), ()),
         (RoomQueue(B, holder="r0"), door, Disturbances(), (door,)),
     ]
@@ -601,17 +604,6 @@ def test_a_holder_does_not_wait_for_the_robots_that_wait_for_it_or_stand_for_goo
     generator, context, place = queueing_at_b(RoomQueue(B, holder="r0"), slot=0)
     assert stepper(generator, context, place.queue[0])(door, 0.0).current == \
         tuple(place.queue[0])
-
-
-def test_a_holder_waits_for_a_robot_waiting_for_segments_in_its_doorway():
-    # Office seed 2 (docs/worlds.md, "A robot waiting in a room's doorway"): a holder that
-    # left such a robot out drove into it head-on. It waits (the watchdog sends the robot
-    # aside where it waits for the holder's segments).
-    queues = QueueState((RoomQueue(B, holder="r0"),), segment_waiting=("r1",))
-    generator, context, place = queueing_at_b(queues, slot=0)
-    assert stepper(generator, context, place.queue[0])((15.5, 2.0), 0.0).current == \
-        tuple(place.queue[0])
-    assert generator.GetOutputPort("queue_request").Eval(context).door == ("r1",)
 
 
 def test_a_holder_enters_after_door_patience_and_keeps_going():
