@@ -390,32 +390,51 @@ def test_a_rooms_holder_standing_in_the_segment_a_cycle_waits_for_gives_way_last
     assert orders[0].issued == pytest.approx(WatchdogParams().gridlock_time)
 
 
-def test_a_robot_waiting_for_segments_in_the_doorway_of_their_holder_gives_way():
-    # Office seed 2 (docs/worlds.md, "A robot waiting in a room's doorway"): r0 stands in
-    # the doorway of room H waiting for segment 0, held by r1, H's holder, which waits at
-    # its slot for r0 to leave the doorway (QueueRequest.door). The recorder counts r1 as
-    # serving (at its target, holding a room), yet the two wait for each other: r0 gives
-    # way once the cycle has lasted cycle_time, to a spot off H's doorway.
-    roadways = _dead_end()
+
+def _door_waits(r0_request, r1_request, queues, until):
+    """The watchdog alone on ``_dead_end``: r0 stands still in room H's doorway at
+    (0.8, 0.9), r1 at (3, 0) at its target (holding a room, so serving as the recorder
+    counts it); each asks as given. The orders given by ``until`` (s)."""
     watchdog = DeadlockWatchdog(["r0", "r1"], [0.22, 0.22],
                                 Costmap.from_obstacles(Obstacles(), BOUNDS), rate_hz=2.0,
-                                roadways=roadways)
+                                roadways=_dead_end())
     context = watchdog.CreateDefaultContext()
     watchdog.GetInputPort("robot_state").FixValue(
         context, [0.8, 0.9, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0])
-    watchdog.GetInputPort("target_r0").FixValue(context, WaypointTarget("r0"))
+    watchdog.GetInputPort("target_r0").FixValue(
+        context, WaypointTarget("r0", True, (0.8, 0.9), None, True))
     watchdog.GetInputPort("target_r1").FixValue(
         context, WaypointTarget("r1", True, (3.0, 0.0), None, True))
-    watchdog.GetInputPort("queue_state").FixValue(context, QueueState(
-        (RoomQueue(H, "r1"),), segments=(SegmentHold(("r1",)),), segment_waiting=("r0",)))
-    watchdog.GetInputPort("queue_request_r0").FixValue(
-        context, QueueRequest("r0", segments=((0, True),)))
-    watchdog.GetInputPort("queue_request_r1").FixValue(
-        context, QueueRequest("r1", H, segments=((0, True),), door=("r0",)))
+    watchdog.GetInputPort("queue_state").FixValue(context, queues)
+    watchdog.GetInputPort("queue_request_r0").FixValue(context, r0_request)
+    watchdog.GetInputPort("queue_request_r1").FixValue(context, r1_request)
     simulator = Simulator(watchdog, context)
-    simulator.AdvanceTo(WatchdogParams().gridlock_time + 5.0)
-    orders = watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
+    simulator.AdvanceTo(until)
+    return watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
+
+
+def test_a_robot_in_the_doorway_of_a_holder_it_waits_for_gives_way():
+    # Office seed 11: r1 holds room G, which it left, and room H, and waits at H's door for
+    # r0, which stands in H's doorway queueing for G: the two wait for each other, though
+    # the recorder counts r1 (at its slot, holding a room) as serving. r0 gives way once
+    # the cycle has lasted cycle_time, to a spot off H's doorway.
+    orders = _door_waits(QueueRequest("r0", G), QueueRequest("r1", H, door=("r0",)),
+                         QueueState((RoomQueue(G, "r1", ("r0",)), RoomQueue(H, "r1"))),
+                         WatchdogParams().gridlock_time + 5.0)
     assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
     assert orders[0].issued == pytest.approx(WatchdogParams().cycle_time)
-    doorway = roadways.place(H).doorway
+    doorway = _dead_end().place(H).doorway
     assert distance_to_polyline(np.array([orders[0].point]), doorway)[0] > 0.22 + 0.22
+
+
+def test_two_holders_each_in_the_others_doorway_one_gives_way_after_gridlock_time():
+    # Office seed 11 (docs/worlds.md, "A robot holding the room it left"): robot5 waited at
+    # patrol_A1's door for robot6, pantry's holder, standing in its doorway, and robot6 at
+    # pantry's door for robot5 until door_patience (30 s) ran out. Both hold rooms: one
+    # gives way once the cycle has lasted gridlock_time (rooms' holders last).
+    orders = _door_waits(QueueRequest("r0", G, door=("r1",)),
+                         QueueRequest("r1", H, door=("r0",)),
+                         QueueState((RoomQueue(G, "r0"), RoomQueue(H, "r1"))),
+                         WatchdogParams().gridlock_time + 5.0)
+    assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r1", True, ("r0",))]
+    assert orders[0].issued == pytest.approx(WatchdogParams().gridlock_time)
