@@ -330,7 +330,8 @@ class WaypointPolicy:
       ``door_clearance`` of the entry path or the point (e.g. one that had parked in the
       room, leaving), or stands within ``door_clearance`` of the doorway, from the first
       slot along the entry path to the point, unless it waits for the holder or stands
-      there for good (``_doorway_takers``). After ``door_patience`` s of one such wait the
+      there for good (``_doorway_takers``; those it waits for so, standing, it names in
+      its queue request's ``door``). After ``door_patience`` s of one such wait the
       holder drives in all the same; with ``door_wait`` off, at once. The mirror: a robot
       about to leave the room it stands in (on its point or a parking spot) while another
       robot holds the room and moves there waits, target inactive, until it stops moving.
