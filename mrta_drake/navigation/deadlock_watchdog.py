@@ -420,9 +420,9 @@ class DeadlockWatchdog(LeafSystem):
         that lasted ``cycle_time`` (or none)."""
         doors = {request.robot: set(request.door) for request in requests}
         still = [robot for robot in self._robots if robot not in going and robot not in
-                 backing and (robot not in serving or doors[robot])]
+                 backing and (robot not in serving or doors.get(robot))]
         stands = {request.robot: set(request.standing) for request in requests}
-        cycles = wait_cycles({robot: {*waits.get(robot, ()), *doors[robot]}
+        cycles = wait_cycles({robot: {*waits.get(robot, ()), *doors.get(robot, ())}
                               for robot in self._robots}, asks, stands, still)
         member = {robot for cycle in cycles for robot in cycle}
         since = tuple((s if s is not None else now) if robot in member else None
@@ -458,7 +458,7 @@ class DeadlockWatchdog(LeafSystem):
         for stay in (holders | fixed, fixed) if late else (holders | fixed,):
             for robot in ranked:
                 blockers = [other for other in cycle if other != robot and (
-                    not asks[robot].isdisjoint(stands[other]) or other in doors[robot])]
+                    not asks[robot].isdisjoint(stands[other]) or other in doors.get(robot, ()))]
                 if not blockers or not stay.isdisjoint(blockers) or (
                         stay is fixed and holders.isdisjoint(blockers)):  # tried already
                     continue
