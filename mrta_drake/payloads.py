@@ -169,7 +169,8 @@ class QueueRequest:
     with the way it drives through it (``Roadways.segment_of``: (index, forward)); it gives
     up each one as soon as it stops naming it. ``stops``: the indices of those it will
     stand in (its route ends there, or it stands), not only drive through; ``standing``:
-    those it stands in now.
+    those it stands in now. ``door``: holding ``room`` and waiting at its door, the robots
+    standing in its doorway that it waits for (the deadlock watchdog's cycles of waits).
     """
 
     robot: str
@@ -178,6 +179,7 @@ class QueueRequest:
     segments: tuple[tuple[int, bool], ...] = ()
     stops: tuple[int, ...] = ()
     standing: tuple[int, ...] = ()
+    door: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

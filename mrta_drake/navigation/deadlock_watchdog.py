@@ -216,14 +216,17 @@ class DeadlockWatchdog(LeafSystem):
        ``progress_distance`` nearer within ``cycle_time``; a robot rocking on the spot is
        still), robot A waits for robot B when B is one it waits for in step 5's sense or B
        stands in a single-file segment A asks for (a room's holder, granted its way, kept
-       off it by a robot queueing for its room in it); robots waiting for each other round
-       a cycle (``standstills.wait_cycles``) wait for good, so a cycle that has lasted
-       ``cycle_time`` (each robot's time in one counted as in step 5) is broken at once:
-       for the first robot of the cycle (rooms' holders first, then by priority, highest
-       first) that other robots of the cycle stand in the way of (in segments it asks for),
-       none of them a room's holder, broken down, or one that missed an order within
-       ``retry_window``, those robots give way (``releases`` orders, as in step 5, to spots
-       off the other members' ways and the lanes of the segments they ask for, off every
+       off it by a robot queueing for its room in it), or B stands in the doorway of the
+       room A holds and waits at the door of (``QueueRequest.door``: A counts as standing
+       still then, though the recorder counts it as serving); robots waiting for each
+       other round a cycle (``standstills.wait_cycles``) wait for good, so a cycle that
+       has lasted ``cycle_time`` (each robot's time in one counted as in step 5) is broken
+       at once: for the first robot of the cycle (rooms' holders first, then by priority,
+       highest first) that other robots of the cycle stand in the way of (in segments it
+       asks for, or in the doorway it waits at), none of them a room's holder, broken
+       down, or one that missed an order within ``retry_window``, those robots give way
+       (``releases`` orders, as in step 5, to spots off the other members' ways, the lanes
+       of the segments they ask for and the doorways they wait at, off every
        single-file lane where there is such a spot), all at once, or none if one of them
        has no spot; the robots before the freed one in the segments' line asking for one of
        its segments stand (as in step 5). Once the cycle has lasted ``gridlock_time`` with
@@ -415,10 +418,12 @@ class DeadlockWatchdog(LeafSystem):
         among the robots standing still (``standstills.wait_cycles``; not ``serving``,
         ``going``, at a lift, or ``backing`` off), and the orders that break one cycle
         that lasted ``cycle_time`` (or none)."""
-        still = [robot for robot in self._robots
-                 if robot not in going and robot not in backing and robot not in serving]
+        doors = {request.robot: set(request.door) for request in requests}
+        still = [robot for robot in self._robots if robot not in going and robot not in
+                 backing and (robot not in serving or doors.get(robot))]
         stands = {request.robot: set(request.standing) for request in requests}
-        cycles = wait_cycles(waits, asks, stands, still)
+        cycles = wait_cycles({robot: {*waits.get(robot, ()), *doors.get(robot, ())}
+                              for robot in self._robots}, asks, stands, still)
         member = {robot for cycle in cycles for robot in cycle}
         since = tuple((s if s is not None else now) if robot in member else None
                       for robot, s in zip(self._robots, since, strict=True))
@@ -426,19 +431,20 @@ class DeadlockWatchdog(LeafSystem):
             began = min(since[self._robots.index(robot)] for robot in cycle)
             if now - began < self._params.cycle_time - 1e-9:
                 continue
-            given = self._free_cycle(context, cycle, asks, stands, holders, states,
+            given = self._free_cycle(context, cycle, asks, stands, doors, holders, states,
                                      targets, requests, queues, backing, misses, began, now)
             if given:
                 return tuple(now if robot in cycle else s
                              for robot, s in zip(self._robots, since, strict=True)), given
         return since, ()
 
-    def _free_cycle(self, context, cycle, asks, stands, holders, states, targets, requests,
-                    queues, backing, misses, began, now) -> tuple[BackOff, ...]:
+    def _free_cycle(self, context, cycle, asks, stands, doors, holders, states, targets,
+                    requests, queues, backing, misses, began, now) -> tuple[BackOff, ...]:
         """The ``releases`` orders that break ``cycle`` (class docstring, step 6), or ()
         when none of its robots can be freed: for the first of its robots (the rooms'
         holders first, then by priority, highest first) that the others stand in the way
-        of (in single-file segments it asks for), and none of them a room's holder,
+        of (in single-file segments it asks for, or in the doorway it waits at: ``doors``,
+        robot -> the robots it waits for there), and none of them a room's holder,
         broken down or one that missed an order within ``retry_window``, they all go
         to spots off the others' ways, and the robots before it in the segments' line
         asking for one of those segments stand (as in step 5); with no such robot, once
@@ -451,8 +457,8 @@ class DeadlockWatchdog(LeafSystem):
         late = now - began >= self._params.gridlock_time - 1e-9
         for stay in (holders | fixed, fixed) if late else (holders | fixed,):
             for robot in ranked:
-                blockers = [other for other in cycle
-                            if other != robot and not asks[robot].isdisjoint(stands[other])]
+                blockers = [other for other in cycle if other != robot and (
+                    not asks[robot].isdisjoint(stands[other]) or other in doors.get(robot, ()))]
                 if not blockers or not stay.isdisjoint(blockers) or (
                         stay is fixed and holders.isdisjoint(blockers)):  # tried already
                     continue
@@ -533,7 +539,8 @@ class DeadlockWatchdog(LeafSystem):
                 stalled_since, now) -> tuple[BackOff, ...]:
         """Orders sending each of ``robots`` (names) to its own spot, off the ways of the
         other robots of ``group`` (and of ``freed``, the robot they make way for): their
-        targets' ways and the lanes of the segments they ask for; off every single-file
+        targets' ways, the lanes of the segments they ask for and the doorways they wait at
+        (``QueueRequest.door``); off every single-file
         segment's lane if there is such a spot (standing on one it would hold it); and
         off the spots given before. () if one of them has no spot."""
         p = self._params
@@ -549,6 +556,8 @@ class DeadlockWatchdog(LeafSystem):
             ways = [(_way(xy[j], targets[j]), self._radii[j]) for j in others]
             ways += [(np.asarray(lane, dtype=float), self._radii[j]) for j in others
                      for lane in self._lanes_asked(requests[j])]
+            ways += [(self._roadways.place(requests[j].room).doorway, self._radii[j])
+                     for j in others if requests[j].door and requests[j].room is not None]
             ways += [(np.asarray(order.point, dtype=float), self._radii[k]) for order in given]
             spot = None
             for extra in (self._all_lanes, []):

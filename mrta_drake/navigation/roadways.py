@@ -46,6 +46,12 @@ class Place:
         """The last queue slot, where legs end."""
         return self.queue[-1]
 
+    @property
+    def doorway(self) -> np.ndarray:
+        """(n, 2) the polyline from the head slot through the entry path to the point: the
+        way into the room, where two robots cannot pass."""
+        return np.array([*self.queue[:1], *self.entry, self.point], dtype=float)
+
 
 def _xy(value, file, field) -> np.ndarray:
     if (

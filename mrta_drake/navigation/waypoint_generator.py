@@ -88,8 +88,10 @@ class _Drive:
     once it rides, standing at ``berth`` in the cabin (world frame, m). ``lanes``: the
     single-file segments it needs now, and whether it stands until it holds them.
     ``door_since``: holding the room and not yet through its door, since when the doorway
-    has been taken (``WaypointPolicy._door_busy``; s), else None. ``giving_way``: a
-    ``releases`` order of the deadlock watchdog is in force for the robot."""
+    has been taken (``WaypointPolicy._door_busy``; s), else None; ``door``: while it so
+    waits, the robots standing in the doorway (``WaypointPolicy._doorway_takers``).
+    ``giving_way``: a ``releases`` order of the deadlock watchdog is in force for the
+    robot."""
 
     phase: RobotMode = RobotMode.IDLE
     stop: Stop | None = None
@@ -107,6 +109,7 @@ class _Drive:
     berth: tuple[float, float] | None = None
     lanes: Need = NOTHING
     door_since: float | None = None
+    door: tuple[str, ...] = ()
     giving_way: bool = False
 
     def __deepcopy__(self, memo):
@@ -327,7 +330,8 @@ class WaypointPolicy:
       ``door_clearance`` of the entry path or the point (e.g. one that had parked in the
       room, leaving), or stands within ``door_clearance`` of the doorway, from the first
       slot along the entry path to the point, unless it waits for the holder or stands
-      there for good (``_doorway_taken``). After ``door_patience`` s of one such wait the
+      there for good (``_doorway_takers``; those it waits for so, standing, it names in
+      its queue request's ``door``). After ``door_patience`` s of one such wait the
       holder drives in all the same; with ``door_wait`` off, at once. The mirror: a robot
       about to leave the room it stands in (on its point or a parking spot) while another
       robot holds the room and moves there waits, target inactive, until it stops moving.
@@ -449,7 +453,7 @@ class WaypointPolicy:
                 s, self._target(s),
                 QueueRequest(self._robot, s.stop.location if s.phase in _ASKING_PHASES
                              and not s.giving_way else None, s.release, s.lanes.segments,
-                             s.lanes.stops, s.lanes.standing),
+                             s.lanes.stops, s.lanes.standing, s.door),
                 RobotProgress(self._robot, s.visits, s.last_location, s.stop, s.detours),
                 self._lift_request(s))
         return outputs
@@ -877,9 +881,11 @@ class WaypointPolicy:
         # Entering while another robot comes out of the room, or stands in its doorway, would
         # stand both in the doorway: the holder waits at its slot, or where it stands.
         slot = self._slot_ahead(s, place) if holding else None
+        takers = () if slot is None else self._doorway_takers(place, robots, queues)
         s = _changed(s, door_since=None if slot is None
-                     else self._door_since(s, place, robots, queues, t))
+                     else self._door_since(s, place, robots, takers, t))
         waits = s.door_since is not None and t - s.door_since < params.door_patience
+        s = _changed(s, door=takers if waits else ())
         if s.phase == RobotMode.ENTER and waits and not s.lanes.segments:
             s = replace(s, phase=RobotMode.QUEUE, route=(), index=slot)
         if s.phase == RobotMode.QUEUE:
@@ -1081,20 +1087,20 @@ class WaypointPolicy:
             return first - s.index
         return None
 
-    def _door_since(self, s: _Drive, place, robots: _Robots, queues: QueueState,
+    def _door_since(self, s: _Drive, place, robots: _Robots, takers: tuple[str, ...],
                     t: float) -> float | None:
         """Since when ``place``'s doorway has been taken for the holder before its door
         (``s.door_since``, or now, ``t``), or None while it is free (or without
         ``door_wait``): another robot moves near the door (``_door_busy``) or stands in
-        the doorway (``_doorway_taken``)."""
+        the doorway (``takers``, ``_doorway_takers``)."""
         if not self._params.door_wait or not (
-                self._door_busy(place, robots.states)
-                or self._doorway_taken(place, robots, queues)):
+                takers or self._door_busy(place, robots.states)):
             return None
         return t if s.door_since is None else s.door_since
 
-    def _doorway_taken(self, place, robots: _Robots, queues: QueueState) -> bool:
-        """Whether another robot stands (no faster than ``ROBOT_STOPPED_SPEED``) within
+    def _doorway_takers(self, place, robots: _Robots, queues: QueueState
+                        ) -> tuple[str, ...]:
+        """The other robots that stand (no faster than ``ROBOT_STOPPED_SPEED``) within
         ``door_clearance`` of ``place``'s doorway, the polyline from its first queue slot
         through the entry path to the point: one cannot pass it there (soak seed 115: robot2,
         the holder, drove past robot6 standing in the door on its way out, 2.4 cm from the
@@ -1107,20 +1113,19 @@ class WaypointPolicy:
         near = np.abs(states[:, 3]) <= ROBOT_STOPPED_SPEED
         near[self._index] = False
         if not near.any():
-            return False
+            return ()
         params, xy = self._params, states[:, :2]
-        doorway = np.array([*place.queue[:1], *place.entry, place.point], dtype=float)
-        near &= distance_to_polyline(xy, doorway) <= params.door_clearance
+        near &= distance_to_polyline(xy, place.doorway) <= params.door_clearance
         if not near.any():
-            return False
+            return ()
         near &= _nearest(xy, [place.point, *place.parking]) > params.reach_tolerance
         if self._starts:
             near &= _nearest(xy, self._starts) > params.parking_clearance
         queue = queues.room(place.id)
         waiting = {*queues.segment_waiting, *(() if queue is None else queue.waiting)}
         broken = robots.broken
-        return any(self._names[k] not in waiting and k not in broken
-                   for k in np.flatnonzero(near))
+        return tuple(self._names[k] for k in np.flatnonzero(near)
+                     if self._names[k] not in waiting and k not in broken)
 
     def _door_busy(self, place, states: np.ndarray) -> bool:
         """Whether another robot is moving (faster than ``ROBOT_STOPPED_SPEED``) within

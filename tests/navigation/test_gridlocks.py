@@ -4,6 +4,7 @@ broken by the deadlock watchdog (``releases`` orders, step 5 of ``DeadlockWatchd
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 from pydrake.common.value import Value
 from pydrake.systems.analysis import Simulator
@@ -20,7 +21,12 @@ from mrta_drake.navigation.deadlock_watchdog import (
 from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.room_queues import RoomQueues
 from mrta_drake.navigation.single_file import Need, SingleFileParams, stop_segments
-from mrta_drake.navigation.standstills import gridlocks, wait_cycles, waits_for
+from mrta_drake.navigation.standstills import (
+    distance_to_polyline,
+    gridlocks,
+    wait_cycles,
+    waits_for,
+)
 from mrta_drake.navigation.waypoint_generator import (
     WaypointGenerator,
     WaypointParams,
@@ -380,5 +386,55 @@ def test_a_rooms_holder_standing_in_the_segment_a_cycle_waits_for_gives_way_last
     simulator = Simulator(watchdog, context)
     simulator.AdvanceTo(WatchdogParams().gridlock_time + 5.0)
     orders = watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
+    assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r1", True, ("r0",))]
+    assert orders[0].issued == pytest.approx(WatchdogParams().gridlock_time)
+
+
+
+def _door_waits(r0_request, r1_request, queues, until):
+    """The watchdog alone on ``_dead_end``: r0 stands still in room H's doorway at
+    (0.8, 0.9), r1 at (3, 0) at its target (holding a room, so serving as the recorder
+    counts it); each asks as given. The orders given by ``until`` (s)."""
+    watchdog = DeadlockWatchdog(["r0", "r1"], [0.22, 0.22],
+                                Costmap.from_obstacles(Obstacles(), BOUNDS), rate_hz=2.0,
+                                roadways=_dead_end())
+    context = watchdog.CreateDefaultContext()
+    watchdog.GetInputPort("robot_state").FixValue(
+        context, [0.8, 0.9, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0])
+    watchdog.GetInputPort("target_r0").FixValue(
+        context, WaypointTarget("r0", True, (0.8, 0.9), None, True))
+    watchdog.GetInputPort("target_r1").FixValue(
+        context, WaypointTarget("r1", True, (3.0, 0.0), None, True))
+    watchdog.GetInputPort("queue_state").FixValue(context, queues)
+    watchdog.GetInputPort("queue_request_r0").FixValue(context, r0_request)
+    watchdog.GetInputPort("queue_request_r1").FixValue(context, r1_request)
+    simulator = Simulator(watchdog, context)
+    simulator.AdvanceTo(until)
+    return watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
+
+
+def test_a_robot_in_the_doorway_of_a_holder_it_waits_for_gives_way():
+    # Office seed 11: r1 holds room G, which it left, and room H, and waits at H's door for
+    # r0, which stands in H's doorway queueing for G: the two wait for each other, though
+    # the recorder counts r1 (at its slot, holding a room) as serving. r0 gives way once
+    # the cycle has lasted cycle_time, to a spot off H's doorway.
+    orders = _door_waits(QueueRequest("r0", G), QueueRequest("r1", H, door=("r0",)),
+                         QueueState((RoomQueue(G, "r1", ("r0",)), RoomQueue(H, "r1"))),
+                         WatchdogParams().gridlock_time + 5.0)
+    assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
+    assert orders[0].issued == pytest.approx(WatchdogParams().cycle_time)
+    doorway = _dead_end().place(H).doorway
+    assert distance_to_polyline(np.array([orders[0].point]), doorway)[0] > 0.22 + 0.22
+
+
+def test_two_holders_each_in_the_others_doorway_one_gives_way_after_gridlock_time():
+    # Office seed 11 (docs/worlds.md, "A robot holding the room it left"): robot5 waited at
+    # patrol_A1's door for robot6, pantry's holder, standing in its doorway, and robot6 at
+    # pantry's door for robot5 until door_patience (30 s) ran out. Both hold rooms: one
+    # gives way once the cycle has lasted gridlock_time (rooms' holders last).
+    orders = _door_waits(QueueRequest("r0", G, door=("r1",)),
+                         QueueRequest("r1", H, door=("r0",)),
+                         QueueState((RoomQueue(G, "r0"), RoomQueue(H, "r1"))),
+                         WatchdogParams().gridlock_time + 5.0)
     assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r1", True, ("r0",))]
     assert orders[0].issued == pytest.approx(WatchdogParams().gridlock_time)

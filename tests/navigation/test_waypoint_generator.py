@@ -534,6 +534,17 @@ def test_a_holder_waits_at_its_slot_while_another_robot_moves_in_the_doorway():
     assert step((entry[0] - 5.0, entry[1] - 1.0), 0.5).current == tuple(entry)
 
 
+def test_a_holder_waiting_at_its_door_names_the_robots_standing_in_its_doorway():
+    # The deadlock watchdog's cycles of waits see whom a holder waits for at its door
+    # (QueueRequest.door): r1 standing between B's first slot and its entry point.
+    generator, context, place = queueing_at_b(RoomQueue(B, holder="r0"), slot=0)
+    step = stepper(generator, context, place.queue[0])
+    step((15.5, 2.0), 0.0)
+    assert generator.GetOutputPort("queue_request").Eval(context).door == ("r1",)
+    step((15.5 - 5.0, 1.0), 0.0)  # out of the doorway: r0 enters, waiting for nobody
+    assert generator.GetOutputPort("queue_request").Eval(context).door == ()
+
+
 def driving_into_b(lanes: Need = NOTHING):
     """r0, holding B, driving in past slot 1 (holding single-file ``lanes``): its stepper,
     B's place, and a point in B's doorway between its door and point."""
