@@ -22,6 +22,7 @@ from mrta_drake.navigation.standstills import (
     blocked_groups,
     in_ways,
     next_anchor,
+    next_approach,
     yield_order,
 )
 from mrta_drake.payloads import (
@@ -301,6 +302,29 @@ def test_a_missed_order_is_not_given_again():
     assert [order.robot for order in history[:3]] == ["r1", "r0", "r1"]
     assert math.dist(history[0].point, history[2].point) > WatchdogParams().progress_distance
     assert math.dist(history[1].point, history[3].point) > WatchdogParams().progress_distance
+
+
+def test_an_order_whose_robot_gets_no_nearer_its_spot_is_given_up_early():
+    # Nobody moves: r1's order (at standstill_time) is given up order_patience later, a
+    # miss, and the standstill it was to break, stalled since 0 s, gets its next order at
+    # once: r0 (fewer misses); then r1 again, to a spot away from the one it missed.
+    p = WatchdogParams()
+    history = _orders_for_robots_that_never_move(duration=30.0)
+    first, second, third = history[:3]
+    assert (first.robot, second.robot, third.robot) == ("r1", "r0", "r1")
+    assert first.issued == pytest.approx(p.standstill_time)
+    assert second.issued - first.issued == pytest.approx(p.order_patience + 0.5)  # 2 Hz
+    assert second.stalled_since == first.stalled_since == 0.0
+    assert math.dist(first.point, third.point) > p.progress_distance
+
+
+def test_an_approach_anchor_moves_only_with_progress_towards_the_spot():
+    spot = (0.0, 5.0)
+    anchor = next_approach(None, (0.0, 0.0), spot, 10.0, 10.5, 0.5)
+    assert anchor == Anchor((0.0, 0.0), 10.5)
+    assert next_approach(anchor, (2.0, 0.0), spot, 10.0, 11.0, 0.5) is anchor  # aside
+    assert next_approach(anchor, (0.0, 0.6), spot, 10.0, 11.0, 0.5) == Anchor((0.0, 0.6), 11.0)
+    assert next_approach(anchor, (0.0, 0.0), spot, 12.0, 12.5, 0.5).since == 12.5  # new order
 
 
 @pytest.mark.parametrize("wall_y, way_out", [(1.2, False), (1.4, True)])
