@@ -21,7 +21,6 @@ from mrta_drake.navigation.standstills import (
     in_ways,
     near_walls,
     next_anchor,
-    next_approach,
     wait_cycles,
     waits_for,
     yield_order,
@@ -60,10 +59,11 @@ class WatchdogParams:
     controller stops leading a robot within its ``arrival_radius``, 0.5 m, of its path's
     end), so a nearer spot makes no way (soak seed 107: a robot sent eleven times to spots
     0.51 m off moved 3.5 cm each time). An order is *missed* when its robot did not reach
-    the spot in that time, or got no more than ``progress_distance`` nearer it for
-    ``order_patience`` (it is given up then); for ``retry_window`` after a miss, the robot is
-    asked to yield only after robots that missed fewer orders, and never to a spot within
-    ``progress_distance`` of the one it missed. A gridlock of waits (robots waiting for
+    the spot in that time, or stood (got no farther than ``progress_distance`` from where
+    it stood) for ``order_patience`` on its way there (it is given up then); for
+    ``retry_window`` after a miss, the robot is asked to yield only after robots that
+    missed fewer orders, and never to a spot within ``progress_distance`` of the one it
+    missed. A gridlock of waits (robots waiting for
     rooms or single-file segments, the waits leading to no robot that moves, serves or
     uses a lift) that lasts ``gridlock_time`` is broken by one of its robots giving way
     (``DeadlockWatchdog``, step 5), and a robot that gave way is not chosen again for
@@ -111,8 +111,8 @@ class _WatchdogState:
     missed within the retry window (each as ordered, ``until`` the time it ended), where
     and since when each robot has counted as in a gridlock of waits (an ``Anchor``; None:
     it is in none, step 5), since when in a cycle of waits (s; None: in none), and each
-    robot's anchor on its way to its order's spot (``standstills.next_approach``; None: no
-    order, or at its spot, step 4)."""
+    robot's anchor on its way to its order's spot (None: no order, or at its spot; step
+    4)."""
 
     anchors: tuple[Anchor | None, ...]
     orders: BackOffOrders = NO_BACK_OFFS
@@ -182,8 +182,13 @@ class DeadlockWatchdog(LeafSystem):
        backs off to a spot clear of walls (``_back_off_alone``).
     4. An order holds until ``yield_time`` after its robot reached its spot (within
        ``progress_distance``; an order without blockers ends there), or after the order
-       if it has not reached it by then: then
-       it is a miss, and its robot counts as stalled since the order. Robots with fewer
+       if it has not reached it by then, or until its robot has stood ``order_patience``
+       on its way there (a robot sent aside that stays put, e.g. kept off its way by the
+       controller, holds step 3 off its group for nothing): then it is a miss, and the
+       standstill it was to break goes on as before it: its robot and the robots it made
+       way for that have stood since count as stalled since the order's
+       ``stalled_since`` (``_stalled_again``), so the group's next order goes out at
+       once. Robots with fewer
        misses within ``retry_window`` are asked first (a stable sort of ``yield_order``),
        and a robot's spots keep ``progress_distance`` from those it missed, so a
        standstill is never met with the same order again and again.
@@ -618,8 +623,9 @@ class DeadlockWatchdog(LeafSystem):
         """The orders still in force at ``now``, each given its ``arrived`` time (and so its
         end) once its robot is within ``progress_distance`` of its spot; the orders that
         ended now without their robot reaching the spot (missed: at their ``until``, or
-        given up, ``until`` now, once their robot got no nearer it for ``order_patience``);
-        and each robot's anchor on its way to its spot after ``approaches`` (step 4)."""
+        given up, ``until`` now, once their robot has stood for ``order_patience`` on its
+        way, its anchor there, from ``approaches``, not renewed: a robot driving round a
+        corner to its spot may get no nearer it for a while); and those anchors (step 4)."""
         p = self._params
         kept, missed = [], []
         after = [None] * len(self._robots)
@@ -630,8 +636,10 @@ class DeadlockWatchdog(LeafSystem):
                 hold = p.yield_time if order.blockers else 0.0  # see _back_off_alone
                 order = replace(order, arrived=now, until=now + hold)
             if order.arrived is None:
-                after[k] = next_approach(approaches[k], states[k, :2], order.point,
-                                         order.issued, now, p.progress_distance)
+                before = approaches[k]  # the anchor of an earlier order does not count
+                if before is not None and before.since < order.issued - 1e-9:
+                    before = None
+                after[k] = next_anchor(before, states[k, :2], True, now, p.progress_distance)
                 if now - after[k].since >= p.order_patience - 1e-9:
                     order, after[k] = replace(order, until=min(order.until, now)), None
             if order.until > now + 1e-9:

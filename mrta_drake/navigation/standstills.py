@@ -36,18 +36,6 @@ def next_anchor(anchor: Anchor | None, xy, has_goal: bool, now: float,
     return anchor
 
 
-def next_approach(anchor: Anchor | None, xy, spot, issued: float, now: float,
-                  progress_distance: float) -> Anchor:
-    """A robot's anchor on its way to the spot ``spot`` of an order issued at ``issued``
-    (s), after a sample at ``now``: a new one at ``xy`` when it had none from that order
-    (none, or one from before ``issued``) or got more than ``progress_distance`` nearer the
-    spot than its anchor is; else the same (since when it has got no nearer)."""
-    if (anchor is None or anchor.since < issued - 1e-9
-            or math.dist(xy, spot) < math.dist(anchor.xy, spot) - progress_distance):
-        return Anchor((float(xy[0]), float(xy[1])), now)
-    return anchor
-
-
 def blocked_groups(stalled: np.ndarray, xy: np.ndarray, radii: np.ndarray,
                    block_gap: float) -> list[tuple[int, ...]]:
     """The groups of robots standing in each other's way: each stalled robot (``stalled``

@@ -22,7 +22,6 @@ from mrta_drake.navigation.standstills import (
     blocked_groups,
     in_ways,
     next_anchor,
-    next_approach,
     yield_order,
 )
 from mrta_drake.payloads import (
@@ -316,15 +315,6 @@ def test_an_order_whose_robot_gets_no_nearer_its_spot_is_given_up_early():
     assert second.issued - first.issued == pytest.approx(p.order_patience + 0.5)  # 2 Hz
     assert second.stalled_since == first.stalled_since == 0.0
     assert math.dist(first.point, third.point) > p.progress_distance
-
-
-def test_an_approach_anchor_moves_only_with_progress_towards_the_spot():
-    spot = (0.0, 5.0)
-    anchor = next_approach(None, (0.0, 0.0), spot, 10.0, 10.5, 0.5)
-    assert anchor == Anchor((0.0, 0.0), 10.5)
-    assert next_approach(anchor, (2.0, 0.0), spot, 10.0, 11.0, 0.5) is anchor  # aside
-    assert next_approach(anchor, (0.0, 0.6), spot, 10.0, 11.0, 0.5) == Anchor((0.0, 0.6), 11.0)
-    assert next_approach(anchor, (0.0, 0.0), spot, 12.0, 12.5, 0.5).since == 12.5  # new order
 
 
 @pytest.mark.parametrize("wall_y, way_out", [(1.2, False), (1.4, True)])
