@@ -15,12 +15,14 @@ from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.single_file import segment_lanes
 from mrta_drake.navigation.standstills import (
     Anchor,
+    Pose,
     back_off_spot,
     blocked_groups,
     gridlocks,
     in_ways,
     near_walls,
     next_anchor,
+    next_pose,
     wait_cycles,
     waits_for,
     yield_order,
@@ -60,7 +62,8 @@ class WatchdogParams:
     end), so a nearer spot makes no way (soak seed 107: a robot sent eleven times to spots
     0.51 m off moved 3.5 cm each time). An order is *missed* when its robot did not reach
     the spot in that time, or stood (got no farther than ``progress_distance`` from where
-    it stood) for ``order_patience`` on its way there (it is given up then); for
+    it stood nor turned more than ``progress_angle``) for ``order_patience`` on its way
+    there (it is given up then); for
     ``retry_window`` after a miss, the robot is asked to yield only after robots that
     missed fewer orders, and never to a spot within ``progress_distance`` of the one it
     missed. A gridlock of waits (robots waiting for
@@ -77,6 +80,7 @@ class WatchdogParams:
     enabled: bool = True
     standstill_time: float = 15.0
     progress_distance: float = 0.5
+    progress_angle: float = 0.5
     goal_tolerance: float = 1.0
     block_gap: float = 0.6
     search_reach: float = 8.0
@@ -94,6 +98,7 @@ class WatchdogParams:
         require_positive(self, "standstill_time", "yield_time", "order_patience",
                          "retry_window",
                          "gridlock_time", "gridlock_cooldown", "cycle_time", unit=" s")
+        require_positive(self, "progress_angle", unit=" rad")
         require_positive(self, "progress_distance", "goal_tolerance", "search_reach",
                          "wall_clearance", "back_off_distance", unit=" m")
         require_non_negative(self, "block_gap", "spot_clearance", unit=" m")
@@ -111,7 +116,7 @@ class _WatchdogState:
     missed within the retry window (each as ordered, ``until`` the time it ended), where
     and since when each robot has counted as in a gridlock of waits (an ``Anchor``; None:
     it is in none, step 5), since when in a cycle of waits (s; None: in none), and each
-    robot's anchor on its way to its order's spot (None: no order, or at its spot; step
+    robot's ``Pose`` on its way to its order's spot (None: no order, or at its spot; step
     4)."""
 
     anchors: tuple[Anchor | None, ...]
@@ -119,7 +124,7 @@ class _WatchdogState:
     misses: tuple[BackOff, ...] = ()
     gridlocked: tuple[Anchor | None, ...] = ()
     cycled: tuple[float | None, ...] = ()
-    approaches: tuple[Anchor | None, ...] = ()
+    approaches: tuple[Pose | None, ...] = ()
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the state can share it
@@ -619,13 +624,14 @@ class DeadlockWatchdog(LeafSystem):
 
     def _in_force(self, orders: tuple[BackOff, ...], approaches, states: np.ndarray,
                   now: float) -> tuple[tuple[BackOff, ...], tuple[BackOff, ...],
-                                       tuple[Anchor | None, ...]]:
+                                       tuple[Pose | None, ...]]:
         """The orders still in force at ``now``, each given its ``arrived`` time (and so its
         end) once its robot is within ``progress_distance`` of its spot; the orders that
         ended now without their robot reaching the spot (missed: at their ``until``, or
         given up, ``until`` now, once their robot has stood for ``order_patience`` on its
-        way, its anchor there, from ``approaches``, not renewed: a robot driving round a
-        corner to its spot may get no nearer it for a while); and those anchors (step 4)."""
+        way, its ``Pose`` there, from ``approaches``, not renewed: not by the distance to
+        the spot, which a robot driving round a corner to it may not shorten for a while);
+        and those poses (step 4)."""
         p = self._params
         kept, missed = [], []
         after = [None] * len(self._robots)
@@ -636,10 +642,11 @@ class DeadlockWatchdog(LeafSystem):
                 hold = p.yield_time if order.blockers else 0.0  # see _back_off_alone
                 order = replace(order, arrived=now, until=now + hold)
             if order.arrived is None:
-                before = approaches[k]  # the anchor of an earlier order does not count
+                before = approaches[k]  # the pose of an earlier order does not count
                 if before is not None and before.since < order.issued - 1e-9:
                     before = None
-                after[k] = next_anchor(before, states[k, :2], True, now, p.progress_distance)
+                after[k] = next_pose(before, states[k], now, p.progress_distance,
+                                     p.progress_angle)
                 if now - after[k].since >= p.order_patience - 1e-9:
                     order, after[k] = replace(order, until=min(order.until, now)), None
             if order.until > now + 1e-9:

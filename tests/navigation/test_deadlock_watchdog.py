@@ -18,10 +18,12 @@ from mrta_drake.navigation.deadlock_watchdog import DeadlockWatchdog, WatchdogPa
 from mrta_drake.navigation.planner_service import PlannerService
 from mrta_drake.navigation.standstills import (
     Anchor,
+    Pose,
     back_off_spot,
     blocked_groups,
     in_ways,
     next_anchor,
+    next_pose,
     yield_order,
 )
 from mrta_drake.payloads import (
@@ -315,6 +317,15 @@ def test_an_order_whose_robot_gets_no_nearer_its_spot_is_given_up_early():
     assert second.issued - first.issued == pytest.approx(p.order_patience + 0.5)  # 2 Hz
     assert second.stalled_since == first.stalled_since == 0.0
     assert math.dist(first.point, third.point) > p.progress_distance
+
+
+def test_a_pose_moves_on_only_when_its_robot_moves_or_turns():
+    # A robot turning round to drive off to its spot makes headway before it moves.
+    pose = next_pose(None, (0.0, 0.0, 3.1, 0.0), 1.0, 0.5, 0.5)
+    assert pose == Pose((0.0, 0.0), 3.1, 1.0)
+    assert next_pose(pose, (0.3, 0.0, -3.1, 0.0), 2.0, 0.5, 0.5) is pose  # 0.08 rad
+    assert next_pose(pose, (0.0, 0.0, 2.5, 0.0), 2.0, 0.5, 0.5).since == 2.0
+    assert next_pose(pose, (0.0, 0.6, 3.1, 0.0), 2.0, 0.5, 0.5).since == 2.0
 
 
 @pytest.mark.parametrize("wall_y, way_out", [(1.2, False), (1.4, True)])
