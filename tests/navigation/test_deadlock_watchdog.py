@@ -248,7 +248,8 @@ def test_a_robot_pushed_against_a_wall_still_gets_a_spot(gap):
 
 @pytest.mark.parametrize("field, value", [("standstill_time", 0.0), ("yield_time", -1.0),
                                           ("search_reach", 0.0), ("block_gap", -0.1),
-                                          ("back_off_distance", 0.5)])
+                                          ("back_off_distance", 0.5),
+                                          ("order_patience", 15.0), ("progress_angle", 0.0)])
 def test_params_refuse_bad_values(field, value):
     with pytest.raises(InputError, match=field):
         WatchdogParams(**{field: value})
@@ -305,7 +306,7 @@ def test_a_missed_order_is_not_given_again():
     assert math.dist(history[1].point, history[3].point) > WatchdogParams().progress_distance
 
 
-def test_an_order_whose_robot_gets_no_nearer_its_spot_is_given_up_early():
+def test_an_order_whose_robot_stands_on_its_way_is_given_up_early():
     # Nobody moves: r1's order (at standstill_time) is given up order_patience later, a
     # miss, and the standstill it was to break, stalled since 0 s, gets its next order at
     # once: r0 (fewer misses); then r1 again, to a spot away from the one it missed.
