@@ -61,12 +61,11 @@ class WatchdogParams:
     controller stops leading a robot within its ``arrival_radius``, 0.5 m, of its path's
     end), so a nearer spot makes no way (soak seed 107: a robot sent eleven times to spots
     0.51 m off moved 3.5 cm each time). An order is *missed* when its robot did not reach
-    the spot in that time, or stood (got no farther than ``progress_distance`` from where
-    it stood nor turned more than ``progress_angle``) for ``order_patience`` on its way
-    there (it is given up then); for
-    ``retry_window`` after a miss, the robot is asked to yield only after robots that
-    missed fewer orders, and never to a spot within ``progress_distance`` of the one it
-    missed. A gridlock of waits (robots waiting for
+    the spot in that time, or stood on its way there (got no farther than
+    ``progress_distance`` from where it stood nor turned more than ``progress_angle``) for
+    ``order_patience``: it is given up then; for ``retry_window`` after a miss, the robot is
+    asked to yield only after robots that missed fewer orders, and never to a spot within
+    ``progress_distance`` of the one it missed. A gridlock of waits (robots waiting for
     rooms or single-file segments, the waits leading to no robot that moves, serves or
     uses a lift) that lasts ``gridlock_time`` is broken by one of its robots giving way
     (``DeadlockWatchdog``, step 5), and a robot that gave way is not chosen again for
@@ -96,8 +95,8 @@ class WatchdogParams:
 
     def __post_init__(self):
         require_positive(self, "standstill_time", "yield_time", "order_patience",
-                         "retry_window",
-                         "gridlock_time", "gridlock_cooldown", "cycle_time", unit=" s")
+                         "retry_window", "gridlock_time", "gridlock_cooldown", "cycle_time",
+                         unit=" s")
         require_positive(self, "progress_angle", unit=" rad")
         require_positive(self, "progress_distance", "goal_tolerance", "search_reach",
                          "wall_clearance", "back_off_distance", unit=" m")
@@ -622,16 +621,17 @@ class DeadlockWatchdog(LeafSystem):
                 and float(np.hypot(*(robot_state[:2] - target.current)))
                 > self._params.goal_tolerance)
 
-    def _in_force(self, orders: tuple[BackOff, ...], approaches, states: np.ndarray,
-                  now: float) -> tuple[tuple[BackOff, ...], tuple[BackOff, ...],
-                                       tuple[Pose | None, ...]]:
+    def _in_force(self, orders: tuple[BackOff, ...], approaches: tuple[Pose | None, ...],
+                  states: np.ndarray, now: float
+                  ) -> tuple[tuple[BackOff, ...], tuple[BackOff, ...], tuple[Pose | None, ...]]:
         """The orders still in force at ``now``, each given its ``arrived`` time (and so its
         end) once its robot is within ``progress_distance`` of its spot; the orders that
         ended now without their robot reaching the spot (missed: at their ``until``, or
-        given up, ``until`` now, once their robot has stood for ``order_patience`` on its
-        way, its ``Pose`` there, from ``approaches``, not renewed: not by the distance to
-        the spot, which a robot driving round a corner to it may not shorten for a while);
-        and those poses (step 4)."""
+        given up, ``until`` now, once their robot has stood ``order_patience`` on its way,
+        its ``Pose`` from ``approaches`` not renewed); and each ordered robot's ``Pose``
+        after this update (step 4). Standing is judged by where the robot is and which way
+        it faces, not by its distance to the spot, which a robot driving round a corner to
+        it may not shorten for a while (office seed 8)."""
         p = self._params
         kept, missed = [], []
         after = [None] * len(self._robots)
