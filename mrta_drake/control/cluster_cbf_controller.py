@@ -241,8 +241,10 @@ class ClusterCbfController(LeafSystem):
         # A robot the deadlock watchdog sent aside leads its cluster: as a follower in the
         # others' way it would get the slow-down and never make way.
         keys[yielding] = -np.inf
+        stalled = self._stalled(stall_times)
+        stalled[yielding] = False  # a lead lost standing before the order does not count
         robots = TickRobots(states, np.ascontiguousarray(shared, dtype=float), keys, active,
-                            self._stalled(stall_times), ~alone, slowed)
+                            stalled, ~alone, slowed)
         hits, mask = self._rays(states)
         if d.blockages:
             hits, mask = rays_with_blockages(states, hits, mask, d.blockages, p.sensing)

@@ -15,12 +15,14 @@ from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.single_file import segment_lanes
 from mrta_drake.navigation.standstills import (
     Anchor,
+    Pose,
     back_off_spot,
     blocked_groups,
     gridlocks,
     in_ways,
     near_walls,
     next_anchor,
+    next_pose,
     wait_cycles,
     waits_for,
     yield_order,
@@ -59,8 +61,10 @@ class WatchdogParams:
     controller stops leading a robot within its ``arrival_radius``, 0.5 m, of its path's
     end), so a nearer spot makes no way (soak seed 107: a robot sent eleven times to spots
     0.51 m off moved 3.5 cm each time). An order is *missed* when its robot did not reach
-    the spot in that time; for ``retry_window`` after a miss, the robot is asked to yield
-    only after robots that missed fewer orders, and never to a spot within
+    the spot in that time, or stood on its way there (got no farther than
+    ``progress_distance`` from where it stood nor turned more than ``progress_angle``) for
+    ``order_patience``: it is given up then; for ``retry_window`` after a miss, the robot is
+    asked to yield only after robots that missed fewer orders, and never to a spot within
     ``progress_distance`` of the one it missed. A gridlock of waits (robots waiting for
     rooms or single-file segments, the waits leading to no robot that moves, serves or
     uses a lift) that lasts ``gridlock_time`` is broken by one of its robots giving way
@@ -75,6 +79,7 @@ class WatchdogParams:
     enabled: bool = True
     standstill_time: float = 15.0
     progress_distance: float = 0.5
+    progress_angle: float = 0.5
     goal_tolerance: float = 1.0
     block_gap: float = 0.6
     search_reach: float = 8.0
@@ -82,20 +87,26 @@ class WatchdogParams:
     wall_clearance: float = 0.8
     spot_clearance: float = 0.3
     yield_time: float = 15.0
+    order_patience: float = 5.0
     retry_window: float = 120.0
     gridlock_time: float = 20.0
     gridlock_cooldown: float = 60.0
     cycle_time: float = 3.0
 
     def __post_init__(self):
-        require_positive(self, "standstill_time", "yield_time", "retry_window",
-                         "gridlock_time", "gridlock_cooldown", "cycle_time", unit=" s")
+        require_positive(self, "standstill_time", "yield_time", "order_patience",
+                         "retry_window", "gridlock_time", "gridlock_cooldown", "cycle_time",
+                         unit=" s")
+        require_positive(self, "progress_angle", unit=" rad")
         require_positive(self, "progress_distance", "goal_tolerance", "search_reach",
                          "wall_clearance", "back_off_distance", unit=" m")
         require_non_negative(self, "block_gap", "spot_clearance", unit=" m")
         if not self.back_off_distance > self.progress_distance:
             raise InputError(None, "back_off_distance", f"must be > progress_distance "
                              f"({self.progress_distance!r} m), got {self.back_off_distance!r}")
+        if not self.order_patience < self.yield_time:
+            raise InputError(None, "order_patience", f"must be < yield_time "
+                             f"({self.yield_time!r} s), got {self.order_patience!r}")
 
 
 @dataclass(frozen=True)
@@ -103,13 +114,16 @@ class _WatchdogState:
     """Each robot's ``Anchor`` (None: no goal, or backing off), the orders, the orders
     missed within the retry window (each as ordered, ``until`` the time it ended), where
     and since when each robot has counted as in a gridlock of waits (an ``Anchor``; None:
-    it is in none, step 5), and since when in a cycle of waits (s; None: in none)."""
+    it is in none, step 5), since when in a cycle of waits (s; None: in none), and each
+    robot's ``Pose`` on its way to its order's spot (None: no order, or at its spot; step
+    4)."""
 
     anchors: tuple[Anchor | None, ...]
     orders: BackOffOrders = NO_BACK_OFFS
     misses: tuple[BackOff, ...] = ()
     gridlocked: tuple[Anchor | None, ...] = ()
     cycled: tuple[float | None, ...] = ()
+    approaches: tuple[Pose | None, ...] = ()
 
     def __deepcopy__(self, memo):
         return self  # immutable: Drake's copies of the state can share it
@@ -172,8 +186,13 @@ class DeadlockWatchdog(LeafSystem):
        backs off to a spot clear of walls (``_back_off_alone``).
     4. An order holds until ``yield_time`` after its robot reached its spot (within
        ``progress_distance``; an order without blockers ends there), or after the order
-       if it has not reached it by then: then
-       it is a miss, and its robot counts as stalled since the order. Robots with fewer
+       if it has not reached it by then, or until its robot has stood ``order_patience``
+       on its way there (a robot sent aside that stays put, e.g. kept off its way by the
+       controller, holds step 3 off its group for nothing): then it is a miss, and the
+       standstill it was to break goes on as before it: its robot and the robots it made
+       way for that have stood since count as stalled since the order's
+       ``stalled_since`` (``_stalled_again``), so the group's next order goes out at
+       once. Robots with fewer
        misses within ``retry_window`` are asked first (a stable sort of ``yield_order``),
        and a robot's spots keep ``progress_distance`` from those it missed, so a
        standstill is never met with the same order again and again.
@@ -259,7 +278,7 @@ class DeadlockWatchdog(LeafSystem):
             for lane in segment_lanes(roadways, k)]
         self._state_index = self.DeclareAbstractState(
             Value[object](_WatchdogState((None,) * n, gridlocked=(None,) * n,
-                                         cycled=(None,) * n)))
+                                         cycled=(None,) * n, approaches=(None,) * n)))
         self._robot_state = self.DeclareVectorInputPort(
             "robot_state", BasicVector(ROBOT_STATE_SIZE * n))
         self._targets = PerRobotInputs(self, "target", "targets", self._robots, WaypointTarget)
@@ -284,7 +303,8 @@ class DeadlockWatchdog(LeafSystem):
         now = context.get_time()
         states = self._robot_state.Eval(context).reshape(-1, ROBOT_STATE_SIZE)
         targets = self._targets.values(context)
-        active, missed = self._in_force(old.orders.active, states, now)
+        active, missed, approaches = self._in_force(old.orders.active, old.approaches,
+                                                    states, now)
         misses = tuple(m for m in old.misses + missed
                        if m.until > now - self._params.retry_window + 1e-9)
         backing = {order.robot for order in active}
@@ -292,10 +312,8 @@ class DeadlockWatchdog(LeafSystem):
                                and self._robots[k] not in backing, now,
                                self._params.progress_distance)
                    for k, anchor in enumerate(old.anchors)]
-        for order in missed:  # it stood still all along: stalled since the order
-            k = self._robots.index(order.robot)
-            if anchors[k] is not None:
-                anchors[k] = Anchor(anchors[k].xy, min(anchors[k].since, order.issued))
+        for order in missed:
+            self._stalled_again(order, anchors)
         stalled = np.array([a is not None and now - a.since >= self._params.standstill_time
                             - 1e-9 for a in anchors])
         history = old.orders.history
@@ -333,11 +351,24 @@ class DeadlockWatchdog(LeafSystem):
         orders = (old.orders if (active, history) == (old.orders.active, old.orders.history)
                   else BackOffOrders(active, history))
         if (tuple(anchors) == old.anchors and orders is old.orders and misses == old.misses
-                and gridlocked == old.gridlocked and cycled == old.cycled):
+                and gridlocked == old.gridlocked and cycled == old.cycled
+                and approaches == old.approaches):
             return EventStatus.DidNothing()
         state.get_mutable_abstract_state(self._state_index).set_value(
-            _WatchdogState(tuple(anchors), orders, misses, gridlocked, cycled))
+            _WatchdogState(tuple(anchors), orders, misses, gridlocked, cycled, approaches))
         return EventStatus.Succeeded()
+
+    def _stalled_again(self, missed: BackOff, anchors: list[Anchor | None]) -> None:
+        """A ``missed`` order freed nothing: the standstill it was to break goes on as it
+        was, so it gets its next order at once. Its robot (which got nowhere) and the robots
+        it made way for that have not got farther than ``progress_distance`` since (their
+        anchors restarted by it, step 3) count as stalled since the order's
+        ``stalled_since`` (``anchors`` updated in place)."""
+        for k, robot in enumerate(self._robots):
+            if anchors[k] is not None and (robot == missed.robot or (
+                    robot in missed.blockers and abs(anchors[k].since - missed.issued) < 1e-9)):
+                anchors[k] = Anchor(anchors[k].xy, min(anchors[k].since, missed.stalled_since,
+                                                       missed.issued))
 
     def _gridlocks(self, context, states, targets, old: _WatchdogState, anchors, active,
                    history, misses, now
@@ -599,23 +630,39 @@ class DeadlockWatchdog(LeafSystem):
                 and float(np.hypot(*(robot_state[:2] - target.current)))
                 > self._params.goal_tolerance)
 
-    def _in_force(self, orders: tuple[BackOff, ...], states: np.ndarray, now: float
-                  ) -> tuple[tuple[BackOff, ...], tuple[BackOff, ...]]:
+    def _in_force(self, orders: tuple[BackOff, ...], approaches: tuple[Pose | None, ...],
+                  states: np.ndarray, now: float
+                  ) -> tuple[tuple[BackOff, ...], tuple[BackOff, ...], tuple[Pose | None, ...]]:
         """The orders still in force at ``now``, each given its ``arrived`` time (and so its
-        end) once its robot is within ``progress_distance`` of its spot; and the orders
-        that ended now without their robot reaching the spot (missed)."""
+        end) once its robot is within ``progress_distance`` of its spot; the orders that
+        ended now without their robot reaching the spot (missed: at their ``until``, or
+        given up, ``until`` now, once their robot has stood ``order_patience`` on its way,
+        its ``Pose`` from ``approaches`` not renewed); and each ordered robot's ``Pose``
+        after this update (step 4). Standing is judged by where the robot is and which way
+        it faces, not by its distance to the spot, which a robot driving round a corner to
+        it may not shorten for a while (office seed 8)."""
+        p = self._params
         kept, missed = [], []
+        after = [None] * len(self._robots)
         for order in orders:
             k = self._robots.index(order.robot)
             if (order.arrived is None and float(np.hypot(*(states[k, :2] - order.point)))
-                    <= self._params.progress_distance):
-                hold = self._params.yield_time if order.blockers else 0.0  # see _back_off_alone
+                    <= p.progress_distance):
+                hold = p.yield_time if order.blockers else 0.0  # see _back_off_alone
                 order = replace(order, arrived=now, until=now + hold)
+            if order.arrived is None:
+                before = approaches[k]  # the pose of an earlier order does not count
+                if before is not None and before.since < order.issued - 1e-9:
+                    before = None
+                after[k] = next_pose(before, states[k], now, p.progress_distance,
+                                     p.progress_angle)
+                if now - after[k].since >= p.order_patience - 1e-9:
+                    order, after[k] = replace(order, until=min(order.until, now)), None
             if order.until > now + 1e-9:
                 kept.append(order)
             elif order.arrived is None:
                 missed.append(order)
-        return tuple(kept), tuple(missed)
+        return tuple(kept), tuple(missed), tuple(after)
 
     def _order(self, group, stalled, anchors, states, targets, context, now, misses
                ) -> BackOff | None:

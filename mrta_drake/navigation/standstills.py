@@ -36,6 +36,29 @@ def next_anchor(anchor: Anchor | None, xy, has_goal: bool, now: float,
     return anchor
 
 
+@dataclass(frozen=True)
+class Pose:
+    """Where (``xy``, m), facing which way (``heading``, rad, from the x axis) and since
+    when (``since``, s) a robot on its way somewhere has neither moved nor turned."""
+
+    xy: tuple[float, float]
+    heading: float
+    since: float
+
+
+def next_pose(pose: Pose | None, state, now: float, progress_distance: float,
+              progress_angle: float) -> Pose:
+    """A robot's ``Pose`` after a sample at ``now`` of its ``state`` (x, y, theta, ...): a
+    new one as it stands when it had none, got farther than ``progress_distance`` from
+    it or turned more than ``progress_angle`` from its heading (a robot turning round
+    to drive off makes headway before it moves); else the same."""
+    xy, heading = (float(state[0]), float(state[1])), float(state[2])
+    if (pose is None or math.dist(pose.xy, xy) > progress_distance
+            or abs(math.remainder(heading - pose.heading, math.tau)) > progress_angle):
+        return Pose(xy, heading, now)
+    return pose
+
+
 def blocked_groups(stalled: np.ndarray, xy: np.ndarray, radii: np.ndarray,
                    block_gap: float) -> list[tuple[int, ...]]:
     """The groups of robots standing in each other's way: each stalled robot (``stalled``

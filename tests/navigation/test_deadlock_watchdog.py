@@ -18,10 +18,12 @@ from mrta_drake.navigation.deadlock_watchdog import DeadlockWatchdog, WatchdogPa
 from mrta_drake.navigation.planner_service import PlannerService
 from mrta_drake.navigation.standstills import (
     Anchor,
+    Pose,
     back_off_spot,
     blocked_groups,
     in_ways,
     next_anchor,
+    next_pose,
     yield_order,
 )
 from mrta_drake.payloads import (
@@ -246,7 +248,8 @@ def test_a_robot_pushed_against_a_wall_still_gets_a_spot(gap):
 
 @pytest.mark.parametrize("field, value", [("standstill_time", 0.0), ("yield_time", -1.0),
                                           ("search_reach", 0.0), ("block_gap", -0.1),
-                                          ("back_off_distance", 0.5)])
+                                          ("back_off_distance", 0.5),
+                                          ("order_patience", 15.0), ("progress_angle", 0.0)])
 def test_params_refuse_bad_values(field, value):
     with pytest.raises(InputError, match=field):
         WatchdogParams(**{field: value})
@@ -301,6 +304,29 @@ def test_a_missed_order_is_not_given_again():
     assert [order.robot for order in history[:3]] == ["r1", "r0", "r1"]
     assert math.dist(history[0].point, history[2].point) > WatchdogParams().progress_distance
     assert math.dist(history[1].point, history[3].point) > WatchdogParams().progress_distance
+
+
+def test_an_order_whose_robot_stands_on_its_way_is_given_up_early():
+    # Nobody moves: r1's order (at standstill_time) is given up order_patience later, a
+    # miss, and the standstill it was to break, stalled since 0 s, gets its next order at
+    # once: r0 (fewer misses); then r1 again, to a spot away from the one it missed.
+    p = WatchdogParams()
+    history = _orders_for_robots_that_never_move(duration=30.0)
+    first, second, third = history[:3]
+    assert (first.robot, second.robot, third.robot) == ("r1", "r0", "r1")
+    assert first.issued == pytest.approx(p.standstill_time)
+    assert second.issued - first.issued == pytest.approx(p.order_patience + 0.5)  # 2 Hz
+    assert second.stalled_since == first.stalled_since == 0.0
+    assert math.dist(first.point, third.point) > p.progress_distance
+
+
+def test_a_pose_moves_on_only_when_its_robot_moves_or_turns():
+    # A robot turning round to drive off to its spot makes headway before it moves.
+    pose = next_pose(None, (0.0, 0.0, 3.1, 0.0), 1.0, 0.5, 0.5)
+    assert pose == Pose((0.0, 0.0), 3.1, 1.0)
+    assert next_pose(pose, (0.3, 0.0, -3.1, 0.0), 2.0, 0.5, 0.5) is pose  # 0.08 rad
+    assert next_pose(pose, (0.0, 0.0, 2.5, 0.0), 2.0, 0.5, 0.5).since == 2.0
+    assert next_pose(pose, (0.0, 0.6, 3.1, 0.0), 2.0, 0.5, 0.5).since == 2.0
 
 
 @pytest.mark.parametrize("wall_y, way_out", [(1.2, False), (1.4, True)])
