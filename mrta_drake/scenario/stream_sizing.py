@@ -21,16 +21,25 @@ s), the number of robots and the run's duration (s):
    for a robot to finish the task in hand (on average) and then this one (at worst).
 3. **How many**: batches (``BATCH_SIZE``, 1.5 tasks on average) come as many as keep the
    fleet busy ``UTILISATION`` (half) of the run but its last longest task time, leaving
-   the rest for queues, lifts, single-file stretches and robots passing each other; at
-   least one. They arrive evenly spaced from 0 s to the last arrival (no bursts beyond
-   what the fleet was sized for).
+   the rest for queues, lifts, single-file stretches and robots passing each other, and
+   as the busiest single-server resource (a room, a single-file segment: ``busy``) can
+   serve in that time. A task is its loaded trip from the pickup to the drop-off and an
+   empty trip to the pickup from wherever the nearest of the free robots (``1 -
+   UTILISATION`` of them, each at a drop-off drawn with the drop-off weights) stands; a
+   batch of two tasks that share pickup and drop-off is carried on one trip (robots carry
+   two items). The busiest resource's expected busy time per task ``L`` (s) bounds the
+   tasks to ``(run - longest task) / L`` (the waits at that resource are what the fleet's
+   slack is for), the fleet to ``UTILISATION x robots x (run - longest task) / mean
+   task``; the smaller bound counts. At least one batch. They arrive evenly spaced from 0 s
+   to the last arrival (no bursts beyond what the fleet was sized for).
 
 The tasks themselves stay a seeded draw (``tasks.generate`` with the scenario's seed).
 """
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections import Counter
+from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass
 
 import networkx as nx
@@ -59,13 +68,18 @@ class StreamSize:
     names: tuple[str, ...] = ()
 
 
+Busy = Callable[[int, int], Mapping[Hashable, float]]
+
+
 def size_stream(times: np.ndarray, robots: int, duration: float, service_time: float,
-                source: str | None = None, levels: Sequence[str] | None = None
-                ) -> StreamSize:
+                source: str | None = None, levels: Sequence[str] | None = None,
+                busy: Busy | None = None) -> StreamSize:
     """The stream for ``robots`` robots over ``duration`` s given the travel times
     ``times`` (n, n) s between task locations (module docstring); ``levels``: each
-    location's level, when the building has several; ``source`` names the building in
-    errors."""
+    location's level, when the building has several; ``busy(i, j)``: the s each
+    single-server resource (any key) is busy for a robot's trip from location ``i`` to
+    serve at ``j`` (indices into ``times``; ``i == j``: serving only), without: the fleet
+    bound alone; ``source`` names the building in errors."""
     times = np.asarray(times, dtype=float)
     limit = LEG_SHARE * duration
     levels = levels or [""] * len(times)
@@ -82,12 +96,63 @@ def size_stream(times: np.ndarray, robots: int, duration: float, service_time: f
         raise InputError(source, "--duration", f"{duration:g} s is too short for tasks in "
                          f"this building: a task may take {longest_task:g} s, and the last "
                          f"needs that and a mean task ({mean_task:g} s) before the end")
-    batches = max(1, math.floor(UTILISATION * robots * (duration - longest_task)
-                                / (mean_task * 0.5 * sum(BATCH_SIZE))))
-    times = tuple(float(math.floor(end * k / max(1, batches - 1))) for k in range(batches))
     used = [levels[i] for i in chosen]
     weights = tuple(round(1.0 / used.count(level), 6) for level in used)
+    batch = 0.5 * sum(BATCH_SIZE)
+    batches = math.floor(UTILISATION * robots * (duration - longest_task) / (mean_task * batch))
+    if busy is not None:
+        trips = _trips(times[np.ix_(chosen, chosen)], weights, (1.0 - UTILISATION) * robots)
+        load = _busiest_load(busy, chosen, trips)
+        if load > 0:
+            batches = min(batches, math.floor((duration - longest_task) / (load * batch)))
+    batches = max(1, batches)
+    times = tuple(float(math.floor(end * k / max(1, batches - 1))) for k in range(batches))
     return StreamSize(times=times, end=float(end), locations=tuple(chosen), weights=weights)
+
+
+def _trips(times: np.ndarray, weights: Sequence[float], free: float) -> np.ndarray:
+    """The expected trips per task (from, to) between locations with the travel times
+    ``times`` (s) and ``weights`` (``size_stream``, rule 3): the loaded trip from the
+    pickup to the drop-off, and the empty trip to the pickup from the nearest of ``free``
+    robots, each standing at a drop-off; tasks carried together count one trip for two."""
+    p = np.asarray(weights, dtype=float) / sum(weights)
+    task = p[:, None] * p[None, :] / (1.0 - p[:, None])  # (pickup, drop-off)
+    np.fill_diagonal(task, 0.0)
+    nearest = _nearest_of(times, task.sum(axis=0), free)  # (from, pickup)
+    return _carried_alone(task) * (task + nearest * p[None, :])
+
+
+def _nearest_of(times: np.ndarray, spread: np.ndarray, robots: float) -> np.ndarray:
+    """(from, to): the chance that, of ``robots`` robots standing at locations drawn with
+    the chances ``spread``, the one nearest to ``to`` (``times`` (from, to), s; ties: the
+    lower index) stands at ``from``: ``(1 - F(before from))^robots - (1 - F(from))^robots``
+    with ``F`` the chance of a location no farther than it, in that order."""
+    chance = np.zeros_like(times, dtype=float)
+    for to in range(len(times)):
+        order = np.lexsort((np.arange(len(times)), times[:, to]))
+        within = np.cumsum(spread[order])
+        chance[order, to] = -np.diff((1.0 - within) ** robots, prepend=1.0)
+    return chance
+
+
+def _carried_alone(task: np.ndarray) -> float:
+    """The trips per task where robots carry two tasks (``capacity``) that share pickup
+    and drop-off together: a batch of two (``BATCH_SIZE``) does so with the chance that
+    its tasks share them, ``sum(task^2)``, and one trip then serves both."""
+    paired = np.mean([n == 2 for n in range(BATCH_SIZE[0], BATCH_SIZE[1] + 1)])
+    in_pairs = 2.0 * paired / (0.5 * sum(BATCH_SIZE))  # of tasks, in batches of two
+    return 1.0 - 0.5 * in_pairs * float((task ** 2).sum())
+
+
+def _busiest_load(busy: Busy, chosen: Sequence[int], trips: np.ndarray) -> float:
+    """The expected s per task the busiest resource of ``busy`` (``size_stream``) is busy,
+    for the expected ``trips`` (from, to) per task between ``chosen`` locations
+    (``_trips``)."""
+    load: Counter = Counter()
+    for a, b in zip(*np.nonzero(trips), strict=True):
+        for resource, seconds in busy(chosen[a], chosen[b]).items():
+            load[resource] += trips[a, b] * seconds
+    return max(load.values(), default=0.0)
 
 
 def _largest_neighbourhood(times: np.ndarray, limit: float, levels: Sequence[str]

@@ -55,3 +55,39 @@ def test_several_levels_span_the_most_levels_alike():
     stream = size_stream(times, robots=6, duration=600.0, service_time=1.0, levels=levels)
     assert stream.locations == (1, 3, 4)
     assert stream.weights == (0.5, 0.5, 1.0)
+
+
+def test_a_single_file_bottleneck_bounds_the_batches():
+    # Every trip between two locations drives one corridor for 15 s (a robot already at
+    # its pickup drives none): a task's loaded trip, and its empty trip to the pickup
+    # unless one of the 3 free robots (half of 6) stands there, (4/5)^3; a batch of two
+    # (2/3 of the tasks) shares its pickup and drop-off 1 time in 20: one trip for both.
+    times = uniform(5, 20.0)
+    fleet = size_stream(times, robots=6, duration=600.0, service_time=1.0)
+    corridor = size_stream(times, robots=6, duration=600.0, service_time=1.0,
+                           busy=lambda i, j: {"corridor": 15.0 * (i != j), ("room", j): 1.0})
+    task = 2 * 20.0 + 2 * 1.0
+    load = (15.0 + 15.0 * (4 / 5) ** 3) * (1 - 0.5 * (2 / 3) / 20)
+    assert len(corridor.times) == int((600.0 - task) / (load * 1.5))
+    assert len(corridor.times) < len(fleet.times)
+    assert (corridor.end, corridor.locations) == (fleet.end, fleet.locations)
+
+
+def test_two_locations_share_trips_and_find_a_robot_at_the_pickup():
+    # Only the trip from location 1 to 0 drives the corridor (60 s): the loaded trips of
+    # half the tasks, the empty ones of the other half where none of the 3 free robots
+    # stands at location 1 ((1/2)^3), and a batch of two (2/3 of the tasks) shares its
+    # way (chance 1/2) and then one trip serves both.
+    times = uniform(2, 20.0)
+    stream = size_stream(times, robots=6, duration=600.0, service_time=1.0,
+                         busy=lambda i, j: {"corridor": 60.0 * (i == 1 and j == 0)})
+    load = 60.0 * (0.5 + 0.5 * 0.5 ** 3) * (1 - 0.5 * (2 / 3) * 0.5)
+    assert len(stream.times) == int((600.0 - (2 * 20.0 + 2 * 1.0)) / (load * 1.5))
+
+
+def test_resources_less_busy_than_the_fleet_keep_the_fleet_bound():
+    times = uniform(5, 20.0)
+    fleet = size_stream(times, robots=6, duration=600.0, service_time=1.0)
+    rooms = size_stream(times, robots=6, duration=600.0, service_time=1.0,
+                        busy=lambda i, j: {("room", j): 3.0, "corridor": 2.0 * (i != j)})
+    assert rooms == fleet
