@@ -15,8 +15,10 @@ there (``service_time``). It keeps busy, at ``speed`` (the speed robots drive):
   ``clear_distance`` past its exit, or, where the run ends at the point, through the
   service; and for the service where the point stands in it (``single_file.stands_in``).
 
-A trip from a location to itself (a robot already there) is the service alone. Keys:
-``("location", id)`` and ``("segment", index)``; values in s.
+A trip from a location to itself (a robot already there) is the service alone. A *hold*
+is the resources a trip keeps busy at once, one after the other along the trip (a run's
+segments together, then the location), each resource as ``("location", id)`` or
+``("segment", index)``; values in s.
 """
 
 import math
@@ -27,26 +29,30 @@ from mrta_drake.navigation.single_file import Run, SingleFileParams, route_runs,
 PARAMS = SingleFileParams()  # the runs' own (``navigation.single_file``)
 
 
-def trip_busy(roadways: Roadways, from_location: int, to_location: int, speed: float,
-              service_time: float) -> dict[tuple[str, int], float]:
-    """The s each single-server resource is busy for the trip from ``from_location`` to
-    serve at ``to_location`` (ids) driven at ``speed`` m/s (module docstring)."""
+def trip_holds(roadways: Roadways, from_location: int, to_location: int, speed: float,
+               service_time: float) -> dict[tuple[tuple[str, int], ...], float]:
+    """The s each hold of the trip from ``from_location`` to serve at ``to_location``
+    (ids) driven at ``speed`` m/s lasts, keyed by the resources it holds at once (module
+    docstring): the location alone, a run's segments together, a segment the point
+    stands in alone for the service where no run ending there holds it."""
     place = roadways.place(to_location)
     inside = [place.queue[0], *place.entry, place.point]
-    busy = {("location", to_location): 2.0 * roadways.route_length(inside) / speed + service_time}
-    standing = stands_in(roadways, place.point, PARAMS)
-    for k in standing:
-        busy["segment", k] = service_time
-    if from_location == to_location:
-        return busy
-    route = tuple(map(tuple, (*roadways.leg(from_location, to_location),
-                              *place.queue[-2::-1], *inside[1:])))
-    for run in route_runs(roadways, route, PARAMS.chain_gap, PARAMS.stand_distance):
-        serving = service_time if run.last == len(route) - 2 else 0.0  # held through it
-        for k, _ in run.segments:
-            busy["segment", k] = (busy.get(("segment", k), 0.0) + _run_held(route, run) / speed
-                                  + (0.0 if k in standing else serving))
-    return busy
+    holds = {(("location", to_location),):
+             2.0 * roadways.route_length(inside) / speed + service_time}
+    standing = set(stands_in(roadways, place.point, PARAMS))
+    if from_location != to_location:
+        route = tuple(map(tuple, (*roadways.leg(from_location, to_location),
+                                  *place.queue[-2::-1], *inside[1:])))
+        for run in route_runs(roadways, route, PARAMS.chain_gap, PARAMS.stand_distance):
+            serving = run.last == len(route) - 2  # held through the service
+            key = tuple(sorted(("segment", k) for k, _ in run.segments))
+            holds[key] = (holds.get(key, 0.0) + _run_held(route, run) / speed
+                          + (service_time if serving else 0.0))
+            if serving:
+                standing -= {k for k, _ in run.segments}
+    for k in sorted(standing):
+        holds[("segment", k),] = holds.get((("segment", k),), 0.0) + service_time
+    return holds
 
 
 def _run_held(route, run: Run) -> float:

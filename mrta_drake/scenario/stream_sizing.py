@@ -22,16 +22,21 @@ s), the number of robots and the run's duration (s):
 3. **How many**: batches (``BATCH_SIZE``, 1.5 tasks on average) come as many as keep the
    fleet busy ``UTILISATION`` (half) of the run but its last longest task time, leaving
    the rest for queues, lifts, single-file stretches and robots passing each other, and
-   as the busiest single-server resource (a room, a single-file segment: ``busy``) can
-   serve in that time. A task is its loaded trip from the pickup to the drop-off and an
-   empty trip to the pickup from wherever the nearest of the free robots (``1 -
-   UTILISATION`` of them, each at a drop-off drawn with the drop-off weights) stands; a
-   batch of two tasks that share pickup and drop-off is carried on one trip (robots carry
-   two items). The busiest resource's expected busy time per task ``L`` (s) bounds the
-   tasks to ``(run - longest task) / L`` (the waits at that resource are what the fleet's
-   slack is for), the fleet to ``UTILISATION x robots x (run - longest task) / mean
-   task``; the smaller bound counts. At least one batch. They arrive evenly spaced from 0 s
-   to the last arrival (no bursts beyond what the fleet was sized for).
+   as the whole fleet can serve in that time with the waits for the single-server
+   resources (``holds``: rooms, single-file segments) included. A task is its loaded
+   trip from the pickup to the drop-off and an empty trip to the pickup from wherever the
+   nearest of the free robots (``1 - UTILISATION`` of them, each at a drop-off drawn with
+   the drop-off weights) stands; a batch of two tasks that share pickup and drop-off is
+   carried on one trip (robots carry two items). A trip holds the resources it needs in
+   turn (a run of segments together, then the room), and waits for each hold as long as
+   for the busiest of its resources: with tasks arriving at ``rate`` (the batches' tasks
+   over the run but its longest task) and a resource held ``L`` s and ``S2`` s^2 per
+   task (its holds' lengths and their squares, summed over the expected trips), the
+   Pollaczek-Khinchine mean wait of a single server with random arrivals, ``rate x S2 /
+   (2 (1 - rate x L))`` s. The batches are the most, up to the fleet's, whose tasks'
+   mean time and expected waits fit ``robots x (run - longest task)``. At least one
+   batch. They arrive evenly spaced from 0 s to the last arrival (no bursts beyond what
+   the fleet was sized for).
 
 The tasks themselves stay a seeded draw (``tasks.generate`` with the scenario's seed).
 """
@@ -68,18 +73,19 @@ class StreamSize:
     names: tuple[str, ...] = ()
 
 
-Busy = Callable[[int, int], Mapping[Hashable, float]]
+Holds = Callable[[int, int], Mapping[tuple[Hashable, ...], float]]
+TripHolds = list[tuple[float, Mapping[tuple[Hashable, ...], float]]]
 
 
 def size_stream(times: np.ndarray, robots: int, duration: float, service_time: float,
                 source: str | None = None, levels: Sequence[str] | None = None,
-                busy: Busy | None = None) -> StreamSize:
+                holds: Holds | None = None) -> StreamSize:
     """The stream for ``robots`` robots over ``duration`` s given the travel times
     ``times`` (n, n) s between task locations (module docstring); ``levels``: each
-    location's level, when the building has several; ``busy(i, j)``: the s each
-    single-server resource (any key) is busy for a robot's trip from location ``i`` to
-    serve at ``j`` (indices into ``times``; ``i == j``: serving only), without: the fleet
-    bound alone; ``source`` names the building in errors."""
+    location's level, when the building has several; ``holds(i, j)``: the s a robot's trip
+    from location ``i`` to serve at ``j`` (indices into ``times``; ``i == j``: serving
+    only) holds single-server resources (any keys), by the resources held at once,
+    without: the fleet bound alone; ``source`` names the building in errors."""
     times = np.asarray(times, dtype=float)
     limit = LEG_SHARE * duration
     levels = levels or [""] * len(times)
@@ -99,12 +105,14 @@ def size_stream(times: np.ndarray, robots: int, duration: float, service_time: f
     used = [levels[i] for i in chosen]
     weights = tuple(round(1.0 / used.count(level), 6) for level in used)
     batch = 0.5 * sum(BATCH_SIZE)
-    batches = math.floor(UTILISATION * robots * (duration - longest_task) / (mean_task * batch))
-    if busy is not None:
-        trips = _trips(times[np.ix_(chosen, chosen)], weights, (1.0 - UTILISATION) * robots)
-        load = _busiest_load(busy, chosen, trips)
-        if load > 0:
-            batches = min(batches, math.floor((duration - longest_task) / (load * batch)))
+    span = duration - longest_task
+    batches = math.floor(UTILISATION * robots * span / (mean_task * batch))
+    if holds is not None:
+        trips = _trip_holds(holds, chosen, _trips(times[np.ix_(chosen, chosen)], weights,
+                                                  (1.0 - UTILISATION) * robots))
+        while batches > 1 and (batches * batch * (mean_task + _wait(trips, batches * batch / span))
+                               > robots * span):
+            batches -= 1
     batches = max(1, batches)
     times = tuple(float(math.floor(end * k / max(1, batches - 1))) for k in range(batches))
     return StreamSize(times=times, end=float(end), locations=tuple(chosen), weights=weights)
@@ -144,15 +152,29 @@ def _carried_alone(task: np.ndarray) -> float:
     return 1.0 - 0.5 * in_pairs * float((task ** 2).sum())
 
 
-def _busiest_load(busy: Busy, chosen: Sequence[int], trips: np.ndarray) -> float:
-    """The expected s per task the busiest resource of ``busy`` (``size_stream``) is busy,
-    for the expected ``trips`` (from, to) per task between ``chosen`` locations
-    (``_trips``)."""
-    load: Counter = Counter()
-    for a, b in zip(*np.nonzero(trips), strict=True):
-        for resource, seconds in busy(chosen[a], chosen[b]).items():
-            load[resource] += trips[a, b] * seconds
-    return max(load.values(), default=0.0)
+def _trip_holds(holds: Holds, chosen: Sequence[int], trips: np.ndarray) -> TripHolds:
+    """Each trip's expected count per task (``_trips``, between ``chosen`` locations) and
+    its holds (``size_stream``), the trips that happen."""
+    return [(float(trips[a, b]), holds(chosen[a], chosen[b]))
+            for a, b in zip(*np.nonzero(trips), strict=True)]
+
+
+def _wait(trips: TripHolds, rate: float) -> float:
+    """The expected s a task waits for the resources its trips hold, at ``rate`` tasks
+    per s (module docstring, rule 3): per hold, the longest wait among its resources;
+    infinite where a resource is busy all the time."""
+    load: Counter = Counter()  # s per task
+    square: Counter = Counter()  # s^2 per task
+    for count, held in trips:
+        for resources, seconds in held.items():
+            for resource in resources:
+                load[resource] += count * seconds
+                square[resource] += count * seconds ** 2
+    if rate * max(load.values(), default=0.0) >= 1.0:
+        return math.inf
+    wait = {r: rate * square[r] / (2.0 * (1.0 - rate * load[r])) for r in load}
+    return sum(count * sum(max(wait[r] for r in resources) for resources in held)
+               for count, held in trips)
 
 
 def _largest_neighbourhood(times: np.ndarray, limit: float, levels: Sequence[str]

@@ -57,6 +57,20 @@ def test_several_levels_span_the_most_levels_alike():
     assert stream.weights == (0.5, 0.5, 1.0)
 
 
+def served(load: float, task: float, span: float = 600.0 - (2 * 20.0 + 2 * 1.0),
+           robots: int = 6) -> int:
+    """The batches whose tasks, each ``task`` s and the wait for one resource held
+    ``load`` s per task in holds of one length (Pollaczek-Khinchine: ``rate x load^2 /
+    (2 (1 - rate x load))`` per task), fit the fleet's ``robots x span`` s."""
+    batches = 0
+    while True:
+        rate = (batches + 1) * 1.5 / span
+        if rate * load >= 1 or (batches + 1) * 1.5 * (
+                task + rate * load ** 2 / (2 * (1 - rate * load))) > robots * span:
+            return batches
+        batches += 1
+
+
 def test_a_single_file_bottleneck_bounds_the_batches():
     # Every trip between two locations drives one corridor for 15 s (a robot already at
     # its pickup drives none): a task's loaded trip, and its empty trip to the pickup
@@ -65,10 +79,9 @@ def test_a_single_file_bottleneck_bounds_the_batches():
     times = uniform(5, 20.0)
     fleet = size_stream(times, robots=6, duration=600.0, service_time=1.0)
     corridor = size_stream(times, robots=6, duration=600.0, service_time=1.0,
-                           busy=lambda i, j: {"corridor": 15.0 * (i != j), ("room", j): 1.0})
-    task = 2 * 20.0 + 2 * 1.0
+                           holds=lambda i, j: {("corridor",): 15.0} if i != j else {})
     load = (15.0 + 15.0 * (4 / 5) ** 3) * (1 - 0.5 * (2 / 3) / 20)
-    assert len(corridor.times) == int((600.0 - task) / (load * 1.5))
+    assert len(corridor.times) == served(load, 2 * 20.0 + 2 * 1.0) == 15
     assert len(corridor.times) < len(fleet.times)
     assert (corridor.end, corridor.locations) == (fleet.end, fleet.locations)
 
@@ -80,14 +93,27 @@ def test_two_locations_share_trips_and_find_a_robot_at_the_pickup():
     # way (chance 1/2) and then one trip serves both.
     times = uniform(2, 20.0)
     stream = size_stream(times, robots=6, duration=600.0, service_time=1.0,
-                         busy=lambda i, j: {"corridor": 60.0 * (i == 1 and j == 0)})
+                         holds=lambda i, j: {("corridor",): 60.0} if (i, j) == (1, 0) else {})
     load = 60.0 * (0.5 + 0.5 * 0.5 ** 3) * (1 - 0.5 * (2 / 3) * 0.5)
-    assert len(stream.times) == int((600.0 - (2 * 20.0 + 2 * 1.0)) / (load * 1.5))
+    assert len(stream.times) == served(load, 2 * 20.0 + 2 * 1.0)
+
+
+def test_a_trip_waits_at_each_resource_it_holds_in_turn():
+    # Two corridors of 10 s each on every trip: held one after the other, a trip waits
+    # for each; held together (one run), for the longer wait only.
+    times = uniform(5, 20.0)
+    in_turn = size_stream(times, robots=6, duration=600.0, service_time=1.0,
+                          holds=lambda i, j: {("a",): 10.0, ("b",): 10.0} if i != j else {})
+    together = size_stream(times, robots=6, duration=600.0, service_time=1.0,
+                           holds=lambda i, j: {("a", "b"): 10.0} if i != j else {})
+    load = (10.0 + 10.0 * (4 / 5) ** 3) * (1 - 0.5 * (2 / 3) / 20)
+    assert len(together.times) == served(load, 2 * 20.0 + 2 * 1.0)
+    assert len(in_turn.times) < len(together.times)
 
 
 def test_resources_less_busy_than_the_fleet_keep_the_fleet_bound():
     times = uniform(5, 20.0)
     fleet = size_stream(times, robots=6, duration=600.0, service_time=1.0)
     rooms = size_stream(times, robots=6, duration=600.0, service_time=1.0,
-                        busy=lambda i, j: {("room", j): 3.0, "corridor": 2.0 * (i != j)})
+                        holds=lambda i, j: {(("room", j),): 3.0, ("corridor",): 2.0 * (i != j)})
     assert rooms == fleet
