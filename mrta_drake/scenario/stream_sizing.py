@@ -18,8 +18,8 @@ s), the number of robots and the run's duration (s):
 2. **When**: a task takes at most ``2 x longest leg + 2 x service time`` (to the pickup,
    then to the drop-off) among those locations, ``2 x mean leg + 2 x service time`` on
    average; the last batch arrives a longest and a mean task time before the end, time
-   for a robot to finish the task in hand (on average) and then this one (at worst), and
-   with ``holds`` (3.) two tasks' expected waits earlier, the waits of those two tasks.
+   for a robot to finish the task in hand (on average) and then this one (at worst); with
+   ``holds`` (3.), earlier by those two tasks' expected waits for single servers.
 3. **How many**: batches (``BATCH_SIZE``, 1.5 tasks on average) come as many as keep the
    fleet busy ``UTILISATION`` (half) of the run but its last longest task time, leaving
    the rest for queues, lifts, single-file stretches and robots passing each other, and
