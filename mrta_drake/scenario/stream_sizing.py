@@ -111,9 +111,7 @@ def size_stream(times: np.ndarray, robots: int, duration: float, service_time: f
     if holds is not None:
         trips = _trip_holds(holds, chosen, _trips(times[np.ix_(chosen, chosen)], weights,
                                                   (1.0 - UTILISATION) * robots))
-        while batches > 1 and (batches * batch * (mean_task + _wait(trips, batches * batch / span))
-                               > robots * span):
-            batches -= 1
+        batches = _with_waits(trips, batches, mean_task, robots, span)
         end = max(0.0, end - 2.0 * _wait(trips, max(1, batches) * batch / span))
     batches = max(1, batches)
     times = tuple(float(math.floor(end * k / max(1, batches - 1))) for k in range(batches))
@@ -159,6 +157,18 @@ def _trip_holds(holds: Holds, chosen: Sequence[int], trips: np.ndarray) -> TripH
     its holds (``size_stream``), the trips that happen."""
     return [(float(trips[a, b]), holds(chosen[a], chosen[b]))
             for a, b in zip(*np.nonzero(trips), strict=True)]
+
+
+def _with_waits(trips: TripHolds, batches: int, mean_task: float, robots: int,
+                span: float) -> int:
+    """The most batches, up to ``batches``, whose tasks' mean time ``mean_task`` (s) and
+    expected waits for the holds of their ``trips`` (``_wait``) fit ``robots`` robots'
+    time over ``span`` s (module docstring, rule 3)."""
+    batch = 0.5 * sum(BATCH_SIZE)
+    while batches > 1 and batches * batch * (mean_task + _wait(trips, batches * batch / span)
+                                             ) > robots * span:
+        batches -= 1
+    return batches
 
 
 def _wait(trips: TripHolds, rate: float) -> float:
