@@ -86,6 +86,12 @@ class NominalParams:
         if self.min_speed > 0:
             raise InputError(None, "min_speed", f"must be <= 0, got {self.min_speed!r}")
 
+    @property
+    def cruise_speed(self) -> float:
+        """The speed robots drive along dense paths, m/s: ``min(k_x lookahead,
+        max_speed)`` (module docstring)."""
+        return min(self.k_x * self.lookahead, self.max_speed)
+
     @cached_property
     def gains(self) -> np.ndarray:
         """The fields as one array for compiled code (``nominal_inputs``,

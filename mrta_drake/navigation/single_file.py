@@ -64,7 +64,7 @@ class Run:
 _BESIDE = 2.5  # m: the farthest a queue slot stands beside its lane (2.2 m, rmf_navigation)
 
 
-def _hop_segment(roadways: Roadways, a, b, c) -> tuple[int, bool] | None:
+def hop_segment(roadways: Roadways, a, b, c) -> tuple[int, bool] | None:
     """The segment the hop from route point ``a`` to ``b`` drives (``c``: the point after
     ``b``, or None): its lane's; for a hop from a roadway node to a spot beside a lane
     from it (a queue slot beside the lanes, within ``_BESIDE``), that lane's; for a hop
@@ -107,7 +107,7 @@ def route_runs(roadways: Roadways, route: tuple[tuple[float, float], ...],
     runs: list[Run] = []
     gap = math.inf
     for j in range(len(route) - 1):
-        segment = _hop_segment(roadways, route[j], route[j + 1],
+        segment = hop_segment(roadways, route[j], route[j + 1],
                                route[j + 2] if j + 2 < len(route) else None)
         if segment is None:
             gap += math.dist(route[j], route[j + 1])

@@ -18,19 +18,34 @@ s), the number of robots and the run's duration (s):
 2. **When**: a task takes at most ``2 x longest leg + 2 x service time`` (to the pickup,
    then to the drop-off) among those locations, ``2 x mean leg + 2 x service time`` on
    average; the last batch arrives a longest and a mean task time before the end, time
-   for a robot to finish the task in hand (on average) and then this one (at worst).
+   for a robot to finish the task in hand (on average) and then this one (at worst); with
+   ``holds`` (3.), earlier by those two tasks' expected waits for single servers.
 3. **How many**: batches (``BATCH_SIZE``, 1.5 tasks on average) come as many as keep the
    fleet busy ``UTILISATION`` (half) of the run but its last longest task time, leaving
-   the rest for queues, lifts, single-file stretches and robots passing each other; at
-   least one. They arrive evenly spaced from 0 s to the last arrival (no bursts beyond
-   what the fleet was sized for).
+   the rest for queues, lifts, single-file stretches and robots passing each other, and
+   as the whole fleet can serve in that time with the waits for the single-server
+   resources (``holds``: rooms, single-file segments) included. A task is its loaded
+   trip from the pickup to the drop-off and an empty trip to the pickup from wherever the
+   nearest of the free robots (``1 - UTILISATION`` of them, each at a drop-off drawn with
+   the drop-off weights) stands; a batch of two tasks that share pickup and drop-off is
+   carried on one trip (robots carry two items). A trip holds the resources it needs in
+   turn (a run of segments together, then the room), and waits for each hold as long as
+   for the busiest of its resources: with tasks arriving at ``rate`` (the batches' tasks
+   over the run but its longest task) and a resource held ``L`` s and ``S2`` s^2 per
+   task (its holds' lengths and their squares, summed over the expected trips), the
+   Pollaczek-Khinchine mean wait of a single server with random arrivals, ``rate x S2 /
+   (2 (1 - rate x L))`` s. The batches are the most, up to the fleet's, whose tasks'
+   mean time and expected waits fit ``robots x (run - longest task)``. At least one
+   batch. They arrive evenly spaced from 0 s to the last arrival (no bursts beyond what
+   the fleet was sized for).
 
 The tasks themselves stay a seeded draw (``tasks.generate`` with the scenario's seed).
 """
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections import Counter
+from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass
 
 import networkx as nx
@@ -59,13 +74,19 @@ class StreamSize:
     names: tuple[str, ...] = ()
 
 
+Holds = Callable[[int, int], Mapping[tuple[Hashable, ...], float]]
+TripHolds = list[tuple[float, Mapping[tuple[Hashable, ...], float]]]
+
+
 def size_stream(times: np.ndarray, robots: int, duration: float, service_time: float,
-                source: str | None = None, levels: Sequence[str] | None = None
-                ) -> StreamSize:
+                source: str | None = None, levels: Sequence[str] | None = None,
+                holds: Holds | None = None) -> StreamSize:
     """The stream for ``robots`` robots over ``duration`` s given the travel times
     ``times`` (n, n) s between task locations (module docstring); ``levels``: each
-    location's level, when the building has several; ``source`` names the building in
-    errors."""
+    location's level, when the building has several; ``holds(i, j)``: the s a robot's trip
+    from location ``i`` to serve at ``j`` (indices into ``times``; ``i == j``: serving
+    only) holds single-server resources (any keys), by the resources held at once,
+    without: the fleet bound alone; ``source`` names the building in errors."""
     times = np.asarray(times, dtype=float)
     limit = LEG_SHARE * duration
     levels = levels or [""] * len(times)
@@ -82,12 +103,90 @@ def size_stream(times: np.ndarray, robots: int, duration: float, service_time: f
         raise InputError(source, "--duration", f"{duration:g} s is too short for tasks in "
                          f"this building: a task may take {longest_task:g} s, and the last "
                          f"needs that and a mean task ({mean_task:g} s) before the end")
-    batches = max(1, math.floor(UTILISATION * robots * (duration - longest_task)
-                                / (mean_task * 0.5 * sum(BATCH_SIZE))))
-    times = tuple(float(math.floor(end * k / max(1, batches - 1))) for k in range(batches))
     used = [levels[i] for i in chosen]
     weights = tuple(round(1.0 / used.count(level), 6) for level in used)
+    batch = 0.5 * sum(BATCH_SIZE)
+    span = duration - longest_task
+    batches = math.floor(UTILISATION * robots * span / (mean_task * batch))
+    if holds is not None:
+        trips = _trip_holds(holds, chosen, _trips(times[np.ix_(chosen, chosen)], weights,
+                                                  (1.0 - UTILISATION) * robots))
+        batches = _with_waits(trips, batches, mean_task, robots, span)
+        end = max(0.0, end - 2.0 * _wait(trips, max(1, batches) * batch / span))
+    batches = max(1, batches)
+    times = tuple(float(math.floor(end * k / max(1, batches - 1))) for k in range(batches))
     return StreamSize(times=times, end=float(end), locations=tuple(chosen), weights=weights)
+
+
+def _trips(times: np.ndarray, weights: Sequence[float], free: float) -> np.ndarray:
+    """The expected trips per task (from, to) between locations with the travel times
+    ``times`` (s) and ``weights`` (``size_stream``, rule 3): the loaded trip from the
+    pickup to the drop-off, and the empty trip to the pickup from the nearest of ``free``
+    robots, each standing at a drop-off; tasks carried together count one trip for two."""
+    p = np.asarray(weights, dtype=float) / sum(weights)
+    task = p[:, None] * p[None, :] / (1.0 - p[:, None])  # (pickup, drop-off)
+    np.fill_diagonal(task, 0.0)
+    nearest = _nearest_of(times, task.sum(axis=0), free)  # (from, pickup)
+    return _carried_alone(task) * (task + nearest * p[None, :])
+
+
+def _nearest_of(times: np.ndarray, spread: np.ndarray, robots: float) -> np.ndarray:
+    """(from, to): the chance that, of ``robots`` robots standing at locations drawn with
+    the chances ``spread``, the one nearest to ``to`` (``times`` (from, to), s; ties: the
+    lower index) stands at ``from``: ``(1 - F(before from))^robots - (1 - F(from))^robots``
+    with ``F`` the chance of a location no farther than it, in that order."""
+    chance = np.zeros_like(times, dtype=float)
+    for to in range(len(times)):
+        order = np.lexsort((np.arange(len(times)), times[:, to]))
+        within = np.cumsum(spread[order])
+        chance[order, to] = -np.diff((1.0 - within) ** robots, prepend=1.0)
+    return chance
+
+
+def _carried_alone(task: np.ndarray) -> float:
+    """The trips per task where robots carry two tasks (``capacity``) that share pickup
+    and drop-off together: a batch of two (``BATCH_SIZE``) does so with the chance that
+    its tasks share them, ``sum(task^2)``, and one trip then serves both."""
+    paired = np.mean([n == 2 for n in range(BATCH_SIZE[0], BATCH_SIZE[1] + 1)])
+    in_pairs = 2.0 * paired / (0.5 * sum(BATCH_SIZE))  # of tasks, in batches of two
+    return 1.0 - 0.5 * in_pairs * float((task ** 2).sum())
+
+
+def _trip_holds(holds: Holds, chosen: Sequence[int], trips: np.ndarray) -> TripHolds:
+    """Each trip's expected count per task (``_trips``, between ``chosen`` locations) and
+    its holds (``size_stream``), the trips that happen."""
+    return [(float(trips[a, b]), holds(chosen[a], chosen[b]))
+            for a, b in zip(*np.nonzero(trips), strict=True)]
+
+
+def _with_waits(trips: TripHolds, batches: int, mean_task: float, robots: int,
+                span: float) -> int:
+    """The most batches, up to ``batches``, whose tasks' mean time ``mean_task`` (s) and
+    expected waits for the holds of their ``trips`` (``_wait``) fit ``robots`` robots'
+    time over ``span`` s (module docstring, rule 3)."""
+    batch = 0.5 * sum(BATCH_SIZE)
+    while batches > 1 and batches * batch * (mean_task + _wait(trips, batches * batch / span)
+                                             ) > robots * span:
+        batches -= 1
+    return batches
+
+
+def _wait(trips: TripHolds, rate: float) -> float:
+    """The expected s a task waits for the resources its trips hold, at ``rate`` tasks
+    per s (module docstring, rule 3): per hold, the longest wait among its resources;
+    infinite where a resource is busy all the time."""
+    load: Counter = Counter()  # s per task
+    square: Counter = Counter()  # s^2 per task
+    for count, held in trips:
+        for resources, seconds in held.items():
+            for resource in resources:
+                load[resource] += count * seconds
+                square[resource] += count * seconds ** 2
+    if rate * max(load.values(), default=0.0) >= 1.0:
+        return math.inf
+    wait = {r: rate * square[r] / (2.0 * (1.0 - rate * load[r])) for r in load}
+    return sum(count * sum(max(wait[r] for r in resources) for resources in held)
+               for count, held in trips)
 
 
 def _largest_neighbourhood(times: np.ndarray, limit: float, levels: Sequence[str]

@@ -38,8 +38,10 @@ import numpy as np
 import yaml
 
 from mrta_drake.control.barriers import SafetyDistances
+from mrta_drake.control.nominal import NominalParams
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.roadways import Roadways, single_file_lanes
+from mrta_drake.navigation.single_servers import trip_holds
 from mrta_drake.navigation.standstills import distance_to_polyline
 from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig, TasksConfig
 from mrta_drake.scenario.stream_sizing import BATCH_SIZE, LEG_SHARE, StreamSize, size_stream
@@ -265,11 +267,16 @@ def servable_stream(roadways: RoadwaysConfig, locations: list[LocationConfig],
     (``scenario.stream_sizing``), from the allocator's default estimate of the travel
     times (lift rides included), along the legs robots drive (``roadways`` with their
     single-file segments: ``Roadways.leg`` out of a location keeps off the single-file
-    lane where that location's own queue waits)."""
+    lane where that location's own queue waits), with the waits for its rooms and
+    single-file segments (``navigation.single_servers``)."""
     tasks = TasksConfig()
-    estimate = Roadways(roadways, locations, source).travel_time_estimate(tasks.estimate_speed)
-    stream = size_stream(estimate, robots, options.duration, tasks.service_time, source,
-                         levels)
+    lanes = Roadways(roadways, locations, source)
+    ids = lanes.location_ids
+    stream = size_stream(lanes.travel_time_estimate(tasks.estimate_speed), robots,
+                         options.duration, tasks.service_time, source, levels,
+                         holds=lambda i, j: trip_holds(lanes, ids[i], ids[j],
+                                                       NominalParams().cruise_speed,
+                                                       tasks.service_time))
     if len(stream.locations) == len(locations) and len(set(stream.weights)) == 1:
         return stream
     return dataclasses.replace(stream, names=tuple(locations[i].name

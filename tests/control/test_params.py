@@ -107,3 +107,8 @@ def test_a_bad_value_in_a_group_gives_one_line(group, value, message):
         _controller_params("cluster_cbf", **{group: value})
     assert str(error.value).startswith(f"{SCENARIO}: {PARAMS}.{group}: {message}")
     assert "\n" not in str(error.value)
+
+
+def test_robots_cruise_at_k_x_times_lookahead_within_max_speed():
+    assert NominalParams().cruise_speed == pytest.approx(0.75)
+    assert NominalParams(max_speed=0.5).cruise_speed == 0.5

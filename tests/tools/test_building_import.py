@@ -116,6 +116,15 @@ def test_the_task_stream_is_sized_to_be_served_in_the_run(tmp_path):
     assert len(arrivals) > 1
 
 
+def test_a_single_file_corridor_bounds_the_stream_below_the_fleet(tmp_path):
+    # Every leg drives the corridor, one robot at a time: six robots get the stream that
+    # the corridor serves with the waits for it, not six robots' worth (13 batches by the
+    # fleet alone).
+    building = BUILDINGS / "narrow_corridor.building.yaml"
+    report = import_building(str(building), str(tmp_path), ImportOptions(robots=6))
+    assert any(line.startswith("ground: 8 task batches") for line in report.lines)
+
+
 def test_navigation_file_is_the_derived_navigation(tmp_path):
     import_building(str(ONE_LEVEL), str(tmp_path), ImportOptions(robots=2))
     written = yaml.safe_load((tmp_path / "navigation.yaml").read_text())
