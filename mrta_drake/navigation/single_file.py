@@ -68,8 +68,9 @@ def _hop_segment(roadways: Roadways, a, b, c) -> tuple[int, bool] | None:
     """The segment the hop from route point ``a`` to ``b`` drives (``c``: the point after
     ``b``, or None): its lane's; for a hop from a roadway node to a spot beside a lane
     from it (a queue slot beside the lanes, within ``_BESIDE``), that lane's; for a hop
-    from off the lanes (``a`` no roadway node) onto a segment's lane at ``b``, that
-    segment (the way the route goes on along it)."""
+    between two spots off the lanes beside one segment's lanes, that segment
+    (``_beside_both``); for a hop from off the lanes (``a`` no roadway node) onto a
+    segment's lane at ``b``, that segment (the way the route goes on along it)."""
     segment = roadways.segment_of(a, b)
     if segment is not None:
         return segment
@@ -81,10 +82,31 @@ def _hop_segment(roadways: Roadways, a, b, c) -> tuple[int, bool] | None:
                  for n in roadways.graph.successors(start)]
         gap, n = min(lanes, key=lambda lane: lane[0], default=(math.inf, None))
         return roadways.segment_of(a, roadways.node_position(n)) if gap <= _BESIDE else None
+    if roadways.node_at(b) is None and (alongside := _beside_both(roadways, a, b)) is not None:
+        return alongside
     if c is not None and (onward := roadways.segment_of(b, c)) is not None:
         return onward
     near = _near(roadways, b, 1e-3)
     return (near[0], True) if near else None
+
+
+def _beside_both(roadways: Roadways, a, b) -> tuple[int, bool] | None:
+    """The segment beside whose lanes both spots ``a`` and ``b`` (off the lanes, within
+    ``_BESIDE``) lie, the way of its lane beside ``a`` that heads most towards ``b``; or
+    None. A hop between two such spots (queue slots beside a single-file corridor: a robot
+    granted the room driving from one to the next) drives that corridor."""
+    hop = (b[0] - a[0], b[1] - a[1])
+    best, found = 0.0, None
+    lanes = _segment_lanes(roadways)
+    for k, start, end in lanes:
+        if _to_lane(a, start, end) > _BESIDE:
+            continue
+        heading = ((end[0] - start[0]) * hop[0] + (end[1] - start[1]) * hop[1]) / max(
+            math.dist(start, end), 1e-9)
+        if heading > best and any(_to_lane(b, s, e) <= _BESIDE
+                                  for j, s, e in lanes if j == k):
+            best, found = heading, roadways.segment_of(start, end)
+    return found
 
 
 def _to_lane(xy, a, b) -> float:
@@ -157,16 +179,27 @@ NOTHING = Need()
 
 
 def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int, xy,
-         params: SingleFileParams) -> Need:
+         params: SingleFileParams, from_xy: bool = False) -> Need:
     """The segments a robot at ``xy`` driving ``route`` to point ``index`` needs, and
     whether it must hold where it is until it has them (it is within ``hold_distance``
-    of a run's entry, or in the run)."""
-    if roadways.segment_count == 0 or len(route) < 2:
+    of a run's entry, or in the run). With ``from_xy`` (a route that begins where the
+    robot stood: a room's holder driving in from its queue place), the hop from ``xy`` to
+    the route's first point belongs to the route while ``index`` is 0 (``_first_hop``)."""
+    if roadways.segment_count == 0 or not route:
         return NOTHING
+    first = _first_hop(roadways, route, index, xy, params) if from_xy else None
+    if len(route) < 2:
+        return NOTHING if first is None else Need((first,), True)
     wanted: dict[int, bool] = {}
     hold = False
     stops: tuple[int, ...] = ()
-    for run in route_runs(roadways, route, params.chain_gap, params.stand_distance):
+    runs = route_runs(roadways, route, params.chain_gap, params.stand_distance)
+    if first is not None:  # in a run from here, joined to the route's own first run
+        wanted[first[0]] = first[1]
+        hold = True
+        if runs and runs[0].first == 0:
+            wanted.update(dict(runs[0].segments))
+    for run in runs:
         if run.last == len(route) - 2:  # the run where the route ends: it stands there
             stops = stands_in(roadways, route[-1], params)
         if index <= run.first:  # ahead: how far along the route to its entry?
@@ -185,6 +218,19 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
     if not wanted:
         return NOTHING
     return Need(tuple(sorted(wanted.items())), hold, tuple(k for k in stops if k in wanted))
+
+
+def _first_hop(roadways: Roadways, route, index: int, xy, params: SingleFileParams
+               ) -> tuple[int, bool] | None:
+    """The segment the hop from ``xy`` to ``route[0]`` drives (``_hop_segment``), while
+    the robot drives it (``index`` 0, farther than ``stand_distance`` from that point);
+    else None. A room's holder granted the room at its queue place, away from the first
+    slot, drives from there along the lanes beside it (office seed 13: coe's holder,
+    standing in segment 6 4.9 m from its slot, asked for nothing)."""
+    if index != 0 or math.dist(xy, route[0]) <= params.stand_distance:
+        return None
+    return _hop_segment(roadways, (float(xy[0]), float(xy[1])), route[0],
+                        route[1] if len(route) > 1 else None)
 
 
 @functools.lru_cache(maxsize=64)
