@@ -67,9 +67,7 @@ class RoomQueues(LeafSystem):
        segment in ``stops``: it will stand there; robots that only drive through follow
        each other in; a robot holding a segment with others, the way it names it, waits
        for them only if it stops there: office seed 1, two holders of segment 6 waiting
-       for each other, the one driving through now goes on; a room's holder is not kept
-       out by the robots standing in the segment as they wait for that room, its queue,
-       which it passes as it passes them in its doorway), and, unless it holds some
+       for each other, the one driving through now goes on), and, unless it holds some
        already, none is named by a robot before it still waiting; else it gets none. (A
        robot standing in a segment goes as soon as its way is free: one waiting before it
        may wait for the very segment it stands in.) A robot waiting before it keeps its
@@ -155,30 +153,19 @@ class RoomQueues(LeafSystem):
             """Whether ``robot`` or a holder of segment ``k`` stops in it (class docstring)."""
             return k in stops[robot] or any(k in stops[r] for r in holds[k].holders)
 
-        standing = {robot: set(request.standing)
-                    for robot, request in zip(self._robots, requests, strict=True)}
-        queued: dict[str, set[str]] = {}  # a room's holder -> the robots waiting for it
-        for queue in rooms:
-            if queue.holder is not None:
-                queued.setdefault(queue.holder, set()).update(queue.waiting)
-
-        def in_way(robot, k):
-            """The holders of segment ``k`` but ``robot`` and those that stand in it
-            waiting for a room ``robot`` holds (class docstring)."""
-            return {r for r in holds[k].holders if r != robot
-                    and not (r in queued.get(robot, ()) and k in standing[r])}
-
         def blocked(robot):
             """The other robots holding segments ``robot`` names and cannot have now; not
             those of a segment it holds with them the way it names, unless it stops there
             (class docstring)."""
             return {r for k, way in wanted[robot].items() if not (
-                not in_way(robot, k)
+                set(holds[k].holders) <= {robot}
                 or (not alone(robot, k) and holds[k].forward == way)
                 or (robot in holds[k].holders and holds[k].forward == way
                     and k not in stops[robot]))
-                for r in in_way(robot, k)}
+                for r in holds[k].holders if r != robot}
 
+        standing = {robot: set(request.standing)
+                    for robot, request in zip(self._robots, requests, strict=True)}
         order = [r for r in old.segment_waiting if needs(r)]
         new = [r for r in self._robots if r not in order and needs(r)]
         order += sorted(new, key=lambda r: not standing[r].intersection(wanted[r]))

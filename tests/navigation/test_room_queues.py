@@ -280,25 +280,6 @@ def test_of_two_robots_in_a_segment_where_one_stops_the_one_driving_through_goes
     assert bench.state().holds_segments("a", ((0, True), (1, True)))
 
 
-def test_a_room_holder_is_not_kept_out_of_a_segment_by_its_own_queue_standing_there():
-    # q waits for the room standing in segment 0 (its queue place is on the lanes, as
-    # the office's places at v48, v60 and v61); h, the room's holder, drives along 0 to
-    # the room. Before, h waited for q, and q for the room: a gridlock. c, not in the
-    # room's queue, is still kept out.
-    bench = SegmentBench(["h", "q", "c"], exclusive=frozenset({0}))
-    bench.want("h", room=ROOM)
-    bench.step()
-    bench.want("q", (0, True), room=ROOM, stops=(0,), standing=(0,))
-    bench.step()
-    assert bench.queue().holder == "h" and bench.state().segments[0].holders == ("q",)
-    bench.want("h", (0, False), (1, True), room=ROOM, stops=(1,))
-    bench.want("c", (0, False), (2, True))
-    bench.step()
-    state = bench.state()
-    assert state.holds_segments("h", ((0, False), (1, True)))
-    assert state.segment_waiting == ("c",)
-
-
 def test_of_robots_asking_at_once_the_one_standing_in_the_segment_goes_first():
     # At the start, a (driving in from outside) and b (standing in 0, nothing to do) ask
     # for 0 at the same instant: b, already in it, gets it; a waits (and b, told so by
