@@ -62,14 +62,17 @@ class Run:
 
 
 _BESIDE = 2.5  # m: the farthest a queue slot stands beside its lane (2.2 m, rmf_navigation)
+# m: the shortest hop between two spots beside a segment that drives along it; a robot
+# moving up one or two queue slots (1 m apart, rmf_navigation) stays beside the lane.
+_ALONG = 2.5
 
 
 def _hop_segment(roadways: Roadways, a, b, c) -> tuple[int, bool] | None:
     """The segment the hop from route point ``a`` to ``b`` drives (``c``: the point after
     ``b``, or None): its lane's; for a hop from a roadway node to a spot beside a lane
     from it (a queue slot beside the lanes, within ``_BESIDE``), that lane's; for a hop
-    between two spots off the lanes beside one segment's lanes, that segment
-    (``_beside_both``); for a hop from off the lanes (``a`` no roadway node) onto a
+    of at least ``_ALONG`` between two spots off the lanes beside one segment's lanes, that
+    segment (``_beside_both``); for a hop from off the lanes (``a`` no roadway node) onto a
     segment's lane at ``b``, that segment (the way the route goes on along it)."""
     segment = roadways.segment_of(a, b)
     if segment is not None:
@@ -82,7 +85,8 @@ def _hop_segment(roadways: Roadways, a, b, c) -> tuple[int, bool] | None:
                  for n in roadways.graph.successors(start)]
         gap, n = min(lanes, key=lambda lane: lane[0], default=(math.inf, None))
         return roadways.segment_of(a, roadways.node_position(n)) if gap <= _BESIDE else None
-    if roadways.node_at(b) is None and (alongside := _beside_both(roadways, a, b)) is not None:
+    if roadways.node_at(b) is None and math.dist(a, b) >= _ALONG and (
+            alongside := _beside_both(roadways, a, b)) is not None:
         return alongside
     if c is not None and (onward := roadways.segment_of(b, c)) is not None:
         return onward
@@ -93,8 +97,10 @@ def _hop_segment(roadways: Roadways, a, b, c) -> tuple[int, bool] | None:
 def _beside_both(roadways: Roadways, a, b) -> tuple[int, bool] | None:
     """The segment beside whose lanes both spots ``a`` and ``b`` (off the lanes, within
     ``_BESIDE``) lie, the way of its lane beside ``a`` that heads most towards ``b``; or
-    None. A hop between two such spots (queue slots beside a single-file corridor: a robot
-    granted the room driving from one to the next) drives that corridor."""
+    None. A long hop between two such spots (queue slots beside a single-file corridor: a
+    robot granted the room driving from one to the next) drives that corridor (office seed
+    8: pantry's holder drove segment 6 from its second slot to its head slot, 3.9 m,
+    unasked, and met a robot driving it the other way)."""
     hop = (b[0] - a[0], b[1] - a[1])
     best, found = 0.0, None
     lanes = _segment_lanes(roadways)
@@ -179,27 +185,16 @@ NOTHING = Need()
 
 
 def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int, xy,
-         params: SingleFileParams, from_xy: bool = False) -> Need:
+         params: SingleFileParams) -> Need:
     """The segments a robot at ``xy`` driving ``route`` to point ``index`` needs, and
     whether it must hold where it is until it has them (it is within ``hold_distance``
-    of a run's entry, or in the run). With ``from_xy`` (a route that begins where the
-    robot stood: a room's holder driving in from its queue place), the hop from ``xy`` to
-    the route's first point belongs to the route while ``index`` is 0 (``_first_hop``)."""
-    if roadways.segment_count == 0 or not route:
+    of a run's entry, or in the run)."""
+    if roadways.segment_count == 0 or len(route) < 2:
         return NOTHING
-    first = _first_hop(roadways, route, index, xy, params) if from_xy else None
-    if len(route) < 2:
-        return NOTHING if first is None else Need((first,), True)
     wanted: dict[int, bool] = {}
     hold = False
     stops: tuple[int, ...] = ()
-    runs = route_runs(roadways, route, params.chain_gap, params.stand_distance)
-    if first is not None:  # in a run from here, joined to the route's own first run
-        wanted[first[0]] = first[1]
-        hold = True
-        if runs and runs[0].first == 0:
-            wanted.update(dict(runs[0].segments))
-    for run in runs:
+    for run in route_runs(roadways, route, params.chain_gap, params.stand_distance):
         if run.last == len(route) - 2:  # the run where the route ends: it stands there
             stops = stands_in(roadways, route[-1], params)
         if index <= run.first:  # ahead: how far along the route to its entry?
@@ -218,19 +213,6 @@ def need(roadways: Roadways, route: tuple[tuple[float, float], ...], index: int,
     if not wanted:
         return NOTHING
     return Need(tuple(sorted(wanted.items())), hold, tuple(k for k in stops if k in wanted))
-
-
-def _first_hop(roadways: Roadways, route, index: int, xy, params: SingleFileParams
-               ) -> tuple[int, bool] | None:
-    """The segment the hop from ``xy`` to ``route[0]`` drives (``_hop_segment``), while
-    the robot drives it (``index`` 0, farther than ``stand_distance`` from that point);
-    else None. A room's holder granted the room at its queue place, away from the first
-    slot, drives from there along the lanes beside it (office seed 13: coe's holder,
-    standing in segment 6 4.9 m from its slot, asked for nothing)."""
-    if index != 0 or math.dist(xy, route[0]) <= params.stand_distance:
-        return None
-    return _hop_segment(roadways, (float(xy[0]), float(xy[1])), route[0],
-                        route[1] if len(route) > 1 else None)
 
 
 @functools.lru_cache(maxsize=64)

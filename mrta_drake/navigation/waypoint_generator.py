@@ -942,8 +942,7 @@ class WaypointPolicy:
                             self._params.single_file)
         if s.phase not in (RobotMode.DRIVE, RobotMode.ENTER, RobotMode.HOME):
             return NOTHING
-        wanted = need(self._roadways, s.route, s.index, robots.xy, self._params.single_file,
-                      from_xy=s.phase == RobotMode.ENTER)
+        wanted = need(self._roadways, s.route, s.index, robots.xy, self._params.single_file)
         if s.phase == RobotMode.HOME and s.index == 0:
             out = self._leaving(robots.xy, s.route[0], queues)
             if out:

@@ -100,24 +100,9 @@ def test_a_hop_between_two_spots_beside_a_segment_drives_it():
     # Westwards: segment 1 the other way.
     runs = route_runs(corridor(), ((28.0, 1.0), (22.0, 1.0)), PARAMS.chain_gap)
     assert [(r.first, r.last, r.segments) for r in runs] == [(0, 0, ((1, True),))]
-    # Beside no segment (3 m off the lanes): nothing.
+    # Beside no segment (3 m off the lanes), or moving up 1 m in a queue: nothing.
     assert route_runs(corridor(), ((22.0, 3.0), (28.0, 3.0)), PARAMS.chain_gap) == ()
-
-
-def test_a_holder_driving_in_from_where_it_stands_needs_the_segment_of_that_hop():
-    # Granted the room standing in segment 1 (A30 -> A20) 5 m from its slot beside the
-    # lane, the holder drives west along the segment to the slot, then off the lanes to
-    # the point: before, it asked for nothing (office seed 13: coe's holder in segment 6).
-    route = ((22.0, 1.5), (22.0, 3.0))
-    assert need(corridor(), route, 0, (27.0, 0.0), PARAMS) == Need()
-    assert need(corridor(), route, 0, (27.0, 0.0), PARAMS, from_xy=True) == \
-        Need(((1, True),), True)
-    # At the slot already (within stand_distance), or past it: the route's own runs.
-    assert need(corridor(), route, 0, (22.2, 1.5), PARAMS, from_xy=True) == Need()
-    assert need(corridor(), route, 1, (22.0, 2.0), PARAMS, from_xy=True) == Need()
-    # Driving straight to the point (a route of one point): that hop's segment.
-    assert need(corridor(), ((25.0, 0.0),), 0, (28.0, 0.0), PARAMS, from_xy=True) == \
-        Need(((1, True),), True)
+    assert route_runs(corridor(), ((22.0, 1.0), (23.0, 1.0)), PARAMS.chain_gap) == ()
 
 
 @pytest.mark.parametrize("xy, spot, expected", [
