@@ -65,9 +65,7 @@ class RoomQueues(LeafSystem):
        once when each is free or held by robots driving it the same way (only by itself
        for the ``exclusive`` segments, where robots stop, when it or a holder names the
        segment in ``stops``: it will stand there; robots that only drive through follow
-       each other in; a robot holding a segment with others, the way it names it, waits
-       for them only if it stops there: office seed 1, two holders of segment 6 waiting
-       for each other, the one driving through now goes on), and, unless it holds some
+       each other in), and, unless it holds some
        already, none is named by a robot before it still waiting; else it gets none. (A
        robot standing in a segment goes as soon as its way is free: one waiting before it
        may wait for the very segment it stands in.) A robot waiting before it keeps its
@@ -154,14 +152,10 @@ class RoomQueues(LeafSystem):
             return k in stops[robot] or any(k in stops[r] for r in holds[k].holders)
 
         def blocked(robot):
-            """The other robots holding segments ``robot`` names and cannot have now; not
-            those of a segment it holds with them the way it names, unless it stops there
-            (class docstring)."""
+            """The other robots holding segments ``robot`` names and cannot have now."""
             return {r for k, way in wanted[robot].items() if not (
                 set(holds[k].holders) <= {robot}
-                or (not alone(robot, k) and holds[k].forward == way)
-                or (robot in holds[k].holders and holds[k].forward == way
-                    and k not in stops[robot]))
+                or (not alone(robot, k) and holds[k].forward == way))
                 for r in holds[k].holders if r != robot}
 
         standing = {robot: set(request.standing)

@@ -62,18 +62,14 @@ class Run:
 
 
 _BESIDE = 2.5  # m: the farthest a queue slot stands beside its lane (2.2 m, rmf_navigation)
-# m: the shortest hop between two spots beside a segment that drives along it; a robot
-# moving up one or two queue slots (1 m apart, rmf_navigation) stays beside the lane.
-_ALONG = 2.5
 
 
 def _hop_segment(roadways: Roadways, a, b, c) -> tuple[int, bool] | None:
     """The segment the hop from route point ``a`` to ``b`` drives (``c``: the point after
     ``b``, or None): its lane's; for a hop from a roadway node to a spot beside a lane
     from it (a queue slot beside the lanes, within ``_BESIDE``), that lane's; for a hop
-    of at least ``_ALONG`` between two spots off the lanes beside one segment's lanes, that
-    segment (``_beside_both``); for a hop from off the lanes (``a`` no roadway node) onto a
-    segment's lane at ``b``, that segment (the way the route goes on along it)."""
+    from off the lanes (``a`` no roadway node) onto a segment's lane at ``b``, that
+    segment (the way the route goes on along it)."""
     segment = roadways.segment_of(a, b)
     if segment is not None:
         return segment
@@ -85,34 +81,10 @@ def _hop_segment(roadways: Roadways, a, b, c) -> tuple[int, bool] | None:
                  for n in roadways.graph.successors(start)]
         gap, n = min(lanes, key=lambda lane: lane[0], default=(math.inf, None))
         return roadways.segment_of(a, roadways.node_position(n)) if gap <= _BESIDE else None
-    if roadways.node_at(b) is None and math.dist(a, b) >= _ALONG and (
-            alongside := _beside_both(roadways, a, b)) is not None:
-        return alongside
     if c is not None and (onward := roadways.segment_of(b, c)) is not None:
         return onward
     near = _near(roadways, b, 1e-3)
     return (near[0], True) if near else None
-
-
-def _beside_both(roadways: Roadways, a, b) -> tuple[int, bool] | None:
-    """The segment beside whose lanes both spots ``a`` and ``b`` (off the lanes, within
-    ``_BESIDE``) lie, the way of its lane beside ``a`` that heads most towards ``b``; or
-    None. A long hop between two such spots (queue slots beside a single-file corridor: a
-    robot granted the room driving from one to the next) drives that corridor (office seed
-    8: pantry's holder drove segment 6 from its second slot to its head slot, 3.9 m,
-    unasked, and met a robot driving it the other way)."""
-    hop = (b[0] - a[0], b[1] - a[1])
-    best, found = 0.0, None
-    lanes = _segment_lanes(roadways)
-    for k, start, end in lanes:
-        if _to_lane(a, start, end) > _BESIDE:
-            continue
-        heading = ((end[0] - start[0]) * hop[0] + (end[1] - start[1]) * hop[1]) / max(
-            math.dist(start, end), 1e-9)
-        if heading > best and any(_to_lane(b, s, e) <= _BESIDE
-                                  for j, s, e in lanes if j == k):
-            best, found = heading, roadways.segment_of(start, end)
-    return found
 
 
 def _to_lane(xy, a, b) -> float:

@@ -259,27 +259,6 @@ def test_robots_driving_through_a_segment_where_robots_stop_follow_each_other_in
     assert bench.state().segment_waiting == ("a",)
 
 
-def test_of_two_robots_in_a_segment_where_one_stops_the_one_driving_through_goes_on():
-    # a and b drove into segment 0 one after the other, the same way, both driving
-    # through; then a, granted its room, stops in 0 (its point is there) and asks for 1
-    # too, b for 2 (office seed 1: patrol_A1's and coe's holders in segment 6). Before,
-    # each waited for the other (a holder stops in 0) until the watchdog moved one.
-    bench = SegmentBench(["a", "b"], exclusive=frozenset({0}))
-    bench.want("a", (0, True))
-    bench.want("b", (0, True))
-    bench.step()
-    assert bench.state().segments[0].holders == ("a", "b")
-    bench.want("a", (0, True), (1, True), stops=(0, 1))
-    bench.want("b", (0, True), (2, True), stops=(2,))
-    bench.step()
-    state = bench.state()
-    assert state.holds_segments("b", ((0, True), (2, True)))
-    assert state.segment_waiting == ("a",) and state.segments[1].holders == ()
-    bench.want("b", (2, True), stops=(2,))  # b is out of 0: a gets 1
-    bench.step()
-    assert bench.state().holds_segments("a", ((0, True), (1, True)))
-
-
 def test_of_robots_asking_at_once_the_one_standing_in_the_segment_goes_first():
     # At the start, a (driving in from outside) and b (standing in 0, nothing to do) ask
     # for 0 at the same instant: b, already in it, gets it; a waits (and b, told so by

@@ -90,21 +90,6 @@ def test_a_hop_from_beside_the_lanes_onto_a_segment_enters_it():
     assert [(r.first, r.last, r.segments) for r in runs] == [(0, 0, ((1, False),))]
 
 
-def test_a_hop_between_two_spots_beside_a_segment_drives_it():
-    # Between two queue slots 1 m beside segment 1 (A20 - A30), eastwards: along the
-    # segment, the way of its lane A20 -> A30 (segment 1 is listed A30 -> A20). Before,
-    # the hop asked for no segment (office seed 8, 337 s: pantry's holder drove segment 6
-    # from its second slot to its head slot unasked).
-    runs = route_runs(corridor(), ((22.0, 1.0), (28.0, 1.0), (30.0, 0.0)), PARAMS.chain_gap)
-    assert [(r.first, r.last, r.segments) for r in runs] == [(0, 1, ((1, False),))]
-    # Westwards: segment 1 the other way.
-    runs = route_runs(corridor(), ((28.0, 1.0), (22.0, 1.0)), PARAMS.chain_gap)
-    assert [(r.first, r.last, r.segments) for r in runs] == [(0, 0, ((1, True),))]
-    # Beside no segment (3 m off the lanes), or moving up 1 m in a queue: nothing.
-    assert route_runs(corridor(), ((22.0, 3.0), (28.0, 3.0)), PARAMS.chain_gap) == ()
-    assert route_runs(corridor(), ((22.0, 1.0), (23.0, 1.0)), PARAMS.chain_gap) == ()
-
-
 @pytest.mark.parametrize("xy, spot, expected", [
     ((25.0, 0.3), (25.0, 0.0), Need(((1, True),), False, (1,), (1,))),  # in 1: asks, drives
     ((25.0, 3.0), (25.0, 0.4), Need(((1, True),), True, (1,))),  # driving up to a slot in 1
