@@ -14,7 +14,6 @@ others follow their paths, the cluster's joint QP still keeping them all apart.
 """
 
 from mrta_drake.control.paths import path_ahead_near, travel_direction
-from mrta_drake.payloads import ROBOT_STOPPED_SPEED
 from mrta_drake.stack.compiled_helper import compiled_helper
 
 FOLLOWER_RULES = ("all", "in_the_way")
@@ -46,39 +45,30 @@ def in_the_way(i, above, states, paths, active, clearance, head_on_clearance, ho
             continue
         qx, qy = states[j, 0], states[j, 1]
         path = points[start[j]:start[j + 1]]
-        if _conflict(qx, qy, path, _standing(states[j, 3]), x, y, ix, iy, clearance,
-                     head_on_clearance, horizon):
+        if _conflict(qx, qy, path, x, y, ix, iy, clearance, head_on_clearance, horizon):
             return True
         if ok[i]:
             jx, jy = travel_direction(qx, qy, path)
-            if _conflict(x, y, own, _standing(states[i, 3]), qx, qy, jx, jy, clearance,
-                         head_on_clearance, horizon):
+            if _conflict(x, y, own, qx, qy, jx, jy, clearance, head_on_clearance, horizon):
                 return True
     return False
 
 
 @compiled_helper
-def _standing(speed) -> bool:
-    """Whether a robot at ``speed`` (m/s) stands (``ROBOT_STOPPED_SPEED``)."""
-    return abs(speed) < ROBOT_STOPPED_SPEED
-
-
-@compiled_helper
-def _conflict(x, y, points, standing, qx, qy, qdx, qdy, clearance, head_on_clearance, horizon):
-    """Whether a robot at (x, y) on the path ``points`` (``standing``: at rest) comes, in
-    its next ``horizon`` m, within ``clearance`` (m) of a robot at (qx, qy) driving in the
-    unit direction
+def _conflict(x, y, points, qx, qy, qdx, qdy, clearance, head_on_clearance, horizon):
+    """Whether a robot at (x, y) on the path ``points`` comes, in its next ``horizon`` m,
+    within ``clearance`` (m) of a robot at (qx, qy) driving in the unit direction
     (qdx, qdy) (zero: standing), driving another way than it there; if that way is head
     on, also within ``head_on_clearance`` of it in its next ``horizon + clearance -
     head_on_clearance`` m: the other stands on its line ahead, not beside its path. On a
     straight path, a robot less than ``head_on_clearance`` beside it is then in the way
     from the same distance on as under ``clearance`` alone."""
-    near, ux, uy = path_ahead_near(x, y, points, qx, qy, horizon, clearance, standing)
+    near, ux, uy = path_ahead_near(x, y, points, qx, qy, horizon, clearance)
     way = ux * qdx + uy * qdy
     if not near or way >= _SAME_WAY:
         return False
     if way > _HEAD_ON:
         return True
     near, ux, uy = path_ahead_near(x, y, points, qx, qy, horizon + clearance - head_on_clearance,
-                                   head_on_clearance, standing)
+                                   head_on_clearance)
     return near and ux * qdx + uy * qdy < _SAME_WAY

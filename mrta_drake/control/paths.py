@@ -90,22 +90,17 @@ def segment_projection(x, y, points):
 
 
 @compiled_helper
-def path_ahead_near(x, y, points, qx, qy, horizon, clearance, standing):
+def path_ahead_near(x, y, points, qx, qy, horizon, clearance):
     """Whether a robot at (x, y) following the path ``points`` (k, 2), k >= 1, comes within
     ``clearance`` (m) of the point (qx, qy) in its next ``horizon`` m: on the way from
     (x, y) to its projection onto the path, then along the path; and the unit direction it
-    then drives in (zero if it has no length). A ``standing`` robot drives in the path's
-    direction at its projection (``travel_direction``): a path begins where its robot stood
-    when planned, and the millimetres a standing robot has crept from there point anywhere."""
+    then drives in (zero if it has no length)."""
     if len(points) == 1:
         return _near_segment(qx, qy, x, y, points[0, 0], points[0, 1], clearance)
     nearest, t = segment_projection(x, y, points)
     ax = points[nearest, 0] + t * (points[nearest + 1, 0] - points[nearest, 0])
     ay = points[nearest, 1] + t * (points[nearest + 1, 1] - points[nearest, 1])
     near, ux, uy = _near_segment(qx, qy, x, y, ax, ay, clearance)
-    if standing:
-        ux, uy = _near_segment(x, y, points[nearest, 0], points[nearest, 1],
-                               points[nearest + 1, 0], points[nearest + 1, 1], 0.0)[1:]
     left = horizon
     for i in range(nearest + 1, len(points)):
         if near or left <= 0.0:

@@ -458,21 +458,6 @@ def test_only_followers_in_the_way_of_a_robot_ranked_above_get_the_slow_down_nom
         CoordinationParams(followers="none")
 
 
-def test_a_follower_close_ahead_on_the_same_way_is_not_in_the_way():
-    # Paths begin where their robots stand. 0.6 m apart (within yield_clearance) the way
-    # from each robot to its path has no length and no direction: read as "another way",
-    # it gave the follower ahead the slow-down, and the leader behind it stood for good.
-    lane = [(0.0, 0.0), (8.0, 0.0)]  # robot 0 (the leader) drives east along y = 0
-    close_ahead = [[0.0, 0.0, 0.0, 0.0], [0.6, 0.0, 0.0, 0.0]]
-    assert _slowed(CbfParams(), close_ahead, [lane, [(0.6, 0.0), (9.0, 0.0)]]) == [
-        False, False]
-    # Turned away from its path as it stands (the heading does not count), and head on.
-    turned = [[0.0, 0.0, 0.0, 0.0], [0.6, 0.0, -2.0, 0.0]]
-    assert _slowed(CbfParams(), turned, [lane, [(0.6, 0.0), (9.0, 0.0)]]) == [False, False]
-    assert _slowed(CbfParams(), close_ahead, [lane, [(0.6, 0.0), (-6.0, 0.0)]]) == [
-        False, True]
-
-
 def test_robots_head_on_on_the_two_lanes_of_a_corridor_pass_with_a_head_on_clearance():
     # Lanes 0.9 m apart (LaneParams.offset 0.45 each side of the centre line): with
     # head_on_clearance 0.75 m the robot driving west on the other lane passes the leader.
