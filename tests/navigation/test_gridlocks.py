@@ -264,26 +264,34 @@ def test_a_robot_giving_way_leaves_its_rooms_queue():
     assert generator.GetOutputPort("queue_request").Eval(context).room is None
 
 
+def _watchdog_of_two(state, targets, requests, queues, roadways=None):
+    """The watchdog alone with r0 and r1 (0.22 m) on an empty costmap, its inputs fixed:
+    ``state`` both robots' (x, y, theta, v), ``targets`` and ``requests`` one each (r0's
+    first), ``queues`` the queue state. Returns the watchdog and its context."""
+    watchdog = DeadlockWatchdog(["r0", "r1"], [0.22, 0.22],
+                                Costmap.from_obstacles(Obstacles(), BOUNDS), rate_hz=2.0,
+                                roadways=roadways)
+    context = watchdog.CreateDefaultContext()
+    watchdog.GetInputPort("robot_state").FixValue(context, list(state))
+    for target, request in zip(targets, requests, strict=True):
+        watchdog.GetInputPort(f"target_{target.robot}").FixValue(context, target)
+        watchdog.GetInputPort(f"queue_request_{request.robot}").FixValue(context, request)
+    watchdog.GetInputPort("queue_state").FixValue(context, queues)
+    return watchdog, context
+
+
 def test_robots_rocking_on_the_spot_in_a_cycle_of_waits_are_freed_within_seconds():
     # r1 holds room 0 and waits for segment 0, where r0 stands waiting for the room: a
     # cycle of waits. Both rock on the spot (0.1 m/s, never getting anywhere): moving, so
     # no gridlock of waits, yet standing still; r0 gives way once r1 has made no progress
     # for cycle_time and the cycle has lasted cycle_time.
-    watchdog = DeadlockWatchdog(["r0", "r1"], [0.22, 0.22],
-                                Costmap.from_obstacles(Obstacles(), BOUNDS), rate_hz=2.0)
-    context = watchdog.CreateDefaultContext()
-    watchdog.GetInputPort("robot_state").FixValue(
-        context, [0.0, 0.0, 0.0, 0.1, 3.0, 0.0, 0.0, -0.1])
-    watchdog.GetInputPort("target_r0").FixValue(context, WaypointTarget("r0"))
-    watchdog.GetInputPort("target_r1").FixValue(
-        context, WaypointTarget("r1", True, (-8.0, 0.0), None, True))
-    watchdog.GetInputPort("queue_state").FixValue(context, QueueState(
-        (RoomQueue(0, "r1", ("r0",)),), segments=(SegmentHold(("r0",)),),
-        segment_waiting=("r1",)))
-    watchdog.GetInputPort("queue_request_r0").FixValue(
-        context, QueueRequest("r0", 0, segments=((0, True),), standing=(0,)))
-    watchdog.GetInputPort("queue_request_r1").FixValue(
-        context, QueueRequest("r1", segments=((0, True),)))
+    watchdog, context = _watchdog_of_two(
+        [0.0, 0.0, 0.0, 0.1, 3.0, 0.0, 0.0, -0.1],
+        (WaypointTarget("r0"), WaypointTarget("r1", True, (-8.0, 0.0), None, True)),
+        (QueueRequest("r0", 0, segments=((0, True),), standing=(0,)),
+         QueueRequest("r1", segments=((0, True),))),
+        QueueState((RoomQueue(0, "r1", ("r0",)),), segments=(SegmentHold(("r0",)),),
+                   segment_waiting=("r1",)))
     simulator = Simulator(watchdog, context)
     simulator.AdvanceTo(15.0)
     orders = watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
@@ -368,21 +376,14 @@ def test_a_rooms_holder_standing_in_the_segment_a_cycle_waits_for_gives_way_last
     # nothing) waiting for the segment, which r0 holds and asks for, kept out by r1: a
     # cycle of waits whose only robot in another's way is the holder. No other robot of
     # the cycle can be moved, so the holder gives way once the cycle has lasted cycle_time.
-    watchdog = DeadlockWatchdog(["r0", "r1"], [0.22, 0.22],
-                                Costmap.from_obstacles(Obstacles(), BOUNDS), rate_hz=2.0)
-    context = watchdog.CreateDefaultContext()
-    watchdog.GetInputPort("robot_state").FixValue(
-        context, [0.0, 0.0, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0])
-    watchdog.GetInputPort("target_r0").FixValue(
-        context, WaypointTarget("r0", True, (8.0, 0.0), None, True))
-    watchdog.GetInputPort("target_r1").FixValue(
-        context, WaypointTarget("r1", True, (-8.0, 0.0), None, True))
-    watchdog.GetInputPort("queue_state").FixValue(context, QueueState(
-        (RoomQueue(0, "r1"),), segments=(SegmentHold(("r0",)),), segment_waiting=("r1",)))
-    watchdog.GetInputPort("queue_request_r0").FixValue(
-        context, QueueRequest("r0", segments=((0, True),)))
-    watchdog.GetInputPort("queue_request_r1").FixValue(
-        context, QueueRequest("r1", segments=((0, True),), standing=(0,)))
+    watchdog, context = _watchdog_of_two(
+        [0.0, 0.0, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0],
+        (WaypointTarget("r0", True, (8.0, 0.0), None, True),
+         WaypointTarget("r1", True, (-8.0, 0.0), None, True)),
+        (QueueRequest("r0", segments=((0, True),)),
+         QueueRequest("r1", segments=((0, True),), standing=(0,))),
+        QueueState((RoomQueue(0, "r1"),), segments=(SegmentHold(("r0",)),),
+                   segment_waiting=("r1",)))
     simulator = Simulator(watchdog, context)
     simulator.AdvanceTo(WatchdogParams().gridlock_time + 5.0)
     orders = watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
@@ -390,24 +391,15 @@ def test_a_rooms_holder_standing_in_the_segment_a_cycle_waits_for_gives_way_last
     assert orders[0].issued == pytest.approx(WatchdogParams().gridlock_time)
 
 
-
 def _door_waits(r0_request, r1_request, queues, until):
     """The watchdog alone on ``_dead_end``: r0 stands still in room H's doorway at
     (0.8, 0.9), r1 at (3, 0) at its target (holding a room, so serving as the recorder
     counts it); each asks as given. The orders given by ``until`` (s)."""
-    watchdog = DeadlockWatchdog(["r0", "r1"], [0.22, 0.22],
-                                Costmap.from_obstacles(Obstacles(), BOUNDS), rate_hz=2.0,
-                                roadways=_dead_end())
-    context = watchdog.CreateDefaultContext()
-    watchdog.GetInputPort("robot_state").FixValue(
-        context, [0.8, 0.9, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0])
-    watchdog.GetInputPort("target_r0").FixValue(
-        context, WaypointTarget("r0", True, (0.8, 0.9), None, True))
-    watchdog.GetInputPort("target_r1").FixValue(
-        context, WaypointTarget("r1", True, (3.0, 0.0), None, True))
-    watchdog.GetInputPort("queue_state").FixValue(context, queues)
-    watchdog.GetInputPort("queue_request_r0").FixValue(context, r0_request)
-    watchdog.GetInputPort("queue_request_r1").FixValue(context, r1_request)
+    watchdog, context = _watchdog_of_two(
+        [0.8, 0.9, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0],
+        (WaypointTarget("r0", True, (0.8, 0.9), None, True),
+         WaypointTarget("r1", True, (3.0, 0.0), None, True)),
+        (r0_request, r1_request), queues, roadways=_dead_end())
     simulator = Simulator(watchdog, context)
     simulator.AdvanceTo(until)
     return watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
