@@ -135,10 +135,11 @@ def _write_level(building: Building, level_name: str, out_dir: str, options: Imp
     navigation = imported_navigation(building.source, level_name, options.graph)
     level = building.levels[level_name]
     rng = np.random.default_rng(options.seed)
-    stream = servable_stream(navigation.roadways, navigation.locations, options, options.robots,
+    lanes = Roadways(navigation.roadways, navigation.locations, building.source)
+    stream = servable_stream(lanes, navigation.locations, options, options.robots,
                              building.source)
     used = [navigation.locations[i].point for i in stream.locations]
-    starts = robot_starts(level, navigation, world.floor_plan, options.robots,
+    starts = robot_starts(level, navigation, lanes, world.floor_plan, options.robots,
                           work=(used, LEG_SHARE * options.duration * TasksConfig().estimate_speed))
     humans = people_section(level, navigation, starts, options.people, rng)
     os.makedirs(out_dir, exist_ok=True)
@@ -163,8 +164,8 @@ def _write_level(building: Building, level_name: str, out_dir: str, options: Imp
                             f"a lane: {'; '.join(world.left_out)}")
 
 
-def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: FloorPlan,
-                 count: int, lifts: Sequence[tuple[float, float]] = (),
+def robot_starts(level: Level, navigation: BuildingNavigation, lanes: Roadways,
+                 floor_plan: FloorPlan, count: int, lifts: Sequence[tuple[float, float]] = (),
                  work: tuple[Sequence, float] = ((), 0.0)) -> list[list[float]]:
     """``count`` start poses [x, y, theta] on the level's lane nodes, each facing along its
     first lane, in this order: chargers, parking spots and spawn points that are not task
@@ -184,7 +185,7 @@ def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: Floor
                     if i in lines.vertex_node and (v.flag(flag) or (
                         flag == "spawn_robot_name" and v.params.get(flag)))]
     by_lift = {n for n in lines.nodes if _gap(lines.nodes[n], lifts) < LIFT_BERTH}
-    open_nodes = [(n, k) for n, k in _open_nodes(navigation, floor_plan, tasks)
+    open_nodes = [(n, k) for n, k in _open_nodes(navigation, lanes, floor_plan, tasks)
                   if n not in by_lift]
     task_nodes = [n for n in flagged if n in tasks] + [loc.name for loc in navigation.locations]
     parking = {loc.name for loc in navigation.locations if loc.parking}
@@ -215,8 +216,8 @@ def robot_starts(level: Level, navigation: BuildingNavigation, floor_plan: Floor
                      f"give {len(chosen)} free start spots")
 
 
-def _open_nodes(navigation: BuildingNavigation, floor_plan: FloorPlan, tasks: set[str]
-                ) -> list[tuple[str, int]]:
+def _open_nodes(navigation: BuildingNavigation, lanes: Roadways, floor_plan: FloorPlan,
+                tasks: set[str]) -> list[tuple[str, int]]:
     """The lane nodes that are not task locations, not on single-file segments (driven by
     one robot at a time) and at least ``QUEUE_BERTH`` m from every location's point and
     queue slots: where a robot waiting there (at the start, or back home with nothing to
@@ -231,7 +232,7 @@ def _open_nodes(navigation: BuildingNavigation, floor_plan: FloorPlan, tasks: se
              and _gap(lines.nodes[n], busy) >= QUEUE_BERTH]
     points = np.array([lines.nodes[n] for n in nodes], dtype=float).reshape(-1, 2)
     clearance = floor_plan.obstacles.signed_distance(points)
-    traffic = _legs_passing(navigation, points)
+    traffic = _legs_passing(lanes, points)
     return [(nodes[k], int(traffic[k])) for k in np.lexsort((-clearance, traffic))]
 
 
@@ -243,34 +244,32 @@ def _gap(xy, points) -> float:
                                        - np.asarray(xy, dtype=float), axis=1)))
 
 
-def _legs_passing(navigation: BuildingNavigation, points: np.ndarray) -> np.ndarray:
-    """How many legs between two task locations pass within ``ROUTE_BERTH`` m of each of
-    ``points`` (k, 2), m; no legs are searched where there are no points (a warehouse whose
-    lane nodes are all task locations or on single-file segments)."""
+def _legs_passing(lanes: Roadways, points: np.ndarray) -> np.ndarray:
+    """How many legs between two task locations of ``lanes`` pass within ``ROUTE_BERTH`` m
+    of each of ``points`` (k, 2), m; no legs are searched where there are no points (a
+    warehouse whose lane nodes are all task locations or on single-file segments)."""
     counts = np.zeros(len(points), dtype=int)
     if not len(points):
         return counts
-    roadways = Roadways(navigation.roadways, navigation.locations)
-    for a in roadways.location_ids:
-        for _, leg in roadways.legs_from(a):
+    for a in lanes.location_ids:
+        for _, leg in lanes.legs_from(a):
             if leg is None or len(leg) < 2:
                 continue
             counts += distance_to_polyline(points, leg) <= ROUTE_BERTH
     return counts
 
 
-def servable_stream(roadways: RoadwaysConfig, locations: list[LocationConfig],
+def servable_stream(lanes: Roadways, locations: list[LocationConfig],
                     options: ImportOptions, robots: int, source: str,
                     levels: list[str] | None = None) -> StreamSize:
     """The task stream ``robots`` robots can serve in ``options.duration`` between
-    ``locations`` (on ``levels``, one per location, when several) on ``roadways``
-    (``scenario.stream_sizing``), from the allocator's default estimate of the travel
-    times (lift rides included), along the legs robots drive (``roadways`` with their
-    single-file segments: ``Roadways.leg`` out of a location keeps off the single-file
+    ``locations`` (on ``levels``, one per location, when several) on ``lanes`` (the
+    roadways with ``locations``; ``scenario.stream_sizing``), from the allocator's default
+    estimate of the travel times (lift rides included), along the legs robots drive (with
+    the single-file segments: ``Roadways.leg`` out of a location keeps off the single-file
     lane where that location's own queue waits), with the waits for its rooms and
     single-file segments (``navigation.single_servers``)."""
     tasks = TasksConfig()
-    lanes = Roadways(roadways, locations, source)
     ids = lanes.location_ids
     stream = size_stream(lanes.travel_time_estimate(tasks.estimate_speed), robots,
                          options.duration, tasks.service_time, source, levels,

@@ -19,6 +19,7 @@ import numpy as np
 
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.lift_bank import LiftParams
+from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.scenario.schema import RoadwaysConfig, TasksConfig
 from mrta_drake.tools.building_import import (
     ImportOptions,
@@ -50,7 +51,8 @@ def write_all_levels(building: Building, out_dir: str, options: ImportOptions,
         navigation = imported_navigation(building.source, name, options.graph)
         if not shares[name]:
             continue
-        level_starts = robot_starts(building.levels[name], navigation, world.floor_plan,
+        lanes = Roadways(navigation.roadways, navigation.locations, building.source)
+        level_starts = robot_starts(building.levels[name], navigation, lanes, world.floor_plan,
                                     shares[name], [lift.xy for lift in building.lifts.values()
                                                    if name in lift.level_doors])
         for group, entries in people_section(building.levels[name], navigation, level_starts,
@@ -65,7 +67,8 @@ def write_all_levels(building: Building, out_dir: str, options: ImportOptions,
     roadways = _write_navigation(os.path.join(out_dir, "navigation.yaml"), building,
                                  options.graph, levels)
     scenario = os.path.join(out_dir, "scenario.yaml")
-    stream = servable_stream(roadways, levels.locations, options, len(starts), building.source,
+    stream = servable_stream(Roadways(roadways, levels.locations, building.source),
+                             levels.locations, options, len(starts), building.source,
                              [levels.layout.level_of(loc.point[:2]) for loc in levels.locations])
     write_scenario(scenario, os.path.basename(building.source), "", options,
                     [[round(float(v), 3) for v in s] for s in starts], humans,

@@ -10,6 +10,7 @@ import pytest
 import yaml
 
 from mrta_drake.errors import InputError
+from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.scenario.loading import load_scenario
 from mrta_drake.tools.building_import import (
     HEAD_ON_CLEARANCE,
@@ -94,7 +95,8 @@ def test_robots_start_near_the_task_locations_the_stream_uses():
     navigation = level_navigation(building, "ground", world.floor_plan)
     # Work only at east_shelf (18, 4): the spots within 5 m of it first, east_shelf's own
     # point (it has parking spots), then any lane node near it, before the charger 8 m off.
-    starts = robot_starts(building.levels["ground"], navigation, world.floor_plan, 3,
+    lanes = Roadways(navigation.roadways, navigation.locations)
+    starts = robot_starts(building.levels["ground"], navigation, lanes, world.floor_plan, 3,
                           work=([(18.0, 4.0)], 5.0))
     assert [s[:2] for s in starts] == [[18.0, 4.0], [14.0, 4.0], [10.0, 7.0]]
 
