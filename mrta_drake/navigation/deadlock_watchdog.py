@@ -386,7 +386,7 @@ class DeadlockWatchdog(LeafSystem):
         holders = {queue.holder for queue in queues.rooms} - {None}
         moving = {robot for k, robot in enumerate(self._robots)
                   if abs(states[k, 3]) > ROBOT_STOPPED_SPEED}
-        serving = self._serving(states, targets, queues)
+        serving = self._serving(states, targets, holders, queues.segment_waiting)
         live = moving | serving
         at_lifts = set()
         if self._lift_state.HasValue(context):
@@ -612,16 +612,15 @@ class DeadlockWatchdog(LeafSystem):
             return []
         return [lane for k, _ in request.segments for lane in segment_lanes(self._roadways, k)]
 
-    def _serving(self, states, targets, queues: QueueState) -> set[str]:
+    def _serving(self, states, targets, holders: set[str], segment_waiting) -> set[str]:
         """The robots serving, as the run recorder counts them (its ``SERVE`` mode): each
-        holding a room, waiting for no segment, its target active with no waypoint after
-        the current one, and within ``goal_tolerance`` of it. A holder standing with its
-        target inactive (nothing to do for now) serves nothing: robots waiting for its
-        room wait for one that stands."""
-        holders = {queue.holder for queue in queues.rooms} - {None}
+        one of the rooms' ``holders``, not in the segments' ``segment_waiting`` line, its
+        target active with no waypoint after the current one, and within
+        ``goal_tolerance`` of it. A holder standing with its target inactive (nothing to do
+        for now) serves nothing: robots waiting for its room wait for one that stands."""
         return {robot for k, (robot, target) in enumerate(zip(self._robots, targets,
                                                                 strict=True))
-                if robot in holders and robot not in queues.segment_waiting
+                if robot in holders and robot not in segment_waiting
                 and target.active and target.current is not None and target.next is None
                 and not self._has_goal(states[k], target)}
 
@@ -701,7 +700,6 @@ class DeadlockWatchdog(LeafSystem):
                     return BackOff(self._robots[k], spot, now, now + p.yield_time,
                                    tuple(self._robots[j] for j in blockers), since)
         return None
-
 
     def _disturbances_now(self, context):
         """The disturbances in force (``NO_DISTURBANCES`` where the input is not

@@ -36,7 +36,7 @@ def trip_holds(roadways: Roadways, from_location: int, to_location: int, speed: 
     docstring): the location alone, a run's segments together, a segment the point
     stands in alone for the service where no run ending there holds it."""
     place = roadways.place(to_location)
-    inside = [place.queue[0], *place.entry, place.point]
+    inside = place.doorway
     holds = {(("location", to_location),):
              2.0 * roadways.route_length(inside) / speed + service_time}
     standing = set(stands_in(roadways, place.point, PARAMS))

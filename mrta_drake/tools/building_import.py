@@ -270,11 +270,10 @@ def servable_stream(lanes: Roadways, locations: list[LocationConfig],
     lane where that location's own queue waits), with the waits for its rooms and
     single-file segments (``navigation.single_servers``)."""
     tasks = TasksConfig()
-    ids = lanes.location_ids
+    ids, speed = lanes.location_ids, NominalParams().cruise_speed
     stream = size_stream(lanes.travel_time_estimate(tasks.estimate_speed), robots,
                          options.duration, tasks.service_time, source, levels,
-                         holds=lambda i, j: trip_holds(lanes, ids[i], ids[j],
-                                                       NominalParams().cruise_speed,
+                         holds=lambda i, j: trip_holds(lanes, ids[i], ids[j], speed,
                                                        tasks.service_time))
     if len(stream.locations) == len(locations) and len(set(stream.weights)) == 1:
         return stream
