@@ -169,10 +169,11 @@ class DeadlockWatchdog(LeafSystem):
        has none.
     3. Stalled robots and the robots within ``block_gap`` of them form groups
        (``standstills.blocked_groups``). In each group (in robot order) without a robot
-       backing off, the first of ``standstills.yield_order`` (robots standing ahead in a
-       stalled robot's way first, ``standstills.in_ways``; then robots without a goal,
-       then stalled ones, then those at their goal; the lowest priority first) that makes way
-       for a stalled robot (not the only stalled one itself) and for which
+       backing off, the first of ``standstills.yield_order`` (robots standing first in a
+       stalled robot's way, or first in the doorway where a room's holder of the group
+       waits at its door, ``standstills.in_ways``; then robots without a goal, then
+       stalled ones, then those at their goal; the lowest priority first) that makes way
+       for a stalled robot or such a holder (not the only one itself) and for which
        ``standstills.back_off_spot`` finds a spot clear of the others' ways is ordered
        there; every member's anchor starts again, so the group gets another
        ``standstill_time`` before the next order. A group with no spot for anyone is tried
@@ -667,9 +668,9 @@ class DeadlockWatchdog(LeafSystem):
                ) -> BackOff | None:
         """The back-off of the first robot of ``group`` (in ``yield_order``, those with
         fewer ``misses`` first) with a free spot, away from the spots it missed, that frees
-        the way of a stalled robot, or None; the spot clear of the others' ways, or, with
-        none such after the group's stalled robots stood twice ``standstill_time``, any
-        (class docstring, step 3)."""
+        the way of a stalled robot or of a room's holder waiting at its door, or None; the
+        spot clear of the others' ways, or, with none such after the group's stalled robots
+        stood twice ``standstill_time``, any (class docstring, step 3)."""
         humans: HumanStates = (self._humans.Eval(context) if self._humans.HasValue(context)
                                else NO_HUMANS)
         xy = states[:, :2]
@@ -679,12 +680,14 @@ class DeadlockWatchdog(LeafSystem):
         broken = self._disturbances_now(context).broken
         missed_spots = {k: self._spots_to_avoid(k, misses) for k in group}
         all_ways = [_way(xy[j], targets[j]) for j in range(len(xy))]
-        in_way = in_ways(group, stalled, xy, self._radii, all_ways, p.spot_clearance)
+        doors = self._door_waits(context, group)
+        in_way = in_ways(group, stalled, xy, self._radii, all_ways, p.spot_clearance, doors)
         since = min(anchors[j].since for j in stalled_here)
+        waiting = [k for k in group if stalled[k] or k in doors]
         candidates = [k for k in sorted(yield_order(group, idle, stalled, self._priorities,
                                                     in_way),
                                         key=lambda k: len(missed_spots[k]))
-                      if stalled_here != [k] and k not in broken]  # else it frees nobody
+                      if waiting != [k] and k not in broken]  # else it frees nobody
         keep_ways = (True,) if now - since < 2 * p.standstill_time - 1e-9 else (True, False)
         for off_ways in keep_ways:
             for k in candidates:
@@ -700,6 +703,19 @@ class DeadlockWatchdog(LeafSystem):
                     return BackOff(self._robots[k], spot, now, now + p.yield_time,
                                    tuple(self._robots[j] for j in blockers), since)
         return None
+
+    def _door_waits(self, context, group) -> dict[int, tuple[int, ...]]:
+        """The robots of ``group`` waiting at their room's door for others of it standing
+        in the doorway (``QueueRequest.door``): robot index -> those robots' indices
+        (none without ``queue_state``)."""
+        if not self._queue_state.HasValue(context):
+            return {}
+        doors = {}
+        for k, request in enumerate(self._requests.values(context)):
+            takers = tuple(j for j in group if self._robots[j] in request.door)
+            if k in group and takers:
+                doors[k] = takers
+        return doors
 
     def _disturbances_now(self, context):
         """The disturbances in force (``NO_DISTURBANCES`` where the input is not

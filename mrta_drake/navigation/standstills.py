@@ -145,21 +145,30 @@ def yield_order(group: tuple[int, ...], idle: np.ndarray, stalled: np.ndarray,
 
 
 def in_ways(group: tuple[int, ...], stalled: np.ndarray, xy: np.ndarray, radii: np.ndarray,
-            ways: list[np.ndarray], clearance: float) -> np.ndarray:
-    """(N,) bool: the robots of ``group`` standing in the way of another, stalled robot of
-    it: ahead of it (on the side of its way's first waypoint) and nearer its way (``ways[s]``
-    (P, 2), from where it stands on) than their radii and ``clearance`` (m). A robot behind
-    a stalled one, or beside its way, frees nothing by moving."""
+            ways: list[np.ndarray], clearance: float,
+            doors: Mapping[int, Collection[int]] | None = None) -> np.ndarray:
+    """(N,) bool: the robots of ``group`` standing first in the way of another robot of it.
+    In a stalled robot's way: ahead of it (on the side of its way's first waypoint) and
+    nearer its way (``ways[s]`` (P, 2), from where it stands on) than their radii and
+    ``clearance`` (m); in the way of a room's holder waiting at its door: standing in
+    its doorway (``doors``: robot index -> the indices of the robots it waits for there,
+    ``QueueRequest.door``). Of the robots in one robot's way, only the nearest to it
+    counts: a robot behind a stalled one, beside its way, or behind the first robot in it
+    frees nothing by moving while the first stands."""
     in_way = np.zeros(len(xy), dtype=bool)
+    doors = doors or {}
+    members = set(group)
     for s in group:
+        blocking = [k for k in doors.get(s, ()) if k in members and k != s]
         way = np.asarray(ways[s], dtype=float).reshape(-1, 2)
-        if not stalled[s] or len(way) < 2:
-            continue
-        ahead = way[1] - xy[s]
-        for k in group:
-            if k != s and not in_way[k] and float(np.dot(xy[k] - xy[s], ahead)) > 0.0:
-                in_way[k] = (float(distance_to_polyline(xy[k], way))
-                             < radii[k] + radii[s] + clearance)
+        if stalled[s] and len(way) >= 2:
+            ahead = way[1] - xy[s]
+            blocking += [k for k in group if k != s
+                         and float(np.dot(xy[k] - xy[s], ahead)) > 0.0
+                         and float(distance_to_polyline(xy[k], way))
+                         < radii[k] + radii[s] + clearance]
+        if blocking:
+            in_way[min(blocking, key=lambda k: (float(np.linalg.norm(xy[k] - xy[s])), k))] = True
     return in_way
 
 

@@ -31,6 +31,9 @@ from mrta_drake.payloads import (
     Disturbances,
     HumanStates,
     Outage,
+    QueueRequest,
+    QueueState,
+    RoomQueue,
     WaypointTarget,
     frozen_array,
 )
@@ -207,6 +210,54 @@ def test_a_robot_in_a_stalled_robots_way_yields_first():
     beside = xy.copy()
     beside[0] = (4.3, -24.1)  # 1.2 m beside the way: not in it
     assert not in_ways((0, 1, 2), stalled, beside, np.full(3, RADIUS), ways, 0.3)[0]
+
+
+def test_only_the_first_robot_in_a_way_or_a_doorway_is_in_it():
+    # r1 stalled driving west; r0 and r2 both ahead on its way, r0 nearer: r2 stands
+    # behind r0 and frees nothing by moving while r0 stands. r0 waits at its door for r1
+    # and r3 in its doorway: r1, the nearer, is the one in its way.
+    xy = np.array([[10.0, 0.0], [10.6, 0.0], [9.0, 0.0], [12.0, 0.0]])
+    ways = [xy[0:1], np.array([xy[1], (1.0, 0.0)]), xy[2:3], xy[3:4]]
+    stalled = np.array([False, True, False, False])
+    radii = np.full(4, RADIUS)
+    group = (0, 1, 2, 3)
+    assert in_ways(group, stalled, xy, radii, ways, 0.3).tolist() == [True, False, False,
+                                                                     False]
+    assert in_ways(group, stalled, xy, radii, ways, 0.3, {0: (1, 3)}).tolist() == [
+        True, True, False, False]
+
+
+def test_the_robot_in_a_waiting_holders_doorway_yields_not_one_behind_it():
+    # Office seed 14 (issue 14): robot3 (r0), pantry's holder, waits at its door in a
+    # single-file lane for robot6 (r1), stalled nose to nose with it on its way west, and
+    # robot1 (r2), standing idle behind r1; both stand in r0's doorway. r0 has no spot
+    # off r1's way; r1 was passed over as the only stalled robot, and r2, in nobody's
+    # way, was sent aside for nothing (a 34 s episode). r1, first in r0's doorway, goes.
+    t = 0.2
+    obstacles = Obstacles((Box("south", (7.0, -1.1), (10.0, t)),
+                           Box("north", (7.0, 1.1), (10.0, t)),
+                           Box("west", (2.0, 0.0), (t, 2.4))))
+    names = ("r0", "r1", "r2")
+    watchdog = DeadlockWatchdog(names, [RADIUS] * 3,
+                                Costmap.from_obstacles(obstacles, (-1.0, 21.0, -4.0, 4.0)),
+                                rate_hz=2.0)
+    context = watchdog.CreateDefaultContext()
+    states = np.array([[10.0, 0.0, 0.0, 0.0], [10.6, 0.0, math.pi, 0.0],
+                       [13.0, 1.6, math.pi, 0.0]])
+    targets = [WaypointTarget("r0"), WaypointTarget("r1", True, (1.0, 0.0), None, True),
+               WaypointTarget("r2")]
+    requests = [QueueRequest("r0", room=0, door=("r1", "r2")), QueueRequest("r1"),
+                QueueRequest("r2")]
+    for request in requests:
+        watchdog.GetInputPort(f"queue_request_{request.robot}").FixValue(context, request)
+    watchdog.GetInputPort("queue_state").FixValue(
+        context, QueueState(rooms=(RoomQueue(0, "r0"),)))
+    now = 100.0
+    anchors = [None, Anchor((10.6, 0.0), now - 15.0), None]
+    order = watchdog._order((0, 1, 2), np.array([False, True, False]), anchors, states,
+                            targets, context, now, ())
+    assert order.robot == "r1" and order.blockers == ("r0", "r2")
+    assert order.point[0] > 10.6
 
 
 def test_an_anchor_moves_only_with_progress_and_goes_without_a_goal():
