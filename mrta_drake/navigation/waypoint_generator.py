@@ -642,7 +642,10 @@ class WaypointPolicy:
                 ) -> tuple[tuple[float, float], ...] | None:
         """The shortest way along the lanes (without lift rides) from ``xy``, standing in
         the single-file segments ``here``, to a spot
-        where a robot without a stop may wait out of the way (``_refuge_spots``): in none of
+        where a robot without a stop may wait out of the way (``_refuge_spots``; one by a
+        queue slot only where no other will do: beside a slot it may be in a queueing
+        robot's way, in a segment another robot drives through it is in its way for
+        certain): in none of
         the single-file segments other robots wait for or hold (``wanted``), no other robot
         within ``parking_clearance`` of it, through no segment another robot holds but those
         the robot stands in (it leaves them the way their holders drive), and
@@ -658,21 +661,21 @@ class WaypointPolicy:
         avoid = wanted | taken
         starts = {n for n in lanes.graph.nodes if not set(here).isdisjoint(
             stands_in(self._roadways, self._roadways.node_position(n), params.single_file))}
-        spots = [(spot, node) for spot, node, segments in self._refuge_spots()
+        spots = [(spot, node, by_slot) for spot, node, segments, by_slot in self._refuge_spots()
                  if avoid.isdisjoint(segments) and self._free(spot, others)]
-        best, best_length = None, math.inf
+        best, best_length = None, (True, math.inf)
         for start in sorted(starts, key=str):
             end = lanes.node_position(start)
             if len(askers) and np.linalg.norm(askers - end, axis=1).min() <= _distance(xy, end):
                 continue
             paths = lanes.paths_from(start)
-            for spot, node in spots:
+            for spot, node, by_slot in spots:
                 if node not in paths:
                     continue
                 route = tuple(_point(lanes.node_position(n)) for n in paths[node])
                 route += () if route[-1] == spot else (spot,)
-                length = _distance(xy, route[0]) + sum(
-                    _distance(a, b) for a, b in zip(route[:-1], route[1:], strict=True))
+                length = (by_slot, _distance(xy, route[0]) + sum(
+                    _distance(a, b) for a, b in zip(route[:-1], route[1:], strict=True)))
                 if length >= best_length:
                     continue
                 way = np.array([xy, *route], dtype=float)
@@ -688,9 +691,10 @@ class WaypointPolicy:
     def _refuge_spots(self) -> tuple:
         """Where a robot without a stop may wait out of the way (``_refuge``): the roadway
         nodes but those of lift cabins, the start spots and the parking spots, less those
-        within ``reach_tolerance`` of a location's point or ``parking_clearance`` of its
-        queue slots or overflow spots; each as (spot, its nearest roadway node, the
-        single-file segments it stands in). Made once, when first needed."""
+        within ``reach_tolerance`` of a location's point; each as (spot, its nearest
+        roadway node, the single-file segments it stands in, whether it is within
+        ``parking_clearance`` of a queue slot or overflow spot). Made once, when first
+        needed."""
         if self._refuges is None:
             roadways, params = self._roadways, self._params
             cabins = {n for a, b, lift in roadways.graph.edges(data="lift") if lift
@@ -703,13 +707,13 @@ class WaypointPolicy:
             slots = np.array([xy for place in places for xy in (*place.queue,
                                                                   *place.overflow)],
                              dtype=float).reshape(-1, 2)
-            keep = ((_nearest(np.array(spots), points) > params.reach_tolerance)
-                    & (_nearest(np.array(spots), slots) > params.parking_clearance))
+            keep = _nearest(np.array(spots), points) > params.reach_tolerance
+            by_slots = _nearest(np.array(spots), slots) <= params.parking_clearance
             positions = np.array([roadways.node_position(n) for n in nodes], dtype=float)
             self._refuges = tuple(
                 (spot, nodes[int(np.argmin(np.linalg.norm(positions - spot, axis=1)))],
-                 stands_in(roadways, spot, params.single_file))
-                for spot, ok in zip(spots, keep, strict=True) if ok)
+                 stands_in(roadways, spot, params.single_file), bool(by_slot))
+                for spot, ok, by_slot in zip(spots, keep, by_slots, strict=True) if ok)
         return self._refuges
 
     def _home_spot(self, place, lanes: Roadways, others: np.ndarray
