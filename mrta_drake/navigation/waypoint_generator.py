@@ -5,6 +5,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from operator import attrgetter
 
+import networkx as nx
 import numpy as np
 from pydrake.common.value import Value
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
@@ -642,10 +643,10 @@ class WaypointPolicy:
                 ) -> tuple[tuple[float, float], ...] | None:
         """The shortest way along the lanes (without lift rides) from ``xy``, standing in
         the single-file segments ``here``, to a spot
-        where a robot without a stop may wait out of the way (``_refuge_spots``; one by a
-        queue slot only where no other will do: beside a slot it may be in a queueing
-        robot's way, in a segment another robot drives through it is in its way for
-        certain): in none of
+        where a robot without a stop may wait out of the way (``_refuge_spots``; a dead
+        end by a queue slot only where no other will do: there it may be in the way of a
+        robot queueing or bound for that dead end, in a segment another robot drives
+        through it is in its way for certain): in none of
         the single-file segments other robots wait for or hold (``wanted``), no other robot
         within ``parking_clearance`` of it, through no segment another robot holds but those
         the robot stands in (it leaves them the way their holders drive), and
@@ -691,10 +692,11 @@ class WaypointPolicy:
     def _refuge_spots(self) -> tuple:
         """Where a robot without a stop may wait out of the way (``_refuge``): the roadway
         nodes but those of lift cabins, the start spots and the parking spots, less those
-        within ``reach_tolerance`` of a location's point; each as (spot, its nearest
-        roadway node, the single-file segments it stands in, whether it is within
-        ``parking_clearance`` of a queue slot or overflow spot). Made once, when first
-        needed."""
+        within ``reach_tolerance`` of a location's point, and those within
+        ``parking_clearance`` of its queue slots or overflow spots but at dead ends (their
+        nearest node joins one other); each as (spot, its nearest roadway node, the
+        single-file segments it stands in, whether it is by a queue slot or overflow
+        spot). Made once, when first needed."""
         if self._refuges is None:
             roadways, params = self._roadways, self._params
             cabins = {n for a, b, lift in roadways.graph.edges(data="lift") if lift
@@ -707,13 +709,17 @@ class WaypointPolicy:
             slots = np.array([xy for place in places for xy in (*place.queue,
                                                                   *place.overflow)],
                              dtype=float).reshape(-1, 2)
-            keep = _nearest(np.array(spots), points) > params.reach_tolerance
             by_slots = _nearest(np.array(spots), slots) <= params.parking_clearance
             positions = np.array([roadways.node_position(n) for n in nodes], dtype=float)
+            nearest = [nodes[int(np.argmin(np.linalg.norm(positions - spot, axis=1)))]
+                       for spot in spots]
+            keep = (_nearest(np.array(spots), points) > params.reach_tolerance) & ~(
+                by_slots & ~np.array([len(set(nx.all_neighbors(roadways.graph, n))) == 1
+                                      for n in nearest]))
             self._refuges = tuple(
-                (spot, nodes[int(np.argmin(np.linalg.norm(positions - spot, axis=1)))],
-                 stands_in(roadways, spot, params.single_file), bool(by_slot))
-                for spot, ok, by_slot in zip(spots, keep, by_slots, strict=True) if ok)
+                (spot, node, stands_in(roadways, spot, params.single_file), bool(by_slot))
+                for spot, node, ok, by_slot in zip(spots, nearest, keep, by_slots, strict=True)
+                if ok)
         return self._refuges
 
     def _home_spot(self, place, lanes: Roadways, others: np.ndarray
