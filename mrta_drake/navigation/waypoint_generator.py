@@ -644,9 +644,10 @@ class WaypointPolicy:
         """The shortest way along the lanes (without lift rides) from ``xy``, standing in
         the single-file segments ``here``, to a spot
         where a robot without a stop may wait out of the way (``_refuge_spots``; a dead
-        end by a queue slot only where no other will do: there it may be in the way of a
-        robot queueing or bound for that dead end, in a segment another robot drives
-        through it is in its way for certain): in none of
+        end by a queue slot only for a robot boxed in a corridor (``_boxed_in``) where no
+        other will do: there it may be in the way of a robot queueing or bound for that
+        dead end, inside a segment another robot drives through it is in its way for
+        certain): in none of
         the single-file segments other robots wait for or hold (``wanted``), no other robot
         within ``parking_clearance`` of it, through no segment another robot holds but those
         the robot stands in (it leaves them the way their holders drive), and
@@ -662,8 +663,10 @@ class WaypointPolicy:
         avoid = wanted | taken
         starts = {n for n in lanes.graph.nodes if not set(here).isdisjoint(
             stands_in(self._roadways, self._roadways.node_position(n), params.single_file))}
+        boxed = self._boxed_in(xy, here)
         spots = [(spot, node, by_slot) for spot, node, segments, by_slot in self._refuge_spots()
-                 if avoid.isdisjoint(segments) and self._free(spot, others)]
+                 if (boxed or not by_slot) and avoid.isdisjoint(segments)
+                 and self._free(spot, others)]
         best, best_length = None, (True, math.inf)
         for start in sorted(starts, key=str):
             end = lanes.node_position(start)
@@ -688,6 +691,22 @@ class WaypointPolicy:
                     continue
                 best, best_length = route, length
         return best
+
+    def _boxed_in(self, xy, here: tuple[int, ...]) -> bool:
+        """Whether a robot at ``xy``, standing in the single-file segments ``here``, is
+        inside them: farther than ``single_file.stand_distance`` from each one's ends
+        (the nodes joined to one other node of it). In a corridor the only ways out are
+        its ends; at an end (a room, a junction) a robot driving through may pass it."""
+        reach = self._params.single_file.stand_distance
+        for k in here:
+            joined: dict = {}
+            for a, b in segment_lanes(self._roadways, k):
+                joined.setdefault(a, set()).add(b)
+                joined.setdefault(b, set()).add(a)
+            if any(len(others) == 1 and _distance(xy, end) <= reach
+                   for end, others in joined.items()):
+                return False
+        return bool(here)
 
     def _refuge_spots(self) -> tuple:
         """Where a robot without a stop may wait out of the way (``_refuge``): the roadway

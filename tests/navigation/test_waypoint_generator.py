@@ -761,6 +761,11 @@ def test_a_robot_without_a_stop_with_no_other_refuge_waits_by_a_queue_slot():
     s = policy.update(policy.initial_state(),
                       _Inputs(1.0, held, [[5.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.5]]))
     assert s.phase == RobotMode.HOME and s.route == ((10.0, 0.0), (10.0, 5.0))
+    # At J, an end of the corridor (a junction or a room: r1 may get past it there), r0
+    # is not boxed in: S, by the slot, is no refuge for it, and it stays.
+    at_end = policy.update(policy.initial_state(),
+                           _Inputs(1.0, held, [[10.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.5]]))
+    assert at_end.phase == RobotMode.IDLE
     # With A's slot beside S taken, S is no refuge: r0 stays (the watchdog's business).
     policy = WaypointPolicy(["r0", "r1", "r2"], 0, world, None, WaypointParams())
     taken = policy.update(policy.initial_state(), _Inputs(
