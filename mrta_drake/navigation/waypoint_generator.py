@@ -369,7 +369,8 @@ class WaypointPolicy:
     it stands in; once another robot waits for one of them or holds it (to drive through
     it), it drives out of the way (``_make_way``): out of the segment's end away from that
     robot, to the nearest spot in no segment another robot waits for or holds
-    (``_refuge``), keeping the segment it drives out of until out of it (``_leaving``).
+    (``_refuge``; boxed inside a corridor with no other, a dead end by a queue slot),
+    keeping the segment it drives out of until out of it (``_leaving``).
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
     current stop is elsewhere and it is more than ``release_distance`` from the room's
