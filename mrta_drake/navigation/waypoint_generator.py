@@ -5,6 +5,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from operator import attrgetter
 
+import networkx as nx
 import numpy as np
 from pydrake.common.value import Value
 from pydrake.systems.framework import BasicVector, EventStatus, LeafSystem
@@ -368,7 +369,8 @@ class WaypointPolicy:
     it stands in; once another robot waits for one of them or holds it (to drive through
     it), it drives out of the way (``_make_way``): out of the segment's end away from that
     robot, to the nearest spot in no segment another robot waits for or holds
-    (``_refuge``), keeping the segment it drives out of until out of it (``_leaving``).
+    (``_refuge``; boxed inside a corridor with no other, a dead end by a queue slot),
+    keeping the segment it drives out of until out of it (``_leaving``).
 
     Release: the robot asks to release a room it holds (per ``queue_state``) once its
     current stop is elsewhere and it is more than ``release_distance`` from the room's
@@ -642,7 +644,11 @@ class WaypointPolicy:
                 ) -> tuple[tuple[float, float], ...] | None:
         """The shortest way along the lanes (without lift rides) from ``xy``, standing in
         the single-file segments ``here``, to a spot
-        where a robot without a stop may wait out of the way (``_refuge_spots``): in none of
+        where a robot without a stop may wait out of the way (``_refuge_spots``; a dead
+        end by a queue slot only for a robot boxed in a corridor (``_boxed_in``) where no
+        other will do: there it may be in the way of a robot queueing or bound for that
+        dead end, inside a segment another robot drives through it is in its way for
+        certain): in none of
         the single-file segments other robots wait for or hold (``wanted``), no other robot
         within ``parking_clearance`` of it, through no segment another robot holds but those
         the robot stands in (it leaves them the way their holders drive), and
@@ -658,21 +664,23 @@ class WaypointPolicy:
         avoid = wanted | taken
         starts = {n for n in lanes.graph.nodes if not set(here).isdisjoint(
             stands_in(self._roadways, self._roadways.node_position(n), params.single_file))}
-        spots = [(spot, node) for spot, node, segments in self._refuge_spots()
-                 if avoid.isdisjoint(segments) and self._free(spot, others)]
-        best, best_length = None, math.inf
+        boxed = self._boxed_in(xy, here)
+        spots = [(spot, node, by_slot) for spot, node, segments, by_slot in self._refuge_spots()
+                 if (boxed or not by_slot) and avoid.isdisjoint(segments)
+                 and self._free(spot, others)]
+        best, best_length = None, (True, math.inf)
         for start in sorted(starts, key=str):
             end = lanes.node_position(start)
             if len(askers) and np.linalg.norm(askers - end, axis=1).min() <= _distance(xy, end):
                 continue
             paths = lanes.paths_from(start)
-            for spot, node in spots:
+            for spot, node, by_slot in spots:
                 if node not in paths:
                     continue
                 route = tuple(_point(lanes.node_position(n)) for n in paths[node])
                 route += () if route[-1] == spot else (spot,)
-                length = _distance(xy, route[0]) + sum(
-                    _distance(a, b) for a, b in zip(route[:-1], route[1:], strict=True))
+                length = (by_slot, _distance(xy, route[0]) + sum(
+                    _distance(a, b) for a, b in zip(route[:-1], route[1:], strict=True)))
                 if length >= best_length:
                     continue
                 way = np.array([xy, *route], dtype=float)
@@ -685,12 +693,30 @@ class WaypointPolicy:
                 best, best_length = route, length
         return best
 
+    def _boxed_in(self, xy, here: tuple[int, ...]) -> bool:
+        """Whether a robot at ``xy``, standing in the single-file segments ``here``, is
+        inside them: farther than ``single_file.stand_distance`` from each one's ends
+        (the nodes joined to one other node of it). In a corridor the only ways out are
+        its ends; at an end (a room, a junction) a robot driving through may pass it."""
+        reach = self._params.single_file.stand_distance
+        for k in here:
+            joined: dict = {}
+            for a, b in segment_lanes(self._roadways, k):
+                joined.setdefault(a, set()).add(b)
+                joined.setdefault(b, set()).add(a)
+            if any(len(others) == 1 and _distance(xy, end) <= reach
+                   for end, others in joined.items()):
+                return False
+        return bool(here)
+
     def _refuge_spots(self) -> tuple:
         """Where a robot without a stop may wait out of the way (``_refuge``): the roadway
         nodes but those of lift cabins, the start spots and the parking spots, less those
-        within ``reach_tolerance`` of a location's point or ``parking_clearance`` of its
-        queue slots or overflow spots; each as (spot, its nearest roadway node, the
-        single-file segments it stands in). Made once, when first needed."""
+        within ``reach_tolerance`` of a location's point, and those within
+        ``parking_clearance`` of its queue slots or overflow spots but at dead ends (their
+        nearest node joins one other); each as (spot, its nearest roadway node, the
+        single-file segments it stands in, whether it is by a queue slot or overflow
+        spot). Made once, when first needed."""
         if self._refuges is None:
             roadways, params = self._roadways, self._params
             cabins = {n for a, b, lift in roadways.graph.edges(data="lift") if lift
@@ -703,13 +729,17 @@ class WaypointPolicy:
             slots = np.array([xy for place in places for xy in (*place.queue,
                                                                   *place.overflow)],
                              dtype=float).reshape(-1, 2)
-            keep = ((_nearest(np.array(spots), points) > params.reach_tolerance)
-                    & (_nearest(np.array(spots), slots) > params.parking_clearance))
+            by_slots = _nearest(np.array(spots), slots) <= params.parking_clearance
             positions = np.array([roadways.node_position(n) for n in nodes], dtype=float)
+            nearest = [nodes[int(np.argmin(np.linalg.norm(positions - spot, axis=1)))]
+                       for spot in spots]
+            keep = (_nearest(np.array(spots), points) > params.reach_tolerance) & ~(
+                by_slots & ~np.array([len(set(nx.all_neighbors(roadways.graph, n))) == 1
+                                      for n in nearest]))
             self._refuges = tuple(
-                (spot, nodes[int(np.argmin(np.linalg.norm(positions - spot, axis=1)))],
-                 stands_in(roadways, spot, params.single_file))
-                for spot, ok in zip(spots, keep, strict=True) if ok)
+                (spot, node, stands_in(roadways, spot, params.single_file), bool(by_slot))
+                for spot, node, ok, by_slot in zip(spots, nearest, keep, by_slots, strict=True)
+                if ok)
         return self._refuges
 
     def _home_spot(self, place, lanes: Roadways, others: np.ndarray

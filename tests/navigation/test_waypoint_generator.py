@@ -741,6 +741,38 @@ def test_a_robot_without_a_stop_does_not_leave_towards_the_robot_that_needs_its_
     assert s.phase == RobotMode.HOME and s.route == ((10.0, 0.0), (10.0, 5.0))
 
 
+def test_a_robot_without_a_stop_with_no_other_refuge_waits_by_a_queue_slot():
+    # The corridor W - M - J (one segment, 0) with J - E (1) and the spur J - S (2), A's
+    # queue slot 0.6 m from S. r0 idle at M; r1, holding W-M-J and J-E, drives in from W:
+    # r0 must leave by J, and every spot but S is in a segment r1 holds. S, by the slot,
+    # is the only refuge: r0 drives there rather than stand in r1's way for good (office
+    # seed 26: robot5 at v57, the dead end v62 0.79 m from coe's queue slot, 207 s).
+    nodes = {"W": [0.0, 0.0], "M": [5.0, 0.0], "J": [10.0, 0.0], "E": [20.0, 0.0],
+             "S": [10.0, 5.0]}
+    pairs = [("W", "M"), ("M", "J"), ("J", "E"), ("J", "S")]
+    edges = [[a, b] for a, b in pairs] + [[b, a] for a, b in pairs]
+    locations = [LocationConfig(id=0, name="A", point=[14.0, 5.0], queue=[[10.6, 5.0]],
+                                exit_node="J", approach_node="J")]
+    world = Roadways(RoadwaysConfig(nodes=nodes, edges=edges, single_file=[
+        ["W", "M", "J"], ["J", "E"], ["J", "S"]]), locations)
+    policy = WaypointPolicy(["r0", "r1"], 0, world, None, WaypointParams())
+    held = QueueState(segments=(SegmentHold(("r0", "r1"), True), SegmentHold(("r1",), True),
+                                SegmentHold()))
+    s = policy.update(policy.initial_state(),
+                      _Inputs(1.0, held, [[5.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.5]]))
+    assert s.phase == RobotMode.HOME and s.route == ((10.0, 0.0), (10.0, 5.0))
+    # At J, an end of the corridor (a junction or a room: r1 may get past it there), r0
+    # is not boxed in: S, by the slot, is no refuge for it, and it stays.
+    at_end = policy.update(policy.initial_state(),
+                           _Inputs(1.0, held, [[10.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.5]]))
+    assert at_end.phase == RobotMode.IDLE
+    # With A's slot beside S taken, S is no refuge: r0 stays (the watchdog's business).
+    policy = WaypointPolicy(["r0", "r1", "r2"], 0, world, None, WaypointParams())
+    taken = policy.update(policy.initial_state(), _Inputs(
+        1.0, held, [[5.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.5], [10.6, 5.0, 0.0, 0.0]]))
+    assert taken.phase == RobotMode.IDLE
+
+
 def test_a_robot_held_back_gives_up_the_segments_of_its_run_it_does_not_stand_in():
     # r0 drives from beside the corridor (A's point) onto J-E at E, then E - J - W: one
     # run, J-E and W-J. Holding J-E (kept from serving at A) but not W-J (x holds it), it
