@@ -310,7 +310,7 @@ class DeadlockWatchdog(LeafSystem):
         backing = {order.robot for order in active}
         anchors = [next_anchor(anchor, states[k, :2], self._has_goal(states[k], targets[k])
                                and self._robots[k] not in backing, now,
-                               self._params.progress_distance)
+                               self._params.progress_distance, float(states[k, 2]))
                    for k, anchor in enumerate(old.anchors)]
         for order in missed:
             self._stalled_again(order, anchors)
