@@ -52,8 +52,9 @@ class WatchdogParams:
     A robot *has a goal* when its target is active and it is farther than
     ``goal_tolerance`` from the target's current waypoint; it is *stalled* once it has had
     one for ``standstill_time`` without getting farther than ``progress_distance`` from
-    where it stood. A stalled robot is blocked by the robots within ``block_gap`` of it
-    (surface to surface). The robot chosen to yield drives to the nearest spot within
+    where it stood, or only backwards (against the way it faces: others push it back). A
+    stalled robot is blocked by the robots within ``block_gap`` of it (surface to
+    surface). The robot chosen to yield drives to the nearest spot within
     ``search_reach`` at least ``spot_clearance`` from every other robot and person and from
     its blockers' ways to their targets, its centre ``wall_clearance`` from walls, and
     stands there for ``yield_time``; never to a spot nearer than ``back_off_distance`` to
@@ -166,7 +167,7 @@ class DeadlockWatchdog(LeafSystem):
 
     1. Orders whose ``until`` has passed end (see 4).
     2. Each robot's anchor is renewed (``standstills.next_anchor``); a robot backing off
-       has none.
+       has none; one pushed backwards keeps its time.
     3. Stalled robots and the robots within ``block_gap`` of them form groups
        (``standstills.blocked_groups``). In each group (in robot order) without a robot
        backing off, the first of ``standstills.yield_order`` (robots standing ahead in a
