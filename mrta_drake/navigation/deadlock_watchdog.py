@@ -52,8 +52,7 @@ class WatchdogParams:
     A robot *has a goal* when its target is active and it is farther than
     ``goal_tolerance`` from the target's current waypoint; it is *stalled* once it has had
     one for ``standstill_time`` without getting farther than ``progress_distance`` from
-    where it stood, or only backwards (against the way it faces: others push it back)
-    once farther than ``back_off_distance`` from where it stood before the push. A
+    where it stood, or only backwards (against the way it faces: others push it back). A
     stalled robot is blocked by the robots within ``block_gap`` of it (surface to
     surface). The robot chosen to yield drives to the nearest spot within
     ``search_reach`` at least ``spot_clearance`` from every other robot and person and from
@@ -168,8 +167,7 @@ class DeadlockWatchdog(LeafSystem):
 
     1. Orders whose ``until`` has passed end (see 4).
     2. Each robot's anchor is renewed (``standstills.next_anchor``); a robot backing off
-       has none; one pushed backwards farther than ``back_off_distance`` keeps its
-       time.
+       has none; one pushed backwards keeps its time.
     3. Stalled robots and the robots within ``block_gap`` of them form groups
        (``standstills.blocked_groups``). In each group (in robot order) without a robot
        backing off, the first of ``standstills.yield_order`` (robots standing ahead in a
@@ -313,8 +311,7 @@ class DeadlockWatchdog(LeafSystem):
         backing = {order.robot for order in active}
         anchors = [next_anchor(anchor, states[k, :2], self._has_goal(states[k], targets[k])
                                and self._robots[k] not in backing, now,
-                               self._params.progress_distance, float(states[k, 2]),
-                               self._params.back_off_distance)
+                               self._params.progress_distance, float(states[k, 2]))
                    for k, anchor in enumerate(old.anchors)]
         for order in missed:
             self._stalled_again(order, anchors)

@@ -19,38 +19,28 @@ SEARCH_STEP = 0.1  # m between the points searched for a back-off spot
 
 @dataclass(frozen=True)
 class Anchor:
-    """Where (``xy``) and since when (``since``) a robot with a goal has not progressed;
-    ``pushed``: where and since when it stood before it was first pushed backwards to
-    here (``next_anchor``; None: it was not)."""
+    """Where (``xy``) and since when (``since``) a robot with a goal has not progressed."""
 
     xy: tuple[float, float]
     since: float
-    pushed: "Anchor | None" = None
 
 
 def next_anchor(anchor: Anchor | None, xy, has_goal: bool, now: float,
-                progress_distance: float, heading: float | None = None,
-                push_distance: float = math.inf) -> Anchor | None:
+                progress_distance: float, heading: float | None = None) -> Anchor | None:
     """A robot's anchor after a sample at ``now``: none without a goal; a new one at ``xy``
     when it had none or got farther than ``progress_distance`` from it; else the same.
     With its ``heading`` (rad, from the x axis) given, a robot that got that far
     backwards (against the way it faces: the controller reverses only for safety, so
-    others push it back) gets its new anchor remembering where and since when it stood
-    before the push; once pushed back farther than ``push_distance`` (m) from there, it
-    keeps that time: it has stood, driven back, all along."""
+    others push it back) keeps its time: the anchor moves to ``xy``, its ``since`` kept."""
     if not has_goal:
         return None
     if anchor is None:
         return Anchor((float(xy[0]), float(xy[1])), now)
     if math.dist(anchor.xy, xy) <= progress_distance:
         return anchor
-    here = (float(xy[0]), float(xy[1]))
-    if heading is None or ((xy[0] - anchor.xy[0]) * math.cos(heading)
-                           + (xy[1] - anchor.xy[1]) * math.sin(heading)) >= 0.0:
-        return Anchor(here, now)
-    before = anchor.pushed or anchor
-    return Anchor(here, before.since if math.dist(before.xy, xy) > push_distance else now,
-                  before)
+    backwards = heading is not None and ((xy[0] - anchor.xy[0]) * math.cos(heading)
+                                         + (xy[1] - anchor.xy[1]) * math.sin(heading)) < 0.0
+    return Anchor((float(xy[0]), float(xy[1])), anchor.since if backwards else now)
 
 
 @dataclass(frozen=True)
