@@ -52,8 +52,10 @@ class WatchdogParams:
     A robot *has a goal* when its target is active and it is farther than
     ``goal_tolerance`` from the target's current waypoint; it is *stalled* once it has had
     one for ``standstill_time`` without getting farther than ``progress_distance`` from
-    where it stood. A stalled robot is blocked by the robots within ``block_gap`` of it
-    (surface to surface). The robot chosen to yield drives to the nearest spot within
+    where it stood, or only backwards (against the way it faces: others push it back;
+    outside single-file segments). A
+    stalled robot is blocked by the robots within ``block_gap`` of it (surface to
+    surface). The robot chosen to yield drives to the nearest spot within
     ``search_reach`` at least ``spot_clearance`` from every other robot and person and from
     its blockers' ways to their targets, its centre ``wall_clearance`` from walls, and
     stands there for ``yield_time``; never to a spot nearer than ``back_off_distance`` to
@@ -166,7 +168,8 @@ class DeadlockWatchdog(LeafSystem):
 
     1. Orders whose ``until`` has passed end (see 4).
     2. Each robot's anchor is renewed (``standstills.next_anchor``); a robot backing off
-       has none.
+       has none; one pushed backwards keeps its time, unless it asks for or stands in
+       single-file segments.
     3. Stalled robots and the robots within ``block_gap`` of them form groups
        (``standstills.blocked_groups``). In each group (in robot order) without a robot
        backing off, the first of ``standstills.yield_order`` (robots standing first in a
@@ -309,9 +312,11 @@ class DeadlockWatchdog(LeafSystem):
         misses = tuple(m for m in old.misses + missed
                        if m.until > now - self._params.retry_window + 1e-9)
         backing = {order.robot for order in active}
+        single_file = self._in_single_file(context)
         anchors = [next_anchor(anchor, states[k, :2], self._has_goal(states[k], targets[k])
                                and self._robots[k] not in backing, now,
-                               self._params.progress_distance)
+                               self._params.progress_distance,
+                               None if k in single_file else float(states[k, 2]))
                    for k, anchor in enumerate(old.anchors)]
         for order in missed:
             self._stalled_again(order, anchors)
@@ -358,6 +363,15 @@ class DeadlockWatchdog(LeafSystem):
         state.get_mutable_abstract_state(self._state_index).set_value(
             _WatchdogState(tuple(anchors), orders, misses, gridlocked, cycled, approaches))
         return EventStatus.Succeeded()
+
+    def _in_single_file(self, context) -> set[int]:
+        """The indices of the robots asking for or standing in single-file segments (none
+        without ``queue_state``): pushed back there by their own convoy or at a segment's
+        end, where the queues order who goes, they count as moving (step 2)."""
+        if not self._queue_state.HasValue(context):
+            return set()
+        return {k for k, request in enumerate(self._requests.values(context))
+                if request.segments or request.standing}
 
     def _stalled_again(self, missed: BackOff, anchors: list[Anchor | None]) -> None:
         """A ``missed`` order freed nothing: the standstill it was to break goes on as it

@@ -26,14 +26,21 @@ class Anchor:
 
 
 def next_anchor(anchor: Anchor | None, xy, has_goal: bool, now: float,
-                progress_distance: float) -> Anchor | None:
+                progress_distance: float, heading: float | None = None) -> Anchor | None:
     """A robot's anchor after a sample at ``now``: none without a goal; a new one at ``xy``
-    when it had none or got farther than ``progress_distance`` from it; else the same."""
+    when it had none or got farther than ``progress_distance`` from it; else the same.
+    With its ``heading`` (rad, from the x axis) given, a robot that got that far
+    backwards (against the way it faces: the controller reverses only for safety, so
+    others push it back) keeps its time: the anchor moves to ``xy``, its ``since`` kept."""
     if not has_goal:
         return None
-    if anchor is None or math.dist(anchor.xy, xy) > progress_distance:
+    if anchor is None:
         return Anchor((float(xy[0]), float(xy[1])), now)
-    return anchor
+    if math.dist(anchor.xy, xy) <= progress_distance:
+        return anchor
+    backwards = heading is not None and ((xy[0] - anchor.xy[0]) * math.cos(heading)
+                                         + (xy[1] - anchor.xy[1]) * math.sin(heading)) < 0.0
+    return Anchor((float(xy[0]), float(xy[1])), anchor.since if backwards else now)
 
 
 @dataclass(frozen=True)

@@ -34,6 +34,7 @@ from mrta_drake.payloads import (
     QueueRequest,
     QueueState,
     RoomQueue,
+    SegmentHold,
     WaypointTarget,
     frozen_array,
 )
@@ -266,6 +267,43 @@ def test_an_anchor_moves_only_with_progress_and_goes_without_a_goal():
     assert next_anchor(anchor, (0.4, 0.0), True, 2.0, 0.5) is anchor
     assert next_anchor(anchor, (0.6, 0.0), True, 3.0, 0.5) == Anchor((0.6, 0.0), 3.0)
     assert next_anchor(anchor, (0.0, 0.0), False, 3.0, 0.5) is None
+
+
+def test_a_robot_pushed_backwards_keeps_its_standstill_time():
+    # Facing east (heading 0): 0.6 m east is progress, 0.6 m west (driven backwards) is
+    # not; the anchor moves with it, so progress counts from where it was pushed to.
+    anchor = Anchor((0.0, 0.0), 1.0)
+    assert next_anchor(anchor, (0.6, 0.0), True, 3.0, 0.5, 0.0) == Anchor((0.6, 0.0), 3.0)
+    pushed = next_anchor(anchor, (-0.6, 0.0), True, 3.0, 0.5, 0.0)
+    assert pushed == Anchor((-0.6, 0.0), 1.0)
+    assert next_anchor(pushed, (0.0, 0.0), True, 4.0, 0.5, 0.0) == Anchor((0.0, 0.0), 4.0)
+
+
+@pytest.mark.parametrize("single_file", [False, True])
+def test_a_robot_pushed_back_by_another_driving_on_gets_an_order(single_file):
+    # r0 drives east at 0.1 m/s into r1, which faces west (its goal behind r0) and is
+    # pushed back east ahead of it: r1 moves but makes no progress. After standstill_time
+    # r1 counts as stalled and r0, in its way, is sent aside (without the rule r1's anchor
+    # moves on with each 0.5 m and nobody is ever stalled). Not so where r1 asks for a
+    # single-file segment: there the queues order who goes.
+    p = WatchdogParams()
+    watchdog, context, simulator = _standing_robots((4.7, 0.0, 0.0, 0.1, 5.3, 0.0, math.pi,
+                                                     -0.1), ((8.0, 0.0), (2.0, 0.0)))
+    watchdog.GetInputPort("queue_state").FixValue(context, QueueState(
+        segments=(SegmentHold(),), segment_waiting=("r1",) if single_file else ()))
+    for name, segments in zip(NAMES, ((), ((0, False),) if single_file else ()), strict=True):
+        watchdog.GetInputPort(f"queue_request_{name}").FixValue(
+            context, QueueRequest(name, segments=segments))
+    for step in range(1, 34):
+        simulator.AdvanceTo(0.5 * step)
+        x = 0.05 * step
+        watchdog.GetInputPort("robot_state").FixValue(
+            context, np.array([4.7 + x, 0.0, 0.0, 0.1, 5.3 + x, 0.0, math.pi, -0.1]))
+    history = watchdog.GetOutputPort("back_offs").Eval(context).history
+    assert [order.robot for order in history] == ([] if single_file else ["r0"])
+    if not single_file:
+        assert history[0].issued == pytest.approx(p.standstill_time)
+        assert history[0].blockers == ("r1",)
 
 
 def test_no_spot_when_the_only_way_out_is_through_the_blocker():
