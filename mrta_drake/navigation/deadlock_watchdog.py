@@ -71,8 +71,9 @@ class WatchdogParams:
     (``DeadlockWatchdog``, step 5), and a robot that gave way is not chosen again for
     ``gridlock_cooldown``: shorter than the run recorder's ``STUCK_TIME`` (30 s), it ends
     such a gridlock before it counts as a deadlock. A cycle of waits among robots standing
-    still (a robot waiting for a room or segment another holds, or for a segment another
-    stands in, and so on back to it) is a deadlock for certain: one that lasts
+    still (a robot waiting for a room or segment another holds, for a segment another
+    stands in, or for a robot waiting for it in its way, and so on back to it) is a
+    deadlock for certain: one that lasts
     ``cycle_time`` is broken at once (step 6). ``enabled`` off: no watchdog in the
     diagram (as in the paper)."""
 
@@ -237,18 +238,25 @@ class DeadlockWatchdog(LeafSystem):
        stands in a single-file segment A asks for (a room's holder, granted its way, kept
        off it by a robot queueing for its room in it), or B stands in the doorway of the
        room A holds and waits at the door of (``QueueRequest.door``: A counts as standing
-       still then, though the recorder counts it as serving); robots waiting for each
+       still then, though the recorder counts it as serving), or B waits for A and stands
+       in A's way to its target (``standstills.in_ways``; a holder of segments kept off
+       its way by a robot waiting for them); robots waiting for each
        other round a cycle (``standstills.wait_cycles``) wait for good, so a cycle that
        has lasted ``cycle_time`` (each robot's time in one counted as in step 5) is broken
        at once: for the first robot of the cycle (rooms' holders first, then by priority,
        highest first) that other robots of the cycle stand in the way of (in segments it
-       asks for, or in the doorway it waits at), none of them a room's holder, broken
+       asks for, in the doorway it waits at, or waiting for it on its way), none of them
+       a room's holder, broken
        down, or one that missed an order within ``retry_window``, those robots give way
        (``releases`` orders, as in step 5, to spots off the other members' ways, the lanes
        of the segments they ask for and the doorways they wait at, off every
        single-file lane where there is such a spot), all at once, or none if one of them
        has no spot; the robots before the freed one in the segments' line asking for one of
-       its segments stand (as in step 5). Once the cycle has lasted ``gridlock_time`` with
+       its segments stand (as in step 5). With no robot so freed, the robot standing in
+       the way of robots it waits for is freed the other way round, those robots giving
+       way to it (it had no spot: e.g. boxed in at a corridor's end by a holder driving
+       there, which backs off with the segments it holds let go, and takes them again
+       after its order). Once the cycle has lasted ``gridlock_time`` with
        no robot so freed, rooms' holders may give way too (last: a holder in a cycle serves
        nothing, standing off its room's point, at a slot or on its way out; it keeps its
        room while it stands aside).
@@ -453,7 +461,10 @@ class DeadlockWatchdog(LeafSystem):
         still = [robot for robot in self._robots if robot not in going and robot not in
                  backing and (robot not in serving or doors.get(robot))]
         stands = {request.robot: set(request.standing) for request in requests}
-        cycles = wait_cycles({robot: {*waits.get(robot, ()), *doors.get(robot, ())}
+        blocks = self._waiters_in_way(still, waits, states, targets)
+        for robot, waiters in doors.items():
+            blocks.setdefault(robot, set()).update(waiters)
+        cycles = wait_cycles({robot: {*waits.get(robot, ()), *blocks.get(robot, ())}
                               for robot in self._robots}, asks, stands, still)
         member = {robot for cycle in cycles for robot in cycle}
         since = tuple((s if s is not None else now) if robot in member else None
@@ -462,44 +473,78 @@ class DeadlockWatchdog(LeafSystem):
             began = min(since[self._robots.index(robot)] for robot in cycle)
             if now - began < self._params.cycle_time - 1e-9:
                 continue
-            given = self._free_cycle(context, cycle, asks, stands, doors, holders, states,
-                                     targets, requests, queues, backing, misses, began, now)
+            given = self._free_cycle(context, cycle, asks, stands, blocks, waits, holders,
+                                     states, targets, requests, queues, backing, misses,
+                                     began, now)
             if given:
                 return tuple(now if robot in cycle else s
                              for robot, s in zip(self._robots, since, strict=True)), given
         return since, ()
 
-    def _free_cycle(self, context, cycle, asks, stands, doors, holders, states, targets,
-                    requests, queues, backing, misses, began, now) -> tuple[BackOff, ...]:
+    def _waiters_in_way(self, still, waits, states, targets) -> dict[str, set[str]]:
+        """For each robot of ``still`` with an active target, the others of ``still`` that
+        wait for it (``waits``) and stand in its way (``standstills.in_ways``: ahead of it,
+        nearer its way to its target than their radii and ``spot_clearance``): a holder of
+        single-file segments kept off its way by a robot waiting for those segments waits
+        for that robot as surely as for one in a segment it asks for (office seed 24: a
+        robot waiting, target inactive, at the corridor's end a room's holder drives to)."""
+        xy = states[:, :2]
+        ways = [_way(xy[k], target) for k, target in enumerate(targets)]
+        blocks = {}
+        for robot in still:
+            waiters = [other for other in still if robot in waits.get(other, ())]
+            if not waiters:
+                continue
+            k = self._robots.index(robot)
+            group = (k, *(self._robots.index(other) for other in waiters))
+            ahead = in_ways(group, np.arange(len(xy)) == k, xy, self._radii, ways,
+                            self._params.spot_clearance)
+            blocks[robot] = {self._robots[j] for j in group if ahead[j]}
+        return blocks
+
+    def _free_cycle(self, context, cycle, asks, stands, blocks, waits, holders, states,
+                    targets, requests, queues, backing, misses, began, now
+                    ) -> tuple[BackOff, ...]:
         """The ``releases`` orders that break ``cycle`` (class docstring, step 6), or ()
         when none of its robots can be freed: for the first of its robots (the rooms'
         holders first, then by priority, highest first) that the others stand in the way
-        of (in single-file segments it asks for, or in the doorway it waits at: ``doors``,
-        robot -> the robots it waits for there), and none of them a room's holder,
-        broken down or one that missed an order within ``retry_window``, they all go
-        to spots off the others' ways, and the robots before it in the segments' line
-        asking for one of those segments stand (as in step 5); with no such robot, once
-        the cycle (since ``began``) has lasted ``gridlock_time``, the same with rooms'
-        holders among those going."""
+        of (in single-file segments it asks for, or ``blocks``: robot -> the robots
+        waiting for it in its way or in the doorway it waits at), and none of them a
+        room's holder, broken down or one that missed an order within ``retry_window``,
+        they all go to spots off the others' ways, and the robots before it in the
+        segments' line asking for one of those segments stand (as in step 5); with none
+        such, the same for the first robot standing in the way of robots it waits for
+        (``waits``): those give way to it (it had no spot); once the cycle (since
+        ``began``) has lasted ``gridlock_time`` with no robot so freed, the same with
+        rooms' holders among those going."""
         broken = {self._robots[k] for k in self._disturbances_now(context).broken}
         fixed = broken | {order.robot for order in misses}
         ranked = sorted(cycle, key=lambda r: (r not in holders, self._priorities[
             self._robots.index(r)], self._robots.index(r)))
         late = now - began >= self._params.gridlock_time - 1e-9
+
+        def in_its_way(robot):
+            return [other for other in cycle if other != robot and (
+                not asks[robot].isdisjoint(stands[other]) or other in blocks.get(robot, ()))]
+
+        def it_waits_for_in_their_way(robot):
+            return [other for other in cycle if other in waits.get(robot, ())
+                    and robot in blocks.get(other, ())]
+
         for stay in (holders | fixed, fixed) if late else (holders | fixed,):
-            for robot in ranked:
-                blockers = [other for other in cycle if other != robot and (
-                    not asks[robot].isdisjoint(stands[other]) or other in doors.get(robot, ()))]
-                if not blockers or not stay.isdisjoint(blockers) or (
-                        stay is fixed and holders.isdisjoint(blockers)):  # tried already
-                    continue
-                given = self._orders(context, blockers, cycle, robot, states, targets,
-                                     requests, began, now)
-                if not given:
-                    continue
-                ahead = _before_in_line(queues.segment_waiting, robot, asks) - set(
-                    blockers) - broken - backing
-                return given + self._stand(ahead, robot, states, began, now)
+            for going in (in_its_way, it_waits_for_in_their_way):
+                for robot in ranked:
+                    blockers = going(robot)
+                    if not blockers or not stay.isdisjoint(blockers) or (
+                            stay is fixed and holders.isdisjoint(blockers)):  # tried already
+                        continue
+                    given = self._orders(context, blockers, cycle, robot, states, targets,
+                                         requests, began, now)
+                    if not given:
+                        continue
+                    ahead = _before_in_line(queues.segment_waiting, robot, asks) - set(
+                        blockers) - broken - backing
+                    return given + self._stand(ahead, robot, states, began, now)
         return ()
 
     def _releasing(self, group, active, waits, holders, now) -> tuple[BackOff, ...]:
