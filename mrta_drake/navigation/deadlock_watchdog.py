@@ -245,21 +245,20 @@ class DeadlockWatchdog(LeafSystem):
        has lasted ``cycle_time`` (each robot's time in one counted as in step 5) is broken
        at once: for the first robot of the cycle (rooms' holders first, then by priority,
        highest first) that other robots of the cycle stand in the way of (in segments it
-       asks for, in the doorway it waits at, or waiting for it on its way), none of them
-       a room's holder, broken
+       asks for, or in the doorway it waits at), none of them a room's holder, broken
        down, or one that missed an order within ``retry_window``, those robots give way
        (``releases`` orders, as in step 5, to spots off the other members' ways, the lanes
        of the segments they ask for and the doorways they wait at, off every
        single-file lane where there is such a spot), all at once, or none if one of them
        has no spot; the robots before the freed one in the segments' line asking for one of
-       its segments stand (as in step 5). With no robot so freed, the robot standing in
-       the way of robots it waits for is freed the other way round, those robots giving
-       way to it (it had no spot: e.g. boxed in at a corridor's end by a holder driving
-       there, which backs off with the segments it holds let go, and takes them again
-       after its order). Once the cycle has lasted ``gridlock_time`` with
+       its segments stand (as in step 5). Once the cycle has lasted ``gridlock_time`` with
        no robot so freed, rooms' holders may give way too (last: a holder in a cycle serves
        nothing, standing off its room's point, at a slot or on its way out; it keeps its
-       room while it stands aside).
+       room while it stands aside); and then, with still no robot freed, the first robot
+       standing in the way of robots it waits for is freed the other way round: those
+       robots give way to it, to spots off its way and the lanes it asks for (it had no
+       spot of its own: e.g. boxed in at a corridor's end by a holder of segments driving
+       there, which backs off with them let go and asks for them again after its order).
 
     ``costmap``: the static costmap the spots are checked against (the way to a spot
     keeps to its ``FREE`` cells). ``priorities``: per robot, smaller keeps its way
@@ -461,10 +460,9 @@ class DeadlockWatchdog(LeafSystem):
         still = [robot for robot in self._robots if robot not in going and robot not in
                  backing and (robot not in serving or doors.get(robot))]
         stands = {request.robot: set(request.standing) for request in requests}
-        blocks = self._waiters_in_way(still, waits, states, targets)
-        for robot, waiters in doors.items():
-            blocks.setdefault(robot, set()).update(waiters)
-        cycles = wait_cycles({robot: {*waits.get(robot, ()), *blocks.get(robot, ())}
+        in_way = self._waiters_in_way(still, waits, states, targets)
+        cycles = wait_cycles({robot: {*waits.get(robot, ()), *doors.get(robot, ()),
+                                      *in_way.get(robot, ())}
                               for robot in self._robots}, asks, stands, still)
         member = {robot for cycle in cycles for robot in cycle}
         since = tuple((s if s is not None else now) if robot in member else None
@@ -473,9 +471,9 @@ class DeadlockWatchdog(LeafSystem):
             began = min(since[self._robots.index(robot)] for robot in cycle)
             if now - began < self._params.cycle_time - 1e-9:
                 continue
-            given = self._free_cycle(context, cycle, asks, stands, blocks, waits, holders,
-                                     states, targets, requests, queues, backing, misses,
-                                     began, now)
+            given = self._free_cycle(context, cycle, asks, stands, doors, waits, in_way,
+                                     holders, states, targets, requests, queues, backing,
+                                     misses, began, now)
             if given:
                 return tuple(now if robot in cycle else s
                              for robot, s in zip(self._robots, since, strict=True)), given
@@ -502,49 +500,51 @@ class DeadlockWatchdog(LeafSystem):
             blocks[robot] = {self._robots[j] for j in group if ahead[j]}
         return blocks
 
-    def _free_cycle(self, context, cycle, asks, stands, blocks, waits, holders, states,
-                    targets, requests, queues, backing, misses, began, now
+    def _free_cycle(self, context, cycle, asks, stands, doors, waits, in_way, holders,
+                    states, targets, requests, queues, backing, misses, began, now
                     ) -> tuple[BackOff, ...]:
         """The ``releases`` orders that break ``cycle`` (class docstring, step 6), or ()
         when none of its robots can be freed: for the first of its robots (the rooms'
         holders first, then by priority, highest first) that the others stand in the way
-        of (in single-file segments it asks for, or ``blocks``: robot -> the robots
-        waiting for it in its way or in the doorway it waits at), and none of them a
-        room's holder, broken down or one that missed an order within ``retry_window``,
-        they all go to spots off the others' ways, and the robots before it in the
-        segments' line asking for one of those segments stand (as in step 5); with none
-        such, the same for the first robot standing in the way of robots it waits for
-        (``waits``): those give way to it (it had no spot); once the cycle (since
-        ``began``) has lasted ``gridlock_time`` with no robot so freed, the same with
-        rooms' holders among those going."""
+        of (in single-file segments it asks for, or in the doorway it waits at: ``doors``,
+        robot -> the robots it waits for there), and none of them a room's holder,
+        broken down or one that missed an order within ``retry_window``, they all go
+        to spots off the others' ways, and the robots before it in the segments' line
+        asking for one of those segments stand (as in step 5); with no such robot, once
+        the cycle (since ``began``) has lasted ``gridlock_time``, the same with rooms'
+        holders among those going, and then the same for the first robot standing in the
+        way of robots it waits for (``in_way``: robot -> the robots waiting for it in its
+        way; ``waits``): those go, to spots off its way."""
         broken = {self._robots[k] for k in self._disturbances_now(context).broken}
         fixed = broken | {order.robot for order in misses}
         ranked = sorted(cycle, key=lambda r: (r not in holders, self._priorities[
             self._robots.index(r)], self._robots.index(r)))
-        late = now - began >= self._params.gridlock_time - 1e-9
 
         def in_its_way(robot):
             return [other for other in cycle if other != robot and (
-                not asks[robot].isdisjoint(stands[other]) or other in blocks.get(robot, ()))]
+                not asks[robot].isdisjoint(stands[other]) or other in doors.get(robot, ()))]
 
-        def it_waits_for_in_their_way(robot):
+        def waited_for_in_their_way(robot):
             return [other for other in cycle if other in waits.get(robot, ())
-                    and robot in blocks.get(other, ())]
+                    and robot in in_way.get(other, ())]
 
-        for stay in (holders | fixed, fixed) if late else (holders | fixed,):
-            for going in (in_its_way, it_waits_for_in_their_way):
-                for robot in ranked:
-                    blockers = going(robot)
-                    if not blockers or not stay.isdisjoint(blockers) or (
-                            stay is fixed and holders.isdisjoint(blockers)):  # tried already
-                        continue
-                    given = self._orders(context, blockers, cycle, robot, states, targets,
-                                         requests, began, now)
-                    if not given:
-                        continue
-                    ahead = _before_in_line(queues.segment_waiting, robot, asks) - set(
-                        blockers) - broken - backing
-                    return given + self._stand(ahead, robot, states, began, now)
+        passes = [(holders | fixed, in_its_way)]
+        if now - began >= self._params.gridlock_time - 1e-9:
+            passes += [(fixed, in_its_way), (fixed, waited_for_in_their_way)]
+        for stay, going in passes:
+            for robot in ranked:
+                blockers = going(robot)
+                if not blockers or not stay.isdisjoint(blockers) or (
+                        going is in_its_way and stay is fixed
+                        and holders.isdisjoint(blockers)):  # tried already
+                    continue
+                given = self._orders(context, blockers, cycle, robot, states, targets,
+                                     requests, began, now)
+                if not given:
+                    continue
+                ahead = _before_in_line(queues.segment_waiting, robot, asks) - set(
+                    blockers) - broken - backing
+                return given + self._stand(ahead, robot, states, began, now)
         return ()
 
     def _releasing(self, group, active, waits, holders, now) -> tuple[BackOff, ...]:
