@@ -71,9 +71,8 @@ class WatchdogParams:
     (``DeadlockWatchdog``, step 5), and a robot that gave way is not chosen again for
     ``gridlock_cooldown``: shorter than the run recorder's ``STUCK_TIME`` (30 s), it ends
     such a gridlock before it counts as a deadlock. A cycle of waits among robots standing
-    still (a robot waiting for a room or segment another holds, for a segment another
-    stands in, or for a robot waiting for it in its way, and so on back to it) is a
-    deadlock for certain: one that lasts
+    still (a robot waiting for a room or segment another holds, or for a segment another
+    stands in, and so on back to it) is a deadlock for certain: one that lasts
     ``cycle_time`` is broken at once (step 6). ``enabled`` off: no watchdog in the
     diagram (as in the paper)."""
 
@@ -238,9 +237,7 @@ class DeadlockWatchdog(LeafSystem):
        stands in a single-file segment A asks for (a room's holder, granted its way, kept
        off it by a robot queueing for its room in it), or B stands in the doorway of the
        room A holds and waits at the door of (``QueueRequest.door``: A counts as standing
-       still then, though the recorder counts it as serving), or B waits for A and stands
-       in A's way to its target (``standstills.in_ways``; a holder of segments kept off
-       its way by a robot waiting for them); robots waiting for each
+       still then, though the recorder counts it as serving); robots waiting for each
        other round a cycle (``standstills.wait_cycles``) wait for good, so a cycle that
        has lasted ``cycle_time`` (each robot's time in one counted as in step 5) is broken
        at once: for the first robot of the cycle (rooms' holders first, then by priority,
@@ -254,11 +251,7 @@ class DeadlockWatchdog(LeafSystem):
        its segments stand (as in step 5). Once the cycle has lasted ``gridlock_time`` with
        no robot so freed, rooms' holders may give way too (last: a holder in a cycle serves
        nothing, standing off its room's point, at a slot or on its way out; it keeps its
-       room while it stands aside); and then, with still no robot freed, the first robot
-       standing in the way of robots it waits for is freed the other way round: those
-       robots give way to it, to spots off its way and the lanes it asks for (it had no
-       spot of its own: e.g. boxed in at a corridor's end by a holder of segments driving
-       there, which backs off with them let go and asks for them again after its order).
+       room while it stands aside).
 
     ``costmap``: the static costmap the spots are checked against (the way to a spot
     keeps to its ``FREE`` cells). ``priorities``: per robot, smaller keeps its way
@@ -421,7 +414,10 @@ class DeadlockWatchdog(LeafSystem):
             given = (self._releasing(group, active, waits, holders, now)
                      if backing.intersection(group) else
                      self._give_way(context, group, waits, holders, states, targets,
-                                    requests, asks, history, queues, backing, began, now))
+                                    requests, asks, history, queues, backing, began, now)
+                     or self._make_way_for_boxed_in(context, group, waits, states, targets,
+                                                    requests, asks, queues, misses, began,
+                                                    now))
             if given:
                 for k in index:
                     since[k] = replace(since[k], since=now)
@@ -460,9 +456,7 @@ class DeadlockWatchdog(LeafSystem):
         still = [robot for robot in self._robots if robot not in going and robot not in
                  backing and (robot not in serving or doors.get(robot))]
         stands = {request.robot: set(request.standing) for request in requests}
-        in_way = self._waiters_in_way(still, waits, states, targets)
-        cycles = wait_cycles({robot: {*waits.get(robot, ()), *doors.get(robot, ()),
-                                      *in_way.get(robot, ())}
+        cycles = wait_cycles({robot: {*waits.get(robot, ()), *doors.get(robot, ())}
                               for robot in self._robots}, asks, stands, still)
         member = {robot for cycle in cycles for robot in cycle}
         since = tuple((s if s is not None else now) if robot in member else None
@@ -471,38 +465,15 @@ class DeadlockWatchdog(LeafSystem):
             began = min(since[self._robots.index(robot)] for robot in cycle)
             if now - began < self._params.cycle_time - 1e-9:
                 continue
-            given = self._free_cycle(context, cycle, asks, stands, doors, waits, in_way,
-                                     holders, states, targets, requests, queues, backing,
-                                     misses, began, now)
+            given = self._free_cycle(context, cycle, asks, stands, doors, holders, states,
+                                     targets, requests, queues, backing, misses, began, now)
             if given:
                 return tuple(now if robot in cycle else s
                              for robot, s in zip(self._robots, since, strict=True)), given
         return since, ()
 
-    def _waiters_in_way(self, still, waits, states, targets) -> dict[str, set[str]]:
-        """For each robot of ``still`` with an active target, the others of ``still`` that
-        wait for it (``waits``) and stand in its way (``standstills.in_ways``: ahead of it,
-        nearer its way to its target than their radii and ``spot_clearance``): a holder of
-        single-file segments kept off its way by a robot waiting for those segments waits
-        for that robot as surely as for one in a segment it asks for (office seed 24: a
-        robot waiting, target inactive, at the corridor's end a room's holder drives to)."""
-        xy = states[:, :2]
-        ways = [_way(xy[k], target) for k, target in enumerate(targets)]
-        blocks = {}
-        for robot in still:
-            waiters = [other for other in still if robot in waits.get(other, ())]
-            if not waiters:
-                continue
-            k = self._robots.index(robot)
-            group = (k, *(self._robots.index(other) for other in waiters))
-            ahead = in_ways(group, np.arange(len(xy)) == k, xy, self._radii, ways,
-                            self._params.spot_clearance)
-            blocks[robot] = {self._robots[j] for j in group if ahead[j]}
-        return blocks
-
-    def _free_cycle(self, context, cycle, asks, stands, doors, waits, in_way, holders,
-                    states, targets, requests, queues, backing, misses, began, now
-                    ) -> tuple[BackOff, ...]:
+    def _free_cycle(self, context, cycle, asks, stands, doors, holders, states, targets,
+                    requests, queues, backing, misses, began, now) -> tuple[BackOff, ...]:
         """The ``releases`` orders that break ``cycle`` (class docstring, step 6), or ()
         when none of its robots can be freed: for the first of its robots (the rooms'
         holders first, then by priority, highest first) that the others stand in the way
@@ -512,31 +483,18 @@ class DeadlockWatchdog(LeafSystem):
         to spots off the others' ways, and the robots before it in the segments' line
         asking for one of those segments stand (as in step 5); with no such robot, once
         the cycle (since ``began``) has lasted ``gridlock_time``, the same with rooms'
-        holders among those going, and then the same for the first robot standing in the
-        way of robots it waits for (``in_way``: robot -> the robots waiting for it in its
-        way; ``waits``): those go, to spots off its way."""
+        holders among those going."""
         broken = {self._robots[k] for k in self._disturbances_now(context).broken}
         fixed = broken | {order.robot for order in misses}
         ranked = sorted(cycle, key=lambda r: (r not in holders, self._priorities[
             self._robots.index(r)], self._robots.index(r)))
-
-        def in_its_way(robot):
-            return [other for other in cycle if other != robot and (
-                not asks[robot].isdisjoint(stands[other]) or other in doors.get(robot, ()))]
-
-        def waited_for_in_their_way(robot):
-            return [other for other in cycle if other in waits.get(robot, ())
-                    and robot in in_way.get(other, ())]
-
-        passes = [(holders | fixed, in_its_way)]
-        if now - began >= self._params.gridlock_time - 1e-9:
-            passes += [(fixed, in_its_way), (fixed, waited_for_in_their_way)]
-        for stay, going in passes:
+        late = now - began >= self._params.gridlock_time - 1e-9
+        for stay in (holders | fixed, fixed) if late else (holders | fixed,):
             for robot in ranked:
-                blockers = going(robot)
+                blockers = [other for other in cycle if other != robot and (
+                    not asks[robot].isdisjoint(stands[other]) or other in doors.get(robot, ()))]
                 if not blockers or not stay.isdisjoint(blockers) or (
-                        going is in_its_way and stay is fixed
-                        and holders.isdisjoint(blockers)):  # tried already
+                        stay is fixed and holders.isdisjoint(blockers)):  # tried already
                     continue
                 given = self._orders(context, blockers, cycle, robot, states, targets,
                                      requests, began, now)
@@ -602,6 +560,67 @@ class DeadlockWatchdog(LeafSystem):
             if given:
                 return given
         return ()
+
+    def _make_way_for_boxed_in(self, context, group, waits, states, targets, requests, asks,
+                               queues, misses, stalled_since, now) -> tuple[BackOff, ...]:
+        """Step 5's last resort for gridlock ``group`` (class docstring): for the first of
+        its robots (by priority, highest first) that stands in the way of robots of the
+        group it waits for (``_waiters_in_way``) and is boxed in (``_boxed_in``: no spot
+        even off everybody's way, so no order can send it aside), those robots (rooms'
+        holders too: they keep their rooms; not broken down, no miss within
+        ``retry_window``) give way to it, to spots off its way and the lanes it asks for,
+        letting go of their segments, and the robots before it in the segments' line
+        asking for one of its segments stand; () if there is no such robot or one of them
+        has no spot. Office seed 24: a holder of single-file segments (and of the room at
+        the corridor's end) driving to its point, and a robot waiting for its segments
+        standing there, target inactive, with the corridor's end behind it."""
+        fixed = ({self._robots[k] for k in self._disturbances_now(context).broken}
+                 | {order.robot for order in misses})
+        in_way = self._waiters_in_way(group, waits, states, targets)
+        for robot in sorted(group, key=lambda r: (self._priorities[self._robots.index(r)],
+                                                  self._robots.index(r))):
+            giving = [other for other in group if other in waits.get(robot, ())
+                      and robot in in_way.get(other, ())]
+            if (not giving or not fixed.isdisjoint(giving)
+                    or not self._boxed_in(context, robot, states)):
+                continue
+            given = self._orders(context, giving, group, robot, states, targets, requests,
+                                 stalled_since, now)
+            if given:
+                ahead = _before_in_line(queues.segment_waiting, robot, asks) - set(
+                    giving) - fixed
+                return given + self._stand(ahead, robot, states, stalled_since, now)
+        return ()
+
+    def _waiters_in_way(self, robots, waits, states, targets) -> dict[str, set[str]]:
+        """For each of ``robots`` (names) with an active target, the others of ``robots``
+        that wait for it (``waits``) and stand in its way (``standstills.in_ways``: ahead
+        of it, nearer its way to its target than their radii and ``spot_clearance``)."""
+        xy = states[:, :2]
+        ways = [_way(xy[k], target) for k, target in enumerate(targets)]
+        blocks = {}
+        for robot in robots:
+            waiters = [other for other in robots if robot in waits.get(other, ())]
+            if not waiters:
+                continue
+            k = self._robots.index(robot)
+            near = (k, *(self._robots.index(other) for other in waiters))
+            ahead = in_ways(near, np.arange(len(xy)) == k, xy, self._radii, ways,
+                            self._params.spot_clearance)
+            blocks[robot] = {self._robots[j] for j in near if ahead[j]}
+        return blocks
+
+    def _boxed_in(self, context, robot: str, states) -> bool:
+        """Whether ``robot`` has no spot to back off to (``standstills.back_off_spot``
+        within ``search_reach``, off no robot's way): no order can send it aside."""
+        humans: HumanStates = (self._humans.Eval(context) if self._humans.HasValue(context)
+                               else NO_HUMANS)
+        p = self._params
+        return back_off_spot(self._robots.index(robot), states[:, :2], self._radii, [],
+                             np.asarray(humans.positions).reshape(-1, 2),
+                             np.asarray(humans.radii).reshape(-1), self._costmap,
+                             p.search_reach, p.spot_clearance, p.wall_clearance,
+                             min_move=p.back_off_distance) is None
 
     def _stand(self, robots, freed, states, stalled_since, now) -> tuple[BackOff, ...]:
         """``releases`` orders for ``robots`` (names) to stand where they are, asking for
