@@ -226,10 +226,16 @@ class DeadlockWatchdog(LeafSystem):
        rooms) stand where they are (else they would take the segments first and gridlock
        with it in turn); all at once, or none if one of those going has no spot. A gridlock
        of room waits only: the first robot that may give way, lowest priority first, goes
-       to a spot. While its order is in force a robot asks for no room (it leaves the
-       queue) and only for the segments it stands in, so the others get them; when it ends,
-       it asks again, at the queues' tails. Every member's gridlock time starts again, so
-       the others get another ``gridlock_time`` to move before the next orders.
+       to a spot. With no robot so given way, the last resort (``_make_way_for_boxed_in``):
+       a member boxed in (no spot within ``search_reach`` even off everybody's way)
+       standing in the way of members it waits for (ahead of them, on their way to their
+       targets) is freed the other way round: those go (rooms' holders too, keeping their
+       rooms), letting go of their segments, to spots off its way and the lanes it asks
+       for, and the robots before it in the line stand. While its order is in force a
+       robot asks for no room (it leaves the queue) and only for the segments it stands
+       in, so the others get them; when it ends, it asks again, at the queues' tails.
+       Every member's gridlock time starts again, so the others get another
+       ``gridlock_time`` to move before the next orders.
     6. Cycles of waits, before step 5's gridlocks: among the robots standing still (at no
        lift, under no order, not serving (step 5), and not going: moving with a goal it got
        ``progress_distance`` nearer within ``cycle_time``; a robot rocking on the spot is

@@ -436,10 +436,11 @@ def test_two_holders_each_in_the_others_doorway_one_gives_way_after_gridlock_tim
 def test_a_holder_whose_way_a_boxed_in_robot_waiting_for_it_stands_in_gives_way():
     # Office seed 24: r0 holds room R and segment 0 and drives east to its point at a
     # corridor's dead end; r1, waiting for segment 0 with its target inactive, stands in
-    # r0's way with no spot to go to (the corridor's end behind it, r0 before it). r0 waits
-    # for r1 (in its way), r1 for r0 (its segment): a cycle, in which no robot stands in a
-    # segment another asks for. r1 has no spot, so r0 gives way (a releases order, once the
-    # cycle has lasted gridlock_time: r0 holds a room) to a spot off r1's way.
+    # r0's way with no spot to go to (the corridor's end behind it, r0 before it): a
+    # gridlock of waits (r0 stands, serving nothing) in which no robot may give way (r0
+    # holds a room; r1 has no spot) and no cycle (r1 stands in no segment r0 asks for).
+    # r1 is boxed in, so r0 gives way to it once the gridlock has lasted gridlock_time (a
+    # releases order: it lets segment 0 go), to a spot off r1's way.
     t = 0.1
     dead_end = Obstacles((
         Box("south", (15.0, -1.0 - t / 2), (6.0, t)),
