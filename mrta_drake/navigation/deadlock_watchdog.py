@@ -230,10 +230,16 @@ class DeadlockWatchdog(LeafSystem):
        rooms) stand where they are (else they would take the segments first and gridlock
        with it in turn); all at once, or none if one of those going has no spot. A gridlock
        of room waits only: the first robot that may give way, lowest priority first, goes
-       to a spot. While its order is in force a robot asks for no room (it leaves the
-       queue) and only for the segments it stands in, so the others get them; when it ends,
-       it asks again, at the queues' tails. Every member's gridlock time starts again, so
-       the others get another ``gridlock_time`` to move before the next orders.
+       to a spot. With no robot so given way, the last resort (``_make_way_for_boxed_in``):
+       a member boxed in (no spot within ``search_reach`` even off everybody's way)
+       standing in the way of members it waits for (ahead of them, on their way to their
+       targets) is freed the other way round: those go (rooms' holders too, keeping their
+       rooms), letting go of their segments, to spots off its way and the lanes it asks
+       for, and the robots before it in the line stand. While its order is in force a
+       robot asks for no room (it leaves the queue) and only for the segments it stands
+       in, so the others get them; when it ends, it asks again, at the queues' tails.
+       Every member's gridlock time starts again, so the others get another
+       ``gridlock_time`` to move before the next orders.
     6. Cycles of waits, before step 5's gridlocks: among the robots standing still (at no
        lift, under no order, not serving (step 5), and not going: moving with a goal it got
        ``progress_distance`` nearer within ``cycle_time``; a robot rocking on the spot is
@@ -429,7 +435,10 @@ class DeadlockWatchdog(LeafSystem):
             given = (self._releasing(group, active, waits, holders, now)
                      if backing.intersection(group) else
                      self._give_way(context, group, waits, holders, states, targets,
-                                    requests, asks, history, queues, backing, began, now))
+                                    requests, asks, history, queues, backing, began, now)
+                     or self._make_way_for_boxed_in(context, group, waits, states, targets,
+                                                    requests, asks, queues, misses, began,
+                                                    now))
             if given:
                 for k in index:
                     since[k] = replace(since[k], since=now)
@@ -572,6 +581,67 @@ class DeadlockWatchdog(LeafSystem):
             if given:
                 return given
         return ()
+
+    def _make_way_for_boxed_in(self, context, group, waits, states, targets, requests, asks,
+                               queues, misses, stalled_since, now) -> tuple[BackOff, ...]:
+        """Step 5's last resort for gridlock ``group`` (class docstring): for the first of
+        its robots (by priority, highest first) that stands in the way of robots of the
+        group it waits for (``_waiters_in_way``) and is boxed in (``_boxed_in``: no spot
+        even off everybody's way, so no order can send it aside), those robots (rooms'
+        holders too: they keep their rooms; not broken down, no miss within
+        ``retry_window``) give way to it, to spots off its way and the lanes it asks for,
+        letting go of their segments, and the robots before it in the segments' line
+        asking for one of its segments stand; () if there is no such robot or one of them
+        has no spot. Office seed 24: a holder of single-file segments (and of the room at
+        the corridor's end) driving to its point, and a robot waiting for its segments
+        standing there, target inactive, with the corridor's end behind it."""
+        fixed = ({self._robots[k] for k in self._disturbances_now(context).broken}
+                 | {order.robot for order in misses})
+        in_way = self._waiters_in_way(group, waits, states, targets)
+        for robot in sorted(group, key=lambda r: (self._priorities[self._robots.index(r)],
+                                                  self._robots.index(r))):
+            giving = [other for other in group if other in waits.get(robot, ())
+                      and robot in in_way.get(other, ())]
+            if (not giving or not fixed.isdisjoint(giving)
+                    or not self._boxed_in(context, robot, states)):
+                continue
+            given = self._orders(context, giving, group, robot, states, targets, requests,
+                                 stalled_since, now)
+            if given:
+                ahead = _before_in_line(queues.segment_waiting, robot, asks) - set(
+                    giving) - fixed
+                return given + self._stand(ahead, robot, states, stalled_since, now)
+        return ()
+
+    def _waiters_in_way(self, robots, waits, states, targets) -> dict[str, set[str]]:
+        """For each of ``robots`` (names) with an active target, the others of ``robots``
+        that wait for it (``waits``) and stand in its way (``standstills.in_ways``: ahead
+        of it, nearer its way to its target than their radii and ``spot_clearance``)."""
+        xy = states[:, :2]
+        ways = [_way(xy[k], target) for k, target in enumerate(targets)]
+        blocks = {}
+        for robot in robots:
+            waiters = [other for other in robots if robot in waits.get(other, ())]
+            if not waiters:
+                continue
+            k = self._robots.index(robot)
+            near = (k, *(self._robots.index(other) for other in waiters))
+            ahead = in_ways(near, np.arange(len(xy)) == k, xy, self._radii, ways,
+                            self._params.spot_clearance)
+            blocks[robot] = {self._robots[j] for j in near if ahead[j]}
+        return blocks
+
+    def _boxed_in(self, context, robot: str, states) -> bool:
+        """Whether ``robot`` has no spot to back off to (``standstills.back_off_spot``
+        within ``search_reach``, off no robot's way): no order can send it aside."""
+        humans: HumanStates = (self._humans.Eval(context) if self._humans.HasValue(context)
+                               else NO_HUMANS)
+        p = self._params
+        return back_off_spot(self._robots.index(robot), states[:, :2], self._radii, [],
+                             np.asarray(humans.positions).reshape(-1, 2),
+                             np.asarray(humans.radii).reshape(-1), self._costmap,
+                             p.search_reach, p.spot_clearance, p.wall_clearance,
+                             min_move=p.back_off_distance) is None
 
     def _stand(self, robots, freed, states, stalled_since, now) -> tuple[BackOff, ...]:
         """``releases`` orders for ``robots`` (names) to stand where they are, asking for

@@ -46,7 +46,7 @@ from mrta_drake.payloads import (
 )
 from mrta_drake.results.deadlocks import stalled_waits
 from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig
-from mrta_drake.world.obstacles import Obstacles
+from mrta_drake.world.obstacles import Box, Obstacles
 from tests.navigation.test_waypoint_generator import (
     B,
     FakeRobots,
@@ -264,13 +264,14 @@ def test_a_robot_giving_way_leaves_its_rooms_queue():
     assert generator.GetOutputPort("queue_request").Eval(context).room is None
 
 
-def _watchdog_of_two(state, targets, requests, queues, roadways=None):
-    """The watchdog alone with r0 and r1 (0.22 m) on an empty costmap, its inputs fixed:
-    ``state`` both robots' (x, y, theta, v), ``targets`` and ``requests`` one each (r0's
-    first), ``queues`` the queue state. Returns the watchdog and its context."""
+def _watchdog_of_two(state, targets, requests, queues, roadways=None, obstacles=None):
+    """The watchdog alone with r0 and r1 (0.22 m) on the costmap of ``obstacles`` (None:
+    empty), its inputs fixed: ``state`` both robots' (x, y, theta, v), ``targets`` and
+    ``requests`` one each (r0's first), ``queues`` the queue state. Returns the watchdog and
+    its context."""
     watchdog = DeadlockWatchdog(["r0", "r1"], [0.22, 0.22],
-                                Costmap.from_obstacles(Obstacles(), BOUNDS), rate_hz=2.0,
-                                roadways=roadways)
+                                Costmap.from_obstacles(obstacles or Obstacles(), BOUNDS),
+                                rate_hz=2.0, roadways=roadways)
     context = watchdog.CreateDefaultContext()
     watchdog.GetInputPort("robot_state").FixValue(context, list(state))
     for target, request in zip(targets, requests, strict=True):
@@ -430,3 +431,34 @@ def test_two_holders_each_in_the_others_doorway_one_gives_way_after_gridlock_tim
                          WatchdogParams().gridlock_time + 5.0)
     assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r1", True, ("r0",))]
     assert orders[0].issued == pytest.approx(WatchdogParams().gridlock_time)
+
+
+def test_a_holder_whose_way_a_boxed_in_robot_waiting_for_it_stands_in_gives_way():
+    # Office seed 24: r0 holds room R and segment 0 and drives east to its point at a
+    # corridor's dead end; r1, waiting for segment 0 with its target inactive, stands in
+    # r0's way with no spot to go to (the corridor's end behind it, r0 before it): a
+    # gridlock of waits (r0 stands, serving nothing) in which no robot may give way (r0
+    # holds a room; r1 has no spot) and no cycle (r1 stands in no segment r0 asks for).
+    # r1 is boxed in, so r0 gives way to it once the gridlock has lasted gridlock_time (a
+    # releases order: it lets segment 0 go), to a spot off r1's way.
+    t = 0.1
+    dead_end = Obstacles((
+        Box("south", (15.0, -1.0 - t / 2), (6.0, t)),
+        Box("north", (15.0, 1.0 + t / 2), (6.0, t)),
+        Box("end", (17.6 + t / 2, 0.0), (t, 2.0 + 2 * t)),
+    ))
+    watchdog, context = _watchdog_of_two(
+        [15.6, 0.0, 0.0, 0.0, 16.5, 0.0, np.pi, 0.0],
+        (WaypointTarget("r0", True, (17.0, 0.0), None, True), WaypointTarget("r1")),
+        (QueueRequest("r0", R, segments=((0, True),)),
+         QueueRequest("r1", segments=((0, False),))),
+        QueueState((RoomQueue(R, "r0"),), segments=(SegmentHold(("r0",)),),
+                   segment_waiting=("r1",)),
+        obstacles=dead_end)
+    simulator = Simulator(watchdog, context)
+    params = WatchdogParams()
+    simulator.AdvanceTo(params.gridlock_time + 5.0)
+    orders = watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
+    assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
+    assert orders[0].issued == pytest.approx(params.gridlock_time)
+    assert orders[0].point[0] < 15.6 - params.back_off_distance + 1e-9  # back, off r1's way
