@@ -592,9 +592,9 @@ class DeadlockWatchdog(LeafSystem):
         ``retry_window``) give way to it, to spots off its way and the lanes it asks for,
         letting go of their segments, and the robots before it in the segments' line
         asking for one of its segments stand; () if there is no such robot or one of them
-        has no spot. Office seed 24: a holder of single-file segments (and of the room at
-        the corridor's end) driving to its point, and a robot waiting for its segments
-        standing there, target inactive, with the corridor's end behind it."""
+        has no spot. The case: a holder of single-file segments (and of the room at a
+        corridor's end) driving to its point, and a robot waiting for its segments
+        standing in its way, target inactive, with the corridor's end behind it."""
         fixed = ({self._robots[k] for k in self._disturbances_now(context).broken}
                  | {order.robot for order in misses})
         in_way = self._waiters_in_way(group, waits, states, targets)

@@ -645,7 +645,7 @@ class WaypointPolicy:
         """The shortest way along the lanes (without lift rides) from ``xy``, standing in
         the single-file segments ``here``, to a spot
         where a robot without a stop may wait out of the way (``_refuge_spots``; a dead
-        end by a queue slot only for a robot boxed in a corridor (``_boxed_in``) where no
+        end by a queue slot only for a robot inside a corridor (``_inside_segments``) where no
         other will do: there it may be in the way of a robot queueing or bound for that
         dead end, inside a segment another robot drives through it is in its way for
         certain): in none of
@@ -664,9 +664,9 @@ class WaypointPolicy:
         avoid = wanted | taken
         starts = {n for n in lanes.graph.nodes if not set(here).isdisjoint(
             stands_in(self._roadways, self._roadways.node_position(n), params.single_file))}
-        boxed = self._boxed_in(xy, here)
+        inside = self._inside_segments(xy, here)
         spots = [(spot, node, by_slot) for spot, node, segments, by_slot in self._refuge_spots()
-                 if (boxed or not by_slot) and avoid.isdisjoint(segments)
+                 if (inside or not by_slot) and avoid.isdisjoint(segments)
                  and self._free(spot, others)]
         best, best_length = None, (True, math.inf)
         for start in sorted(starts, key=str):
@@ -693,7 +693,7 @@ class WaypointPolicy:
                 best, best_length = route, length
         return best
 
-    def _boxed_in(self, xy, here: tuple[int, ...]) -> bool:
+    def _inside_segments(self, xy, here: tuple[int, ...]) -> bool:
         """Whether a robot at ``xy``, standing in the single-file segments ``here``, is
         inside them: farther than ``single_file.stand_distance`` from each one's ends
         (the nodes joined to one other node of it). In a corridor the only ways out are
