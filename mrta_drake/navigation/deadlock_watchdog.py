@@ -518,7 +518,10 @@ class DeadlockWatchdog(LeafSystem):
                         stay is fixed and holders.isdisjoint(blockers)):  # tried already
                     continue
                 given = self._orders(context, blockers, cycle, robot, states, targets,
-                                     requests, began, now)
+                                     requests, began, now) or (
+                    _queued_for(robot, blockers, queues)
+                    and self._orders(context, blockers, cycle, robot, states, targets,
+                                     requests, began, now, off_ways=False))
                 if not given:
                     continue
                 ahead = _before_in_line(queues.segment_waiting, robot, asks) - set(
@@ -652,11 +655,12 @@ class DeadlockWatchdog(LeafSystem):
                      for k, robot in enumerate(self._robots) if robot in robots)
 
     def _orders(self, context, robots, group, freed, states, targets, requests,
-                stalled_since, now) -> tuple[BackOff, ...]:
+                stalled_since, now, off_ways: bool = True) -> tuple[BackOff, ...]:
         """Orders sending each of ``robots`` (names) to its own spot, off the ways of the
         other robots of ``group`` (and of ``freed``, the robot they make way for): their
         targets' ways, the lanes of the segments they ask for and the doorways they wait at
-        (``QueueRequest.door``); off every single-file
+        (``QueueRequest.door``; not kept clear with ``off_ways`` off: the nearest spot
+        any way); off every single-file
         segment's lane if there is such a spot (standing on one it would hold it); and
         off the spots given before. () if one of them has no spot."""
         p = self._params
@@ -669,11 +673,7 @@ class DeadlockWatchdog(LeafSystem):
             others = [self._robots.index(j) for j in {*group, *([freed] if freed else [])}
                       if j != robot]
             others.sort()
-            ways = [(_way(xy[j], targets[j]), self._radii[j]) for j in others]
-            ways += [(np.asarray(lane, dtype=float), self._radii[j]) for j in others
-                     for lane in self._lanes_asked(requests[j])]
-            ways += [(self._roadways.place(requests[j].room).doorway, self._radii[j])
-                     for j in others if requests[j].door and requests[j].room is not None]
+            ways = self._ways_of(others, xy, targets, requests) if off_ways else []
             ways += [(np.asarray(order.point, dtype=float), self._radii[k]) for order in given]
             spot = None
             for extra in (self._all_lanes, []):
@@ -690,6 +690,17 @@ class DeadlockWatchdog(LeafSystem):
                                  tuple(self._robots[j] for j in others), stalled_since,
                                  releases=True))
         return tuple(given)
+
+    def _ways_of(self, robots, xy, targets, requests) -> list:
+        """The ways (polyline, radius) of ``robots`` (indices) a spot keeps clear of: their
+        targets' ways, the lanes of the segments they ask for and the doorways they wait
+        at."""
+        ways = [(_way(xy[j], targets[j]), self._radii[j]) for j in robots]
+        ways += [(np.asarray(lane, dtype=float), self._radii[j]) for j in robots
+                 for lane in self._lanes_asked(requests[j])]
+        ways += [(self._roadways.place(requests[j].room).doorway, self._radii[j])
+                 for j in robots if requests[j].door and requests[j].room is not None]
+        return ways
 
     def _lanes_asked(self, request: QueueRequest) -> list:
         """The lanes (start, end) of the single-file segments ``request`` asks for."""
@@ -869,6 +880,15 @@ def _before_in_line(line, robot: str, asks) -> set[str]:
     if robot not in line:
         return set()
     return {j for j in line[:line.index(robot)] if not asks[j].isdisjoint(asks[robot])}
+
+
+def _queued_for(holder: str, robots, queues: QueueState) -> bool:
+    """Whether each of ``robots`` (names) waits in the queue of a room ``holder`` holds:
+    standing in the holder's way out at its queue place, it waits for the holder to
+    leave and the holder for it to go."""
+    waiting = {robot for queue in queues.rooms if queue.holder == holder
+               for robot in queue.waiting}
+    return set(robots) <= waiting
 
 
 def _way(xy, target: WaypointTarget) -> np.ndarray:
