@@ -257,10 +257,13 @@ class DeadlockWatchdog(LeafSystem):
        (``releases`` orders, as in step 5, to spots off the other members' ways, the lanes
        of the segments they ask for and the doorways they wait at, off every
        single-file lane where there is such a spot), all at once, or none if one of them
-       has no spot; the robots before the freed one in the segments' line asking for one of
-       its segments stand (as in step 5). Once the cycle has lasted ``gridlock_time`` with
-       no robot so freed, rooms' holders may give way too (last: a holder in a cycle serves
-       nothing, standing off its room's point, at a slot or on its way out; it keeps its
+       has no spot; where those robots all queue for a room the freed robot holds (at
+       their queue places in its way out) and have no such spot, to the nearest spots
+       whatever the ways (on ahead along its way: they wait for it to leave, it for them
+       to go, and no spot off its way will come); the robots before the freed one in the
+       segments' line asking for one of its segments stand (as in step 5). Once the cycle
+       has lasted ``gridlock_time`` with no robot so freed, rooms' holders may give way too
+       (last: a holder in a cycle serves nothing, standing off its room's point, at a slot or on its way out; it keeps its
        room while it stands aside).
 
     ``costmap``: the static costmap the spots are checked against (the way to a spot
@@ -502,9 +505,10 @@ class DeadlockWatchdog(LeafSystem):
         robot -> the robots it waits for there), and none of them a room's holder,
         broken down or one that missed an order within ``retry_window``, they all go
         to spots off the others' ways, and the robots before it in the segments' line
-        asking for one of those segments stand (as in step 5); with no such robot, once
-        the cycle (since ``began``) has lasted ``gridlock_time``, the same with rooms'
-        holders among those going."""
+        asking for one of those segments stand (as in step 5); robots queueing for its
+        room with no spot off the ways go to the nearest spots any way; with no such
+        robot, once the cycle (since ``began``) has lasted ``gridlock_time``, the same
+        with rooms' holders among those going."""
         broken = {self._robots[k] for k in self._disturbances_now(context).broken}
         fixed = broken | {order.robot for order in misses}
         ranked = sorted(cycle, key=lambda r: (r not in holders, self._priorities[
