@@ -263,8 +263,8 @@ class DeadlockWatchdog(LeafSystem):
        to go, and no spot off its way will come); the robots before the freed one in the
        segments' line asking for one of its segments stand (as in step 5). Once the cycle
        has lasted ``gridlock_time`` with no robot so freed, rooms' holders may give way too
-       (last: a holder in a cycle serves nothing, standing off its room's point, at a slot or on its way out; it keeps its
-       room while it stands aside).
+       (last: a holder in a cycle serves nothing, standing off its room's point, at a slot
+       or on its way out; it keeps its room while it stands aside).
 
     ``costmap``: the static costmap the spots are checked against (the way to a spot
     keeps to its ``FREE`` cells). ``priorities``: per robot, smaller keeps its way
