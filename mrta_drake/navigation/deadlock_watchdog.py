@@ -257,11 +257,14 @@ class DeadlockWatchdog(LeafSystem):
        (``releases`` orders, as in step 5, to spots off the other members' ways, the lanes
        of the segments they ask for and the doorways they wait at, off every
        single-file lane where there is such a spot), all at once, or none if one of them
-       has no spot; the robots before the freed one in the segments' line asking for one of
-       its segments stand (as in step 5). Once the cycle has lasted ``gridlock_time`` with
-       no robot so freed, rooms' holders may give way too (last: a holder in a cycle serves
-       nothing, standing off its room's point, at a slot or on its way out; it keeps its
-       room while it stands aside).
+       has no spot; where those robots all queue for a room the freed robot holds (at
+       their queue places in its way out) and have no such spot, to the nearest spots
+       whatever the ways (on ahead along its way: they wait for it to leave, it for them
+       to go, and no spot off its way will come); the robots before the freed one in the
+       segments' line asking for one of its segments stand (as in step 5). Once the cycle
+       has lasted ``gridlock_time`` with no robot so freed, rooms' holders may give way too
+       (last: a holder in a cycle serves nothing, standing off its room's point, at a slot
+       or on its way out; it keeps its room while it stands aside).
 
     ``costmap``: the static costmap the spots are checked against (the way to a spot
     keeps to its ``FREE`` cells). ``priorities``: per robot, smaller keeps its way
@@ -502,9 +505,10 @@ class DeadlockWatchdog(LeafSystem):
         robot -> the robots it waits for there), and none of them a room's holder,
         broken down or one that missed an order within ``retry_window``, they all go
         to spots off the others' ways, and the robots before it in the segments' line
-        asking for one of those segments stand (as in step 5); with no such robot, once
-        the cycle (since ``began``) has lasted ``gridlock_time``, the same with rooms'
-        holders among those going."""
+        asking for one of those segments stand (as in step 5); robots queueing for its
+        room with no spot off the ways go to the nearest spots any way; with no such
+        robot, once the cycle (since ``began``) has lasted ``gridlock_time``, the same
+        with rooms' holders among those going."""
         broken = {self._robots[k] for k in self._disturbances_now(context).broken}
         fixed = broken | {order.robot for order in misses}
         ranked = sorted(cycle, key=lambda r: (r not in holders, self._priorities[
@@ -518,7 +522,10 @@ class DeadlockWatchdog(LeafSystem):
                         stay is fixed and holders.isdisjoint(blockers)):  # tried already
                     continue
                 given = self._orders(context, blockers, cycle, robot, states, targets,
-                                     requests, began, now)
+                                     requests, began, now) or (
+                    _queued_for(robot, blockers, queues)
+                    and self._orders(context, blockers, cycle, robot, states, targets,
+                                     requests, began, now, off_ways=False))
                 if not given:
                     continue
                 ahead = _before_in_line(queues.segment_waiting, robot, asks) - set(
@@ -652,11 +659,12 @@ class DeadlockWatchdog(LeafSystem):
                      for k, robot in enumerate(self._robots) if robot in robots)
 
     def _orders(self, context, robots, group, freed, states, targets, requests,
-                stalled_since, now) -> tuple[BackOff, ...]:
+                stalled_since, now, off_ways: bool = True) -> tuple[BackOff, ...]:
         """Orders sending each of ``robots`` (names) to its own spot, off the ways of the
         other robots of ``group`` (and of ``freed``, the robot they make way for): their
         targets' ways, the lanes of the segments they ask for and the doorways they wait at
-        (``QueueRequest.door``); off every single-file
+        (``QueueRequest.door``; not kept clear with ``off_ways`` off: the nearest spot
+        any way); off every single-file
         segment's lane if there is such a spot (standing on one it would hold it); and
         off the spots given before. () if one of them has no spot."""
         p = self._params
@@ -669,11 +677,7 @@ class DeadlockWatchdog(LeafSystem):
             others = [self._robots.index(j) for j in {*group, *([freed] if freed else [])}
                       if j != robot]
             others.sort()
-            ways = [(_way(xy[j], targets[j]), self._radii[j]) for j in others]
-            ways += [(np.asarray(lane, dtype=float), self._radii[j]) for j in others
-                     for lane in self._lanes_asked(requests[j])]
-            ways += [(self._roadways.place(requests[j].room).doorway, self._radii[j])
-                     for j in others if requests[j].door and requests[j].room is not None]
+            ways = self._ways_of(others, xy, targets, requests) if off_ways else []
             ways += [(np.asarray(order.point, dtype=float), self._radii[k]) for order in given]
             spot = None
             for extra in (self._all_lanes, []):
@@ -690,6 +694,17 @@ class DeadlockWatchdog(LeafSystem):
                                  tuple(self._robots[j] for j in others), stalled_since,
                                  releases=True))
         return tuple(given)
+
+    def _ways_of(self, robots, xy, targets, requests) -> list:
+        """The ways (polyline, radius) of ``robots`` (indices) a spot keeps clear of: their
+        targets' ways, the lanes of the segments they ask for and the doorways they wait
+        at."""
+        ways = [(_way(xy[j], targets[j]), self._radii[j]) for j in robots]
+        ways += [(np.asarray(lane, dtype=float), self._radii[j]) for j in robots
+                 for lane in self._lanes_asked(requests[j])]
+        ways += [(self._roadways.place(requests[j].room).doorway, self._radii[j])
+                 for j in robots if requests[j].door and requests[j].room is not None]
+        return ways
 
     def _lanes_asked(self, request: QueueRequest) -> list:
         """The lanes (start, end) of the single-file segments ``request`` asks for."""
@@ -869,6 +884,15 @@ def _before_in_line(line, robot: str, asks) -> set[str]:
     if robot not in line:
         return set()
     return {j for j in line[:line.index(robot)] if not asks[j].isdisjoint(asks[robot])}
+
+
+def _queued_for(holder: str, robots, queues: QueueState) -> bool:
+    """Whether each of ``robots`` (names) waits in the queue of a room ``holder`` holds:
+    standing in the holder's way out at its queue place, it waits for the holder to
+    leave and the holder for it to go."""
+    waiting = {robot for queue in queues.rooms if queue.holder == holder
+               for robot in queue.waiting}
+    return set(robots) <= waiting
 
 
 def _way(xy, target: WaypointTarget) -> np.ndarray:

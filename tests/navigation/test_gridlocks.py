@@ -462,3 +462,34 @@ def test_a_holder_whose_way_a_boxed_in_robot_waiting_for_it_stands_in_gives_way(
     assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
     assert orders[0].issued == pytest.approx(params.gridlock_time)
     assert orders[0].point[0] < 15.6 - params.back_off_distance + 1e-9  # back, off r1's way
+
+
+def test_a_robot_queueing_in_its_rooms_holders_way_out_goes_on_ahead_at_once():
+    # Office seed 26 (docs/worlds.md, "A robot queueing in its room's holder's way out"):
+    # r1 holds room R and segment 0 and leaves the room west along the 2 m wide corridor
+    # (its dead end behind r1); r0 queues for R at an overflow spot inside segment 0, face
+    # to face with r1: a cycle of waits (r0 waits for the holder, r1 asks for the segment
+    # r0 stands in). Every spot within search_reach lies on r1's way, so none is off it:
+    # r0 is sent on ahead along that way once the cycle has lasted cycle_time (a releases
+    # order: it leaves the queue while r1 passes), not after twice standstill_time.
+    t = 0.1
+    corridor = Obstacles((
+        Box("south", (11.0, -1.0 - t / 2), (14.0, t)),
+        Box("north", (11.0, 1.0 + t / 2), (14.0, t)),
+        Box("end", (18.0 + t / 2, 0.0), (t, 2.0 + 2 * t)),
+    ))
+    watchdog, context = _watchdog_of_two(
+        [14.6, 0.0, 0.0, 0.0, 15.6, 0.0, np.pi, 0.0],
+        (WaypointTarget("r0", True, (14.6, 0.0), None, True),
+         WaypointTarget("r1", True, (-8.0, 0.0), None, True)),
+        (QueueRequest("r0", R, standing=(0,)),
+         QueueRequest("r1", segments=((0, False),), standing=(0,))),
+        QueueState((RoomQueue(R, "r1", ("r0",)),), segments=(SegmentHold(("r1",), False),)),
+        obstacles=corridor)
+    simulator = Simulator(watchdog, context)
+    params = WatchdogParams()
+    simulator.AdvanceTo(params.standstill_time)
+    orders = watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
+    assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
+    assert orders[0].issued == pytest.approx(params.cycle_time)
+    assert orders[0].point[0] < 14.6 - params.back_off_distance + 1e-9  # on ahead, west
