@@ -324,7 +324,7 @@ class DeadlockWatchdog(LeafSystem):
                                self._params.progress_distance,
                                None if k in single_file else float(states[k, 2]))
                    for k, anchor in enumerate(old.anchors)]
-        for order in missed + tuple(o for o in active if self._freed_nobody(o, anchors, now)):
+        for order in missed:
             self._stalled_again(order, anchors)
         stalled = np.array([a is not None and now - a.since >= self._params.standstill_time
                             - 1e-9 for a in anchors])
@@ -390,22 +390,6 @@ class DeadlockWatchdog(LeafSystem):
                     robot in missed.blockers and abs(anchors[k].since - missed.issued) < 1e-9)):
                 anchors[k] = Anchor(anchors[k].xy, min(anchors[k].since, missed.stalled_since,
                                                        missed.issued))
-
-    def _freed_nobody(self, order: BackOff, anchors: list[Anchor | None], now: float) -> bool:
-        """Whether the step 3 ``order`` (no ``releases``) freed nobody: its robot is at its
-        spot, ``order_patience`` has passed since the order, and every robot it made way
-        for still stands where it stood then (its anchor restarted by the order, step 3,
-        not renewed since). Those stand for another reason (e.g. each other): the
-        standstill goes on as before the order, and the next order goes out at once
-        (``_stalled_again``, once: the anchors' time moves back to ``stalled_since``)."""
-        if (order.releases or order.arrived is None
-                or now - order.issued < self._params.order_patience - 1e-9):
-            return False
-        made_way = [self._robots.index(robot) for robot in order.blockers
-                    if robot in self._robots]
-        return bool(made_way) and all(anchors[k] is not None
-                                      and abs(anchors[k].since - order.issued) < 1e-9
-                                      for k in made_way)
 
     def _gridlocks(self, context, states, targets, old: _WatchdogState, anchors, active,
                    history, misses, now

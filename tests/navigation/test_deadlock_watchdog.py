@@ -521,25 +521,3 @@ def test_with_no_spot_off_the_ways_a_stalled_robot_backs_off_along_its_corridor(
         assert order.robot == "r1" and order.blockers == ("r0",)
         assert order.point[0] - 10.6 >= WatchdogParams().back_off_distance - 1e-9
         assert abs(order.point[1]) < 0.3
-
-
-def test_an_order_that_freed_nobody_lets_the_next_one_go_out_at_once():
-    # r0 and r1 nose to nose by the south wall: r1 is sent aside at standstill_time and
-    # gets there at once, but r0 still stands (held by something else). order_patience
-    # after the order, r0 counts as stalled since 0 s again, and, alone by the wall, is
-    # sent off at once; without the rule its standstill would count from the order on, and
-    # its order would come standstill_time after the first.
-    p = WatchdogParams()
-    watchdog, context, simulator = _standing_robots(
-        (5.0, -3.45, 0.0, 0.0, 5.6, -3.45, math.pi, 0.0), ((8.0, -3.45), (2.0, -3.45)))
-    simulator.AdvanceTo(p.standstill_time + 0.5)
-    first = watchdog.GetOutputPort("back_offs").Eval(context).active[0]
-    assert first.robot == "r1"
-    watchdog.GetInputPort("robot_state").FixValue(
-        context, np.array([5.0, -3.45, 0.0, 0.0, *first.point, math.pi, 0.0]))
-    simulator.AdvanceTo(p.standstill_time + p.order_patience + 1.0)
-    assert first.issued == pytest.approx(p.standstill_time)
-    second = watchdog.GetOutputPort("back_offs").Eval(context).history[1:]
-    assert [order.robot for order in second] == ["r0"]
-    assert second[0].issued == pytest.approx(p.standstill_time + p.order_patience)
-    assert second[0].stalled_since == 0.0
