@@ -441,12 +441,6 @@ def test_a_holder_whose_way_a_boxed_in_robot_waiting_for_it_stands_in_gives_way(
     # holds a room; r1 has no spot) and no cycle (r1 stands in no segment r0 asks for).
     # r1 is boxed in, so r0 gives way to it once the gridlock has lasted gridlock_time (a
     # releases order: it lets segment 0 go), to a spot off r1's way.
-    t = 0.1
-    dead_end = Obstacles((
-        Box("south", (15.0, -1.0 - t / 2), (6.0, t)),
-        Box("north", (15.0, 1.0 + t / 2), (6.0, t)),
-        Box("end", (17.6 + t / 2, 0.0), (t, 2.0 + 2 * t)),
-    ))
     watchdog, context = _watchdog_of_two(
         [15.6, 0.0, 0.0, 0.0, 16.5, 0.0, np.pi, 0.0],
         (WaypointTarget("r0", True, (17.0, 0.0), None, True), WaypointTarget("r1")),
@@ -454,7 +448,7 @@ def test_a_holder_whose_way_a_boxed_in_robot_waiting_for_it_stands_in_gives_way(
          QueueRequest("r1", segments=((0, False),))),
         QueueState((RoomQueue(R, "r0"),), segments=(SegmentHold(("r0",)),),
                    segment_waiting=("r1",)),
-        obstacles=dead_end)
+        obstacles=_corridor_to_dead_end(12.0, 17.6))
     simulator = Simulator(watchdog, context)
     params = WatchdogParams()
     simulator.AdvanceTo(params.gridlock_time + 5.0)
@@ -472,12 +466,6 @@ def test_a_robot_queueing_in_its_rooms_holders_way_out_goes_on_ahead_at_once():
     # r0 stands in). Every spot within search_reach lies on r1's way, so none is off it:
     # r0 is sent on ahead along that way once the cycle has lasted cycle_time (a releases
     # order: it leaves the queue while r1 passes), not after twice standstill_time.
-    t = 0.1
-    corridor = Obstacles((
-        Box("south", (11.0, -1.0 - t / 2), (14.0, t)),
-        Box("north", (11.0, 1.0 + t / 2), (14.0, t)),
-        Box("end", (18.0 + t / 2, 0.0), (t, 2.0 + 2 * t)),
-    ))
     watchdog, context = _watchdog_of_two(
         [14.6, 0.0, 0.0, 0.0, 15.6, 0.0, np.pi, 0.0],
         (WaypointTarget("r0", True, (14.6, 0.0), None, True),
@@ -485,7 +473,7 @@ def test_a_robot_queueing_in_its_rooms_holders_way_out_goes_on_ahead_at_once():
         (QueueRequest("r0", R, standing=(0,)),
          QueueRequest("r1", segments=((0, False),), standing=(0,))),
         QueueState((RoomQueue(R, "r1", ("r0",)),), segments=(SegmentHold(("r1",), False),)),
-        obstacles=corridor)
+        obstacles=_corridor_to_dead_end(4.0, 18.0))
     simulator = Simulator(watchdog, context)
     params = WatchdogParams()
     simulator.AdvanceTo(params.standstill_time)
@@ -493,3 +481,14 @@ def test_a_robot_queueing_in_its_rooms_holders_way_out_goes_on_ahead_at_once():
     assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
     assert orders[0].issued == pytest.approx(params.cycle_time)
     assert orders[0].point[0] < 14.6 - params.back_off_distance + 1e-9  # on ahead, west
+
+
+def _corridor_to_dead_end(west: float, east: float) -> Obstacles:
+    """A 2 m wide corridor along y = 0 (walls 0.1 m thick) from x = ``west``, open, to its
+    dead end at x = ``east`` (m)."""
+    t, middle, length = 0.1, (west + east) / 2, east - west
+    return Obstacles((
+        Box("south", (middle, -1.0 - t / 2), (length, t)),
+        Box("north", (middle, 1.0 + t / 2), (length, t)),
+        Box("end", (east + t / 2, 0.0), (t, 2.0 + 2 * t)),
+    ))
