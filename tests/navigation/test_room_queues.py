@@ -116,8 +116,6 @@ def test_initial_holders():
     assert bench.queue() == RoomQueue(ROOM, "r1", ("r0",))
     with pytest.raises(ValueError):
         RoomQueues(["r0"], rooms=[ROOM], rate_hz=10.0, holders={ROOM: "nobody"})
-    with pytest.raises(ValueError):
-        RoomQueues(["r0"], rooms=[ROOM], rate_hz=10.0, starve_time=0.0)
 
 
 def test_an_update_keeps_the_state_when_no_rule_applies():
@@ -145,9 +143,9 @@ class SegmentBench(Bench):
     """A RoomQueues with three single-file segments; ``want`` sets a robot's segments as
     (index, forward) pairs."""
 
-    def __init__(self, robots, exclusive=frozenset(), starve_time=float("inf")):
+    def __init__(self, robots, exclusive=frozenset()):
         self.queues = RoomQueues(robots, rooms=[ROOM], rate_hz=10.0, segments=3,
-                                 exclusive=exclusive, starve_time=starve_time)
+                                 exclusive=exclusive)
         self.simulator = Simulator(self.queues)
         self.context = self.simulator.get_mutable_context()
         for robot in robots:
@@ -207,32 +205,6 @@ def test_robots_standing_together_in_a_segment_turn_when_they_all_want_out():
     assert state.holds_segments("a", ((0, False), (1, True)))
     assert state.holds_segments("b", ((0, False), (1, True)))
     assert state.segment_waiting == ("c",)
-
-
-@pytest.mark.parametrize("starve_time", [1.0, float("inf")])
-def test_a_starving_robot_keeps_others_from_joining_the_holders_of_its_segments(starve_time):
-    # a holds segment 0 one way; b waits for 0 the other way and 1. c, standing in 1
-    # (holding part of its set), asks for 0 the same way as a: before b starves c joins a,
-    # going first; once b has waited starve_time (1 s) c waits for b (office seed 35).
-    bench = SegmentBench(["a", "b", "c"], starve_time=starve_time)
-    bench.want("a", (0, True))
-    bench.want("c", (1, True))
-    bench.step()
-    bench.want("b", (0, False), (1, True))
-    bench.step(11)  # 1.1 s
-    assert bench.state().segment_waiting == ("b",)
-    bench.want("c", (1, True), (0, True))
-    bench.step()
-    state = bench.state()
-    if starve_time == 1.0:
-        assert state.segments[0].holders == ("a",)
-        assert state.segment_waiting == ("c", "b")
-        bench.want("a")
-        bench.want("c", (0, True))  # c is out of 1
-        bench.step()
-        assert bench.state().holds_segments("b", ((0, False), (1, True)))
-    else:
-        assert state.segments[0].holders == ("a", "c")
 
 
 def test_a_robot_waiting_first_keeps_its_turn():
