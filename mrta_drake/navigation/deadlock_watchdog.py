@@ -641,14 +641,26 @@ class DeadlockWatchdog(LeafSystem):
     def _boxed_in(self, context, robot: str, states) -> bool:
         """Whether ``robot`` has no spot to back off to (``standstills.back_off_spot``
         within ``search_reach``, off no robot's way): no order can send it aside."""
+        return self._spot(self._people(context), self._robots.index(robot), states[:, :2],
+                          []) is None
+
+    def _people(self, context) -> tuple[np.ndarray, np.ndarray]:
+        """The people's positions (M, 2), m, world frame, and radii (M,), m (none where
+        ``human_states`` is not connected)."""
         humans: HumanStates = (self._humans.Eval(context) if self._humans.HasValue(context)
                                else NO_HUMANS)
+        return (np.asarray(humans.positions).reshape(-1, 2),
+                np.asarray(humans.radii).reshape(-1))
+
+    def _spot(self, people, k: int, xy, ways, avoid=()) -> tuple[float, float] | None:
+        """``standstills.back_off_spot`` for robot ``k`` at ``xy[k]`` with this watchdog's
+        params: off ``ways`` and ``people`` (``_people``), within ``search_reach``, at least
+        ``back_off_distance`` from where it stands and farther than ``progress_distance``
+        from each of ``avoid`` (spots it missed)."""
         p = self._params
-        return back_off_spot(self._robots.index(robot), states[:, :2], self._radii, [],
-                             np.asarray(humans.positions).reshape(-1, 2),
-                             np.asarray(humans.radii).reshape(-1), self._costmap,
-                             p.search_reach, p.spot_clearance, p.wall_clearance,
-                             min_move=p.back_off_distance) is None
+        return back_off_spot(k, xy, self._radii, ways, *people, self._costmap, p.search_reach,
+                             p.spot_clearance, p.wall_clearance, avoid=avoid,
+                             avoid_radius=p.progress_distance, min_move=p.back_off_distance)
 
     def _stand(self, robots, freed, states, stalled_since, now) -> tuple[BackOff, ...]:
         """``releases`` orders for ``robots`` (names) to stand where they are, asking for
@@ -668,8 +680,7 @@ class DeadlockWatchdog(LeafSystem):
         segment's lane if there is such a spot (standing on one it would hold it); and
         off the spots given before. () if one of them has no spot."""
         p = self._params
-        humans: HumanStates = (self._humans.Eval(context) if self._humans.HasValue(context)
-                               else NO_HUMANS)
+        people = self._people(context)
         xy = states[:, :2]
         given = []
         for robot in robots:
@@ -681,11 +692,7 @@ class DeadlockWatchdog(LeafSystem):
             ways += [(np.asarray(order.point, dtype=float), self._radii[k]) for order in given]
             spot = None
             for extra in (self._all_lanes, []):
-                spot = back_off_spot(k, xy, self._radii, ways + extra,
-                                     np.asarray(humans.positions).reshape(-1, 2),
-                                     np.asarray(humans.radii).reshape(-1), self._costmap,
-                                     p.search_reach, p.spot_clearance, p.wall_clearance,
-                                     min_move=p.back_off_distance)
+                spot = self._spot(people, k, xy, ways + extra)
                 if spot is not None:
                     break
             if spot is None:
@@ -770,8 +777,7 @@ class DeadlockWatchdog(LeafSystem):
         the way of a stalled robot or of a room's holder waiting at its door, or None; the
         spot clear of the others' ways, or, with none such after the group's stalled robots
         stood twice ``standstill_time``, any (class docstring, step 3)."""
-        humans: HumanStates = (self._humans.Eval(context) if self._humans.HasValue(context)
-                               else NO_HUMANS)
+        people = self._people(context)
         xy = states[:, :2]
         p = self._params
         idle = np.array([not t.active or t.current is None for t in targets])
@@ -792,12 +798,7 @@ class DeadlockWatchdog(LeafSystem):
             for k in candidates:
                 blockers = tuple(j for j in group if j != k)
                 ways = [(all_ways[j], self._radii[j]) for j in blockers] if off_ways else []
-                spot = back_off_spot(k, xy, self._radii, ways,
-                                     np.asarray(humans.positions).reshape(-1, 2),
-                                     np.asarray(humans.radii).reshape(-1), self._costmap,
-                                     p.search_reach, p.spot_clearance, p.wall_clearance,
-                                     avoid=missed_spots[k], avoid_radius=p.progress_distance,
-                                     min_move=p.back_off_distance)
+                spot = self._spot(people, k, xy, ways, avoid=missed_spots[k])
                 if spot is not None:
                     return BackOff(self._robots[k], spot, now, now + p.yield_time,
                                    tuple(self._robots[j] for j in blockers), since)
@@ -857,10 +858,7 @@ class DeadlockWatchdog(LeafSystem):
                 or not near_walls(xy[k], self._costmap, p.wall_clearance))):
             return None
         ways = [(_way_through(people[j], xy[k], p.search_reach), radii[j]) for j in near]
-        spot = back_off_spot(k, xy, self._radii, ways, people, radii, self._costmap,
-                             p.search_reach, p.spot_clearance, p.wall_clearance,
-                             avoid=self._spots_to_avoid(k, misses),
-                             avoid_radius=p.progress_distance, min_move=p.back_off_distance)
+        spot = self._spot((people, radii), k, xy, ways, avoid=self._spots_to_avoid(k, misses))
         if spot is None:
             return None
         return BackOff(self._robots[k], spot, now, now + p.yield_time,

@@ -56,6 +56,7 @@ from mrta_drake.errors import InputError
 LEG_SHARE = 0.2  # of the run: the longest loaded leg
 UTILISATION = 0.5  # of the fleet's time spent on tasks
 BATCH_SIZE = (1, 2)  # tasks per batch, uniform
+MEAN_BATCH = 0.5 * sum(BATCH_SIZE)  # tasks per batch on average
 MAX_SETS = 20_000  # sets of locations near each other looked at, at most (1.)
 
 
@@ -105,14 +106,13 @@ def size_stream(times: np.ndarray, robots: int, duration: float, service_time: f
                          f"needs that and a mean task ({mean_task:g} s) before the end")
     used = [levels[i] for i in chosen]
     weights = tuple(round(1.0 / used.count(level), 6) for level in used)
-    batch = 0.5 * sum(BATCH_SIZE)
     span = duration - longest_task
-    batches = math.floor(UTILISATION * robots * span / (mean_task * batch))
+    batches = math.floor(UTILISATION * robots * span / (mean_task * MEAN_BATCH))
     if holds is not None:
         trips = _trip_holds(holds, chosen, _trips(times[np.ix_(chosen, chosen)], weights,
                                                   (1.0 - UTILISATION) * robots))
         batches = _with_waits(trips, batches, mean_task, robots, span)
-        end = max(0.0, end - 2.0 * _wait(trips, max(1, batches) * batch / span))
+        end = max(0.0, end - 2.0 * _wait(trips, max(1, batches) * MEAN_BATCH / span))
     batches = max(1, batches)
     times = tuple(float(math.floor(end * k / max(1, batches - 1))) for k in range(batches))
     return StreamSize(times=times, end=float(end), locations=tuple(chosen), weights=weights)
@@ -148,7 +148,7 @@ def _carried_alone(task: np.ndarray) -> float:
     and drop-off together: a batch of two (``BATCH_SIZE``) does so with the chance that
     its tasks share them, ``sum(task^2)``, and one trip then serves both."""
     paired = np.mean([n == 2 for n in range(BATCH_SIZE[0], BATCH_SIZE[1] + 1)])
-    in_pairs = 2.0 * paired / (0.5 * sum(BATCH_SIZE))  # of tasks, in batches of two
+    in_pairs = 2.0 * paired / MEAN_BATCH  # of tasks, in batches of two
     return 1.0 - 0.5 * in_pairs * float((task ** 2).sum())
 
 
@@ -164,9 +164,8 @@ def _with_waits(trips: TripHolds, batches: int, mean_task: float, robots: int,
     """The most batches, up to ``batches``, whose tasks' mean time ``mean_task`` (s) and
     expected waits for the holds of their ``trips`` (``_wait``) fit ``robots`` robots'
     time over ``span`` s (module docstring, rule 3)."""
-    batch = 0.5 * sum(BATCH_SIZE)
-    while batches > 1 and batches * batch * (mean_task + _wait(trips, batches * batch / span)
-                                             ) > robots * span:
+    while batches > 1 and batches * MEAN_BATCH * (
+            mean_task + _wait(trips, batches * MEAN_BATCH / span)) > robots * span:
         batches -= 1
     return batches
 
