@@ -255,8 +255,9 @@ class DeadlockWatchdog(LeafSystem):
        at once: for the first robot of the cycle (rooms' holders first, then segments'
        holders with a robot in their way, then by priority, highest first: the robot in
        the way goes, not the holder inside the segments) that other robots of the cycle
-       stand in the way of (in segments it
-       asks for, or in the doorway it waits at), none of them a room's holder, broken
+       stand in the way of (in segments it asks for, in the doorway it waits at, or, for
+       a robot boxed in (no spot to go to) in the way of a holder of segments it waits
+       for, that holder: ``_boxed_in_way``), none of them a room's holder, broken
        down, or one that missed an order within ``retry_window``, those robots give way
        (``releases`` orders, as in step 5, to spots off the other members' ways, the lanes
        of the segments they ask for and the doorways they wait at, off every
@@ -531,6 +532,15 @@ class DeadlockWatchdog(LeafSystem):
                 blocked[robot] = (held, self._robots[j])
         return blocked
 
+    def _boxed_in_way(self, robot, holder, blocked, queues, asks, context, states) -> bool:
+        """Whether ``robot`` stands in ``holder``'s way (``blocked``, ``_holders_blocked``)
+        waiting for a segment it holds, boxed in (``_boxed_in``): no order can send it
+        aside, so in a cycle of waits the holder gives way to it (as in step 5's
+        ``_make_way_for_boxed_in``), letting go of its segments."""
+        return (blocked.get(holder, (None, None))[1] == robot
+                and any(holder in queues.segments[k].holders for k in asks[robot])
+                and self._boxed_in(context, robot, states))
+
     def _free_cycle(self, context, cycle, asks, stands, doors, holders, blocked, states,
                     targets, requests, queues, backing, misses, began, now
                     ) -> tuple[BackOff, ...]:
@@ -545,7 +555,8 @@ class DeadlockWatchdog(LeafSystem):
         asking for one of those segments stand (as in step 5); robots queueing for its
         room with no spot off the ways go to the nearest spots any way; with no such
         robot, once the cycle (since ``began``) has lasted ``gridlock_time``, the same
-        with rooms' holders among those going."""
+        with rooms' holders among those going. A robot standing in a segments' holder's way
+        and boxed in frees nobody by going: the holder goes for it (``_boxed_in_way``)."""
         broken = {self._robots[k] for k in self._disturbances_now(context).broken}
         fixed = broken | {order.robot for order in misses}
         ranked = sorted(cycle, key=lambda r: (r not in holders, r not in blocked,
@@ -555,7 +566,9 @@ class DeadlockWatchdog(LeafSystem):
         for stay in (holders | fixed, fixed) if late else (holders | fixed,):
             for robot in ranked:
                 blockers = [other for other in cycle if other != robot and (
-                    not asks[robot].isdisjoint(stands[other]) or other in doors.get(robot, ()))]
+                    not asks[robot].isdisjoint(stands[other]) or other in doors.get(robot, ())
+                    or self._boxed_in_way(robot, other, blocked, queues, asks, context,
+                                          states))]
                 if not blockers or not stay.isdisjoint(blockers) or (
                         stay is fixed and holders.isdisjoint(blockers)):  # tried already
                     continue
