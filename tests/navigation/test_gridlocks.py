@@ -496,6 +496,26 @@ def test_a_holder_whose_way_a_boxed_in_robot_waiting_for_it_stands_in_gives_way(
     assert orders[0].point[0] < 15.6 - params.back_off_distance + 1e-9  # back, off r1's way
 
 
+def test_a_segment_holder_whose_way_a_boxed_in_robot_waiting_for_it_stands_in_gives_way():
+    # As above, r0 holding segment 0 only (no room): the boxed-in r1 standing in r0's way
+    # and waiting for its segment is a cycle of waits, and r1 has no spot, so r0 gives
+    # way once the cycle has lasted cycle_time, not gridlock_time, back off r1's way.
+    watchdog, context = _watchdog_of_two(
+        [15.6, 0.0, 0.0, 0.0, 16.5, 0.0, np.pi, 0.0],
+        (WaypointTarget("r0", True, (17.0, 0.0), None, True), WaypointTarget("r1")),
+        (QueueRequest("r0", segments=((0, True),)),
+         QueueRequest("r1", segments=((0, False),))),
+        QueueState(segments=(SegmentHold(("r0",)),), segment_waiting=("r1",)),
+        obstacles=_corridor_to_dead_end(12.0, 17.6))
+    simulator = Simulator(watchdog, context)
+    params = WatchdogParams()
+    simulator.AdvanceTo(params.cycle_time + 2.0)
+    orders = watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
+    assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
+    assert orders[0].issued == pytest.approx(params.cycle_time)
+    assert orders[0].point[0] < 15.6 - params.back_off_distance + 1e-9
+
+
 def test_a_robot_queueing_in_its_rooms_holders_way_out_goes_on_ahead_at_once():
     # Office seed 26 (docs/worlds.md, "A robot queueing in its room's holder's way out"):
     # r1 holds room R and segment 0 and leaves the room west along the 2 m wide corridor
