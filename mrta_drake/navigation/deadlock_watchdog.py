@@ -245,19 +245,14 @@ class DeadlockWatchdog(LeafSystem):
        ``progress_distance`` nearer within ``cycle_time``; a robot rocking on the spot is
        still), robot A waits for robot B when B is one it waits for in step 5's sense or B
        stands in a single-file segment A asks for (a room's holder, granted its way, kept
-       off it by a robot queueing for its room in it; B counts as standing in the segments
-       A holds when it stands first ahead on A's way within ``block_gap`` of A, though
-       outside their lanes: ``_holders_blocked``), or B stands in the doorway of the
+       off it by a robot queueing for its room in it), or B stands in the doorway of the
        room A holds and waits at the door of (``QueueRequest.door``: A counts as standing
        still then, though the recorder counts it as serving); robots waiting for each
        other round a cycle (``standstills.wait_cycles``) wait for good, so a cycle that
        has lasted ``cycle_time`` (each robot's time in one counted as in step 5) is broken
-       at once: for the first robot of the cycle (rooms' holders first, then segments'
-       holders with a robot in their way, then by priority, highest first: the robot in
-       the way goes, not the holder inside the segments) that other robots of the cycle
-       stand in the way of (in segments it asks for, in the doorway it waits at, or, for
-       a robot boxed in (no spot to go to) in the way of a holder of segments it waits
-       for, that holder: ``_boxed_in_way``), none of them a room's holder, broken
+       at once: for the first robot of the cycle (rooms' holders first, then by priority,
+       highest first) that other robots of the cycle stand in the way of (in segments it
+       asks for, or in the doorway it waits at), none of them a room's holder, broken
        down, or one that missed an order within ``retry_window``, those robots give way
        (``releases`` orders, as in step 5, to spots off the other members' ways, the lanes
        of the segments they ask for and the doorways they wait at, off every
@@ -485,9 +480,6 @@ class DeadlockWatchdog(LeafSystem):
         still = [robot for robot in self._robots if robot not in going and robot not in
                  backing and (robot not in serving or doors.get(robot))]
         stands = {request.robot: set(request.standing) for request in requests}
-        blocked = self._holders_blocked(queues, asks, states, targets)
-        for held, blocker in blocked.values():
-            stands[blocker] = stands.get(blocker, set()) | held
         cycles = wait_cycles({robot: {*waits.get(robot, ()), *doors.get(robot, ())}
                               for robot in self._robots}, asks, stands, still)
         member = {robot for cycle in cycles for robot in cycle}
@@ -497,57 +489,18 @@ class DeadlockWatchdog(LeafSystem):
             began = min(since[self._robots.index(robot)] for robot in cycle)
             if now - began < self._params.cycle_time - 1e-9:
                 continue
-            given = self._free_cycle(context, cycle, asks, stands, doors, holders, blocked,
-                                     states, targets, requests, queues, backing, misses,
-                                     began, now)
+            given = self._free_cycle(context, cycle, asks, stands, doors, holders, states,
+                                     targets, requests, queues, backing, misses, began, now)
             if given:
                 return tuple(now if robot in cycle else s
                              for robot, s in zip(self._robots, since, strict=True)), given
         return since, ()
 
-    def _holders_blocked(self, queues: QueueState, asks, states, targets
-                         ) -> dict[str, tuple[set[int], str]]:
-        """The robots holding single-file segments with a robot standing in their way
-        (step 6): holder -> (the segments it holds, that robot). In its way: the first
-        robot ahead on its way (``_way``, it having a goal or a waypoint after the current
-        one; ``standstills.in_ways``) within ``block_gap`` of it (surface to surface). The
-        holder waits for that robot to pass as for one standing in its segments, though it
-        stands outside their lanes (office seed 45: a robot waiting for the holder's
-        segments at their end, face to face with the holder coming out)."""
-        xy = states[:, :2]
-        ways = [_way(xy[k], target) for k, target in enumerate(targets)]
-        gaps = np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=-1) - self._radii[
-            :, None] - self._radii
-        blocked = {}
-        for k, robot in enumerate(self._robots):
-            held = {s for s in asks.get(robot, ()) if robot in queues.segments[s].holders}
-            if not held or not (targets[k].next is not None
-                                or self._has_goal(states[k], targets[k])):
-                continue
-            near = (k, *(j for j in np.flatnonzero(gaps[k] <= self._params.block_gap)
-                         if j != k))
-            ahead = in_ways(near, np.arange(len(xy)) == k, xy, self._radii, ways,
-                            self._params.spot_clearance)
-            for j in np.flatnonzero(ahead):
-                blocked[robot] = (held, self._robots[j])
-        return blocked
-
-    def _boxed_in_way(self, robot, holder, blocked, queues, asks, context, states) -> bool:
-        """Whether ``robot`` stands in ``holder``'s way (``blocked``, ``_holders_blocked``)
-        waiting for a segment it holds, boxed in (``_boxed_in``): no order can send it
-        aside, so in a cycle of waits the holder gives way to it (as in step 5's
-        ``_make_way_for_boxed_in``), letting go of its segments."""
-        return (blocked.get(holder, (None, None))[1] == robot
-                and any(holder in queues.segments[k].holders for k in asks[robot])
-                and self._boxed_in(context, robot, states))
-
-    def _free_cycle(self, context, cycle, asks, stands, doors, holders, blocked, states,
-                    targets, requests, queues, backing, misses, began, now
-                    ) -> tuple[BackOff, ...]:
+    def _free_cycle(self, context, cycle, asks, stands, doors, holders, states, targets,
+                    requests, queues, backing, misses, began, now) -> tuple[BackOff, ...]:
         """The ``releases`` orders that break ``cycle`` (class docstring, step 6), or ()
         when none of its robots can be freed: for the first of its robots (the rooms'
-        holders first, then the segments' holders with a robot in their way, ``blocked``
-        (``_holders_blocked``), then by priority, highest first) that the others stand in the way
+        holders first, then by priority, highest first) that the others stand in the way
         of (in single-file segments it asks for, or in the doorway it waits at: ``doors``,
         robot -> the robots it waits for there), and none of them a room's holder,
         broken down or one that missed an order within ``retry_window``, they all go
@@ -555,20 +508,16 @@ class DeadlockWatchdog(LeafSystem):
         asking for one of those segments stand (as in step 5); robots queueing for its
         room with no spot off the ways go to the nearest spots any way; with no such
         robot, once the cycle (since ``began``) has lasted ``gridlock_time``, the same
-        with rooms' holders among those going. A robot standing in a segments' holder's way
-        and boxed in frees nobody by going: the holder goes for it (``_boxed_in_way``)."""
+        with rooms' holders among those going."""
         broken = {self._robots[k] for k in self._disturbances_now(context).broken}
         fixed = broken | {order.robot for order in misses}
-        ranked = sorted(cycle, key=lambda r: (r not in holders, r not in blocked,
-                                              self._priorities[self._robots.index(r)],
-                                              self._robots.index(r)))
+        ranked = sorted(cycle, key=lambda r: (r not in holders, self._priorities[
+            self._robots.index(r)], self._robots.index(r)))
         late = now - began >= self._params.gridlock_time - 1e-9
         for stay in (holders | fixed, fixed) if late else (holders | fixed,):
             for robot in ranked:
                 blockers = [other for other in cycle if other != robot and (
-                    not asks[robot].isdisjoint(stands[other]) or other in doors.get(robot, ())
-                    or self._boxed_in_way(robot, other, blocked, queues, asks, context,
-                                          states))]
+                    not asks[robot].isdisjoint(stands[other]) or other in doors.get(robot, ()))]
                 if not blockers or not stay.isdisjoint(blockers) or (
                         stay is fixed and holders.isdisjoint(blockers)):  # tried already
                     continue

@@ -392,44 +392,6 @@ def test_a_rooms_holder_standing_in_the_segment_a_cycle_waits_for_gives_way_last
     assert orders[0].issued == pytest.approx(WatchdogParams().gridlock_time)
 
 
-def _holder_face_to_face(r0_x, r1_standing, until):
-    """The watchdog alone: r1 holds segment 0 at (3, 0) and drives west to (-8, 0),
-    standing in the segment's lane (``r1_standing``) or outside it; r0 stands at
-    (``r0_x``, 0), its target inactive, waiting for the segment (the other way), outside
-    its lane. The orders given by ``until`` (s)."""
-    watchdog, context = _watchdog_of_two(
-        [r0_x, 0.0, 0.0, 0.0, 3.0, 0.0, np.pi, 0.0],
-        (WaypointTarget("r0"), WaypointTarget("r1", True, (-8.0, 0.0), None, True)),
-        (QueueRequest("r0", segments=((0, True),)),
-         QueueRequest("r1", segments=((0, False),), standing=r1_standing)),
-        QueueState(segments=(SegmentHold(("r1",), False),), segment_waiting=("r0",)))
-    simulator = Simulator(watchdog, context)
-    simulator.AdvanceTo(until)
-    return watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
-
-
-@pytest.mark.parametrize("r1_standing", [(), (0,)])
-def test_a_robot_in_a_segment_holders_way_waiting_for_its_segment_gives_way(r1_standing):
-    # Office seed 45 (docs/worlds.md, "Office seeds 35 and 45's episodes, traced", (b)):
-    # r0 waits for segment 0, held by r1, standing outside the segment face to face with
-    # r1 coming out (within block_gap ahead on r1's way): r1 waits for r0 to pass as for a
-    # robot standing in its segment, a cycle of waits broken after cycle_time, not
-    # gridlock_time. r0 gives way, not the holder (though r0 ranks first and r1 may
-    # stand in the segment r0 asks for), to a spot off r1's way.
-    params = WatchdogParams()
-    orders = _holder_face_to_face(2.4, r1_standing, params.cycle_time + 2.0)
-    assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
-    assert orders[0].issued == pytest.approx(params.cycle_time)
-    assert abs(orders[0].point[1]) > 0.22 + 0.22
-
-
-def test_a_robot_behind_a_segment_holder_is_not_in_its_way():
-    # r0 stands behind r1 (east of it, r1 driving west): no cycle, so only step 5's
-    # gridlock of waits (r1 stands, holding the segment r0 waits for), after gridlock_time.
-    params = WatchdogParams()
-    assert _holder_face_to_face(3.6, (), params.standstill_time - 1.0) == ()
-
-
 def _door_waits(r0_request, r1_request, queues, until):
     """The watchdog alone on ``_dead_end``: r0 stands still in room H's doorway at
     (0.8, 0.9), r1 at (3, 0) at its target (holding a room, so serving as the recorder
@@ -494,26 +456,6 @@ def test_a_holder_whose_way_a_boxed_in_robot_waiting_for_it_stands_in_gives_way(
     assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
     assert orders[0].issued == pytest.approx(params.gridlock_time)
     assert orders[0].point[0] < 15.6 - params.back_off_distance + 1e-9  # back, off r1's way
-
-
-def test_a_segment_holder_whose_way_a_boxed_in_robot_waiting_for_it_stands_in_gives_way():
-    # As above, r0 holding segment 0 only (no room): the boxed-in r1 standing in r0's way
-    # and waiting for its segment is a cycle of waits, and r1 has no spot, so r0 gives
-    # way once the cycle has lasted cycle_time, not gridlock_time, back off r1's way.
-    watchdog, context = _watchdog_of_two(
-        [15.6, 0.0, 0.0, 0.0, 16.5, 0.0, np.pi, 0.0],
-        (WaypointTarget("r0", True, (17.0, 0.0), None, True), WaypointTarget("r1")),
-        (QueueRequest("r0", segments=((0, True),)),
-         QueueRequest("r1", segments=((0, False),))),
-        QueueState(segments=(SegmentHold(("r0",)),), segment_waiting=("r1",)),
-        obstacles=_corridor_to_dead_end(12.0, 17.6))
-    simulator = Simulator(watchdog, context)
-    params = WatchdogParams()
-    simulator.AdvanceTo(params.cycle_time + 2.0)
-    orders = watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
-    assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
-    assert orders[0].issued == pytest.approx(params.cycle_time)
-    assert orders[0].point[0] < 15.6 - params.back_off_distance + 1e-9
 
 
 def test_a_robot_queueing_in_its_rooms_holders_way_out_goes_on_ahead_at_once():
