@@ -11,6 +11,12 @@ robots on the two one-way lanes of a corridor (0.9 m apart, ``LaneParams.offset`
 each other, their barriers (``SafetyDistances.robot``, 0.6 m) met without either turning
 aside, while two on one line, who cannot pass, are in each other's way as before. The
 others follow their paths, the cluster's joint QP still keeping them all apart.
+
+A robot drives in its path's direction where it projects onto it (its heading where the
+path has none there), also on its way to that projection: a path begins where its robot
+stood when planned, so two robots standing within ``yield_clearance`` one behind the other
+on one way drive the same way, and neither is in the other's way (the one behind follows
+the one ahead, the barriers keeping the gap).
 """
 
 from mrta_drake.control.paths import path_ahead_near, travel_direction
@@ -37,38 +43,41 @@ def in_the_way(i, above, states, paths, active, clearance, head_on_clearance, ho
     ``paths`` a ``PathArrays``, ``active`` (N,) bools, ``clearance``, ``head_on_clearance``
     (at most ``clearance``) and ``horizon`` m."""
     points, start, ok, _ = paths
-    x, y = states[i, 0], states[i, 1]
+    x, y, heading = states[i, 0], states[i, 1], states[i, 2]
     own = points[start[i]:start[i + 1]]
-    ix, iy = travel_direction(x, y, own) if ok[i] else (0.0, 0.0)
+    ix, iy = travel_direction(x, y, heading, own) if ok[i] else (0.0, 0.0)
     for j in above:
         if not active[j]:
             continue
-        qx, qy = states[j, 0], states[j, 1]
+        qx, qy, q_heading = states[j, 0], states[j, 1], states[j, 2]
         path = points[start[j]:start[j + 1]]
-        if _conflict(qx, qy, path, x, y, ix, iy, clearance, head_on_clearance, horizon):
+        if _conflict(qx, qy, q_heading, path, x, y, ix, iy, clearance, head_on_clearance,
+                     horizon):
             return True
         if ok[i]:
-            jx, jy = travel_direction(qx, qy, path)
-            if _conflict(x, y, own, qx, qy, jx, jy, clearance, head_on_clearance, horizon):
+            jx, jy = travel_direction(qx, qy, q_heading, path)
+            if _conflict(x, y, heading, own, qx, qy, jx, jy, clearance, head_on_clearance,
+                         horizon):
                 return True
     return False
 
 
 @compiled_helper
-def _conflict(x, y, points, qx, qy, qdx, qdy, clearance, head_on_clearance, horizon):
-    """Whether a robot at (x, y) on the path ``points`` comes, in its next ``horizon`` m,
-    within ``clearance`` (m) of a robot at (qx, qy) driving in the unit direction
-    (qdx, qdy) (zero: standing), driving another way than it there; if that way is head
+def _conflict(x, y, heading, points, qx, qy, qdx, qdy, clearance, head_on_clearance,
+              horizon):
+    """Whether a robot at (x, y) heading ``heading`` (rad) on the path ``points`` comes, in
+    its next ``horizon`` m, within ``clearance`` (m) of a robot at (qx, qy) driving in the
+    unit direction (qdx, qdy) (zero: without a path), driving another way than it there; if that way is head
     on, also within ``head_on_clearance`` of it in its next ``horizon + clearance -
     head_on_clearance`` m: the other stands on its line ahead, not beside its path. On a
     straight path, a robot less than ``head_on_clearance`` beside it is then in the way
     from the same distance on as under ``clearance`` alone."""
-    near, ux, uy = path_ahead_near(x, y, points, qx, qy, horizon, clearance)
+    near, ux, uy = path_ahead_near(x, y, heading, points, qx, qy, horizon, clearance)
     way = ux * qdx + uy * qdy
     if not near or way >= _SAME_WAY:
         return False
     if way > _HEAD_ON:
         return True
-    near, ux, uy = path_ahead_near(x, y, points, qx, qy, horizon + clearance - head_on_clearance,
-                                   head_on_clearance)
+    near, ux, uy = path_ahead_near(x, y, heading, points, qx, qy,
+                                   horizon + clearance - head_on_clearance, head_on_clearance)
     return near and ux * qdx + uy * qdy < _SAME_WAY
