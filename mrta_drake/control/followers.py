@@ -70,9 +70,8 @@ def _conflict(x, y, heading, points, qx, qy, qdx, qdy, clearance, head_on_cleara
     unit direction (qdx, qdy) (zero: without a path), driving another way than it there; if
     that way is head on, also within ``head_on_clearance`` of it in its next ``horizon +
     clearance - head_on_clearance`` m: the other stands on its line ahead, not beside its
-    path. On a
-    straight path, a robot less than ``head_on_clearance`` beside it is then in the way
-    from the same distance on as under ``clearance`` alone."""
+    path. On a straight path, a robot less than ``head_on_clearance`` beside it is then in
+    the way from the same distance on as under ``clearance`` alone."""
     near, ux, uy = path_ahead_near(x, y, heading, points, qx, qy, horizon, clearance)
     way = ux * qdx + uy * qdy
     if not near or way >= _SAME_WAY:
