@@ -13,11 +13,14 @@ aside, while two on one line, who cannot pass, are in each other's way as before
 others follow their paths, the cluster's joint QP still keeping them all apart.
 
 A robot drives in its path's direction where it projects onto it (its heading where the
-path has none there), also on its way to that projection: a path begins where its robot
-stood when planned, so two robots standing within ``yield_clearance`` one behind the other
-on one way drive the same way, and neither is in the other's way (the one behind follows
-the one ahead, the barriers keeping the gap).
+path has none there), also on its way to that projection (a path begins where its robot
+stood when planned, so for a robot on its path that way is millimetres long). Two robots
+within ``yield_clearance`` of each other driving the same way are one behind the other:
+the one behind is in the way of the one ahead (it follows it, keeping its distance), and
+never the other way round.
 """
+
+import math
 
 from mrta_drake.control.paths import path_ahead_near, travel_direction
 from mrta_drake.stack.compiled_helper import compiled_helper
@@ -51,14 +54,17 @@ def in_the_way(i, above, states, paths, active, clearance, head_on_clearance, ho
             continue
         qx, qy, q_heading = states[j, 0], states[j, 1], states[j, 2]
         path = points[start[j]:start[j + 1]]
+        jx, jy = travel_direction(qx, qy, q_heading, path)
+        if ix * jx + iy * jy >= _SAME_WAY and math.hypot(qx - x, qy - y) < clearance:
+            if (qx - x) * jx + (qy - y) * jy > 0.0:  # i follows j
+                return True
+            continue  # j follows i
         if _conflict(qx, qy, q_heading, path, x, y, ix, iy, clearance, head_on_clearance,
                      horizon):
             return True
-        if ok[i]:
-            jx, jy = travel_direction(qx, qy, q_heading, path)
-            if _conflict(x, y, heading, own, qx, qy, jx, jy, clearance, head_on_clearance,
-                         horizon):
-                return True
+        if ok[i] and _conflict(x, y, heading, own, qx, qy, jx, jy, clearance,
+                               head_on_clearance, horizon):
+            return True
     return False
 
 

@@ -463,7 +463,7 @@ def test_two_robots_standing_one_behind_the_other_on_one_way_drive_on():
     # its projection is millimetres long, its direction anything. Read as the way it drives,
     # two robots 0.6 m apart (within yield_clearance) on one lane were in each other's way:
     # the one ahead got the slow-down and the one behind, ranked above it, stood behind it
-    # (office seed 6, 88-100 s).
+    # (office seed 6, 88-100 s). The one ahead drives on; the one behind follows it.
     lane = [(0.0, 0.0), (8.0, 0.0)]  # robot 0 (the leader) drives east along y = 0
     for dy in (0.0, 1e-3, -1e-3):  # on its path, or millimetres beside it
         for heading in (0.0, -2.0):  # the heading does not count where the path has one
@@ -472,7 +472,7 @@ def test_two_robots_standing_one_behind_the_other_on_one_way_drive_on():
             assert _slowed(CbfParams(), behind, [lane, [(0.6, 0.0), (9.0, 0.0)]]) == [
                 False, False]
             assert _slowed(CbfParams(), ahead, [[(0.6, 0.0), (9.0, 0.0)], lane]) == [
-                False, False]
+                False, True]
     # Head on, or crossing, 0.6 m ahead: in the way as before.
     close = [[0.0, 0.0, 0.0, 0.0], [0.6, 0.0, 0.0, 0.0]]
     assert _slowed(CbfParams(), close, [lane, [(0.6, 0.0), (-6.0, 0.0)]]) == [False, True]
