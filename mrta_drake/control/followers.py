@@ -12,12 +12,12 @@ each other, their barriers (``SafetyDistances.robot``, 0.6 m) met without either
 aside, while two on one line, who cannot pass, are in each other's way as before. The
 others follow their paths, the cluster's joint QP still keeping them all apart.
 
-A robot drives in its path's direction where it projects onto it (its heading where the
-path has none there), also on its way to that projection (a path begins where its robot
-stood when planned, so for a robot on its path that way is millimetres long). Two robots
-within ``yield_clearance`` of each other driving the same way are one behind the other:
-the one behind is in the way of the one ahead (it follows it, keeping its distance), and
-never the other way round.
+Two robots within ``yield_clearance`` of each other driving the same way (their paths'
+directions where they project onto them) are one behind the other: the one ahead is never
+in the way of the one behind. (The way from a robot to its projection onto its path, on
+which ``paths.path_ahead_near`` finds another robot within ``yield_clearance``, is
+millimetres long for a robot on its path, and its direction anything: every other pair
+within ``yield_clearance`` is in each other's way.)
 """
 
 import math
@@ -46,44 +46,41 @@ def in_the_way(i, above, states, paths, active, clearance, head_on_clearance, ho
     ``paths`` a ``PathArrays``, ``active`` (N,) bools, ``clearance``, ``head_on_clearance``
     (at most ``clearance``) and ``horizon`` m."""
     points, start, ok, _ = paths
-    x, y, heading = states[i, 0], states[i, 1], states[i, 2]
+    x, y = states[i, 0], states[i, 1]
     own = points[start[i]:start[i + 1]]
-    ix, iy = travel_direction(x, y, heading, own) if ok[i] else (0.0, 0.0)
+    ix, iy = travel_direction(x, y, own) if ok[i] else (0.0, 0.0)
     for j in above:
         if not active[j]:
             continue
-        qx, qy, q_heading = states[j, 0], states[j, 1], states[j, 2]
+        qx, qy = states[j, 0], states[j, 1]
         path = points[start[j]:start[j + 1]]
-        jx, jy = travel_direction(qx, qy, q_heading, path)
-        if ix * jx + iy * jy >= _SAME_WAY and math.hypot(qx - x, qy - y) < clearance:
-            if (qx - x) * jx + (qy - y) * jy > 0.0:  # i follows j
-                return True
+        jx, jy = travel_direction(qx, qy, path)
+        if (ix * jx + iy * jy >= _SAME_WAY and math.hypot(qx - x, qy - y) < clearance
+                and (qx - x) * jx + (qy - y) * jy < 0.0):
             continue  # j follows i
-        if _conflict(qx, qy, q_heading, path, x, y, ix, iy, clearance, head_on_clearance,
-                     horizon):
+        if _conflict(qx, qy, path, x, y, ix, iy, clearance, head_on_clearance, horizon):
             return True
-        if ok[i] and _conflict(x, y, heading, own, qx, qy, jx, jy, clearance,
-                               head_on_clearance, horizon):
+        if ok[i] and _conflict(x, y, own, qx, qy, jx, jy, clearance, head_on_clearance,
+                               horizon):
             return True
     return False
 
 
 @compiled_helper
-def _conflict(x, y, heading, points, qx, qy, qdx, qdy, clearance, head_on_clearance,
-              horizon):
-    """Whether a robot at (x, y) heading ``heading`` (rad) on the path ``points`` comes, in
-    its next ``horizon`` m, within ``clearance`` (m) of a robot at (qx, qy) driving in the
-    unit direction (qdx, qdy) (zero: without a path), driving another way than it there; if
-    that way is head on, also within ``head_on_clearance`` of it in its next ``horizon +
-    clearance - head_on_clearance`` m: the other stands on its line ahead, not beside its
-    path. On a straight path, a robot less than ``head_on_clearance`` beside it is then in
-    the way from the same distance on as under ``clearance`` alone."""
-    near, ux, uy = path_ahead_near(x, y, heading, points, qx, qy, horizon, clearance)
+def _conflict(x, y, points, qx, qy, qdx, qdy, clearance, head_on_clearance, horizon):
+    """Whether a robot at (x, y) on the path ``points`` comes, in its next ``horizon`` m,
+    within ``clearance`` (m) of a robot at (qx, qy) driving in the unit direction
+    (qdx, qdy) (zero: standing), driving another way than it there; if that way is head
+    on, also within ``head_on_clearance`` of it in its next ``horizon + clearance -
+    head_on_clearance`` m: the other stands on its line ahead, not beside its path. On a
+    straight path, a robot less than ``head_on_clearance`` beside it is then in the way
+    from the same distance on as under ``clearance`` alone."""
+    near, ux, uy = path_ahead_near(x, y, points, qx, qy, horizon, clearance)
     way = ux * qdx + uy * qdy
     if not near or way >= _SAME_WAY:
         return False
     if way > _HEAD_ON:
         return True
-    near, ux, uy = path_ahead_near(x, y, heading, points, qx, qy,
-                                   horizon + clearance - head_on_clearance, head_on_clearance)
+    near, ux, uy = path_ahead_near(x, y, points, qx, qy, horizon + clearance - head_on_clearance,
+                                   head_on_clearance)
     return near and ux * qdx + uy * qdy < _SAME_WAY

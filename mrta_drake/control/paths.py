@@ -90,21 +90,17 @@ def segment_projection(x, y, points):
 
 
 @compiled_helper
-def path_ahead_near(x, y, heading, points, qx, qy, horizon, clearance):
+def path_ahead_near(x, y, points, qx, qy, horizon, clearance):
     """Whether a robot at (x, y) following the path ``points`` (k, 2), k >= 1, comes within
     ``clearance`` (m) of the point (qx, qy) in its next ``horizon`` m: on the way from
     (x, y) to its projection onto the path, then along the path; and the unit direction it
-    then drives in. On the way to its projection that is the path's direction there
-    (``travel_direction``, ``heading`` rad where the path has none): a path begins where its
-    robot stood when planned, so for a robot on its path that way is millimetres long and
-    its own direction anything."""
-    ux, uy = travel_direction(x, y, heading, points)
+    then drives in (zero if it has no length)."""
     if len(points) == 1:
-        return _near_segment(qx, qy, x, y, points[0, 0], points[0, 1], clearance)[0], ux, uy
+        return _near_segment(qx, qy, x, y, points[0, 0], points[0, 1], clearance)
     nearest, t = segment_projection(x, y, points)
     ax = points[nearest, 0] + t * (points[nearest + 1, 0] - points[nearest, 0])
     ay = points[nearest, 1] + t * (points[nearest + 1, 1] - points[nearest, 1])
-    near = _near_segment(qx, qy, x, y, ax, ay, clearance)[0]
+    near, ux, uy = _near_segment(qx, qy, x, y, ax, ay, clearance)
     left = horizon
     for i in range(nearest + 1, len(points)):
         if near or left <= 0.0:
@@ -121,20 +117,15 @@ def path_ahead_near(x, y, heading, points, qx, qy, horizon, clearance):
 
 
 @compiled_helper
-def travel_direction(x, y, heading, points):
-    """The unit direction a robot at (x, y) heading ``heading`` (rad) drives in along the
-    path ``points`` (k, 2), k >= 1: that of the path where it projects onto it (towards the
-    point of a one-point path), or its heading where that has no length (it stands on a
-    one-point path's point, or the segment's two points are one)."""
+def travel_direction(x, y, points):
+    """The unit direction (zero if none) a robot at (x, y) drives in along the path
+    ``points`` (k, 2), k >= 1: that of the path where it projects onto it (towards the
+    point of a one-point path)."""
     if len(points) == 1:
-        ux, uy = _near_segment(x, y, x, y, points[0, 0], points[0, 1], 0.0)[1:]
-    else:
-        i, _ = segment_projection(x, y, points)
-        ux, uy = _near_segment(x, y, points[i, 0], points[i, 1], points[i + 1, 0],
-                               points[i + 1, 1], 0.0)[1:]
-    if ux == 0.0 and uy == 0.0:
-        return math.cos(heading), math.sin(heading)
-    return ux, uy
+        return _near_segment(x, y, x, y, points[0, 0], points[0, 1], 0.0)[1:]
+    i, _ = segment_projection(x, y, points)
+    return _near_segment(x, y, points[i, 0], points[i, 1], points[i + 1, 0], points[i + 1, 1],
+                         0.0)[1:]
 
 
 @compiled_helper
