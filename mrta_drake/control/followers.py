@@ -11,16 +11,7 @@ robots on the two one-way lanes of a corridor (0.9 m apart, ``LaneParams.offset`
 each other, their barriers (``SafetyDistances.robot``, 0.6 m) met without either turning
 aside, while two on one line, who cannot pass, are in each other's way as before. The
 others follow their paths, the cluster's joint QP still keeping them all apart.
-
-Two robots within ``yield_clearance`` of each other driving the same way (their paths'
-directions where they project onto them) are one behind the other: the one ahead is never
-in the way of the one behind. (The way from a robot to its projection onto its path, on
-which ``paths.path_ahead_near`` finds another robot within ``yield_clearance``, is
-millimetres long for a robot on its path, and its direction anything: every other pair
-within ``yield_clearance`` is in each other's way.)
 """
-
-import math
 
 from mrta_drake.control.paths import path_ahead_near, travel_direction
 from mrta_drake.stack.compiled_helper import compiled_helper
@@ -54,15 +45,12 @@ def in_the_way(i, above, states, paths, active, clearance, head_on_clearance, ho
             continue
         qx, qy = states[j, 0], states[j, 1]
         path = points[start[j]:start[j + 1]]
-        jx, jy = travel_direction(qx, qy, path)
-        if (ix * jx + iy * jy >= _SAME_WAY and math.hypot(qx - x, qy - y) < clearance
-                and (qx - x) * jx + (qy - y) * jy < 0.0):
-            continue  # j follows i
         if _conflict(qx, qy, path, x, y, ix, iy, clearance, head_on_clearance, horizon):
             return True
-        if ok[i] and _conflict(x, y, own, qx, qy, jx, jy, clearance, head_on_clearance,
-                               horizon):
-            return True
+        if ok[i]:
+            jx, jy = travel_direction(qx, qy, path)
+            if _conflict(x, y, own, qx, qy, jx, jy, clearance, head_on_clearance, horizon):
+                return True
     return False
 
 

@@ -458,27 +458,6 @@ def test_only_followers_in_the_way_of_a_robot_ranked_above_get_the_slow_down_nom
         CoordinationParams(followers="none")
 
 
-def test_two_robots_standing_one_behind_the_other_on_one_way_drive_on():
-    # Paths begin where their robots stood when planned: the way from a standing robot to
-    # its projection is millimetres long, its direction anything. Read as the way it drives,
-    # two robots 0.6 m apart (within yield_clearance) on one lane were in each other's way:
-    # the one ahead got the slow-down and the one behind, ranked above it, stood behind it
-    # (office seed 6, 88-100 s). The one ahead drives on; the one behind waits as before.
-    lane = [(0.0, 0.0), (8.0, 0.0)]  # robot 0 (the leader) drives east along y = 0
-    for dy in (0.0, 1e-3, -1e-3):  # on its path, or millimetres beside it
-        for heading in (0.0, -2.0):  # the heading does not count where the path has one
-            behind = [[0.0, dy, heading, 0.0], [0.6, -dy, heading, 0.0]]
-            ahead = [behind[1], behind[0]]
-            assert _slowed(CbfParams(), behind, [lane, [(0.6, 0.0), (9.0, 0.0)]]) == [
-                False, False]
-            assert _slowed(CbfParams(), ahead, [[(0.6, 0.0), (9.0, 0.0)], lane]) == [
-                False, True]
-    # Head on, or crossing, 0.6 m ahead: in the way as before.
-    close = [[0.0, 0.0, 0.0, 0.0], [0.6, 0.0, 0.0, 0.0]]
-    assert _slowed(CbfParams(), close, [lane, [(0.6, 0.0), (-6.0, 0.0)]]) == [False, True]
-    assert _slowed(CbfParams(), close, [lane, [(0.6, 0.0), (0.6, 5.0)]]) == [False, True]
-
-
 def test_robots_head_on_on_the_two_lanes_of_a_corridor_pass_with_a_head_on_clearance():
     # Lanes 0.9 m apart (LaneParams.offset 0.45 each side of the centre line): with
     # head_on_clearance 0.75 m the robot driving west on the other lane passes the leader.
