@@ -212,11 +212,13 @@ FREE_SEGMENT = SegmentHold()
 @dataclass(frozen=True)
 class QueueState:
     """All rooms' queues, keyed by room id; ``segments``: who holds each single-file
-    segment; ``segment_waiting``: the robots waiting for segments, first come first."""
+    segment; ``segment_waiting``: the robots waiting for segments, first come first;
+    ``segment_waiting_since``: the time each of them began waiting, s (same order)."""
 
     rooms: tuple[RoomQueue, ...] = ()
     segments: tuple[SegmentHold, ...] = ()
     segment_waiting: tuple[str, ...] = ()
+    segment_waiting_since: tuple[float, ...] = ()
 
     def holds_segments(self, robot: str, segments: tuple[tuple[int, bool], ...]) -> bool:
         """Whether ``robot`` holds every one of ``segments`` ((index, forward) pairs)."""
