@@ -214,8 +214,8 @@ class RoomQueues(LeafSystem):
                 r for k in wanted[robot] for r in named.get(k, ()) if not reaches(r, robot)}
             mine = {k for k in wanted[robot] if robot in holds[k].holders}
             turns |= {r for r in starving[:starving.index(robot) if robot in starving else None]
-                      if mine.isdisjoint(wanted[r]) and not reaches(r, robot)
-                      and not set(wanted[robot]).difference(mine).isdisjoint(wanted[r])}
+                      if not wanted[robot].keys().isdisjoint(wanted[r])
+                      and mine.isdisjoint(wanted[r]) and not reaches(r, robot)}
             if robot not in inside and robot not in entering:
                 turns |= {h for h in entering for k in stops[robot]
                           if k in wanted[robot] and k in wanted[h]
