@@ -212,13 +212,11 @@ FREE_SEGMENT = SegmentHold()
 @dataclass(frozen=True)
 class QueueState:
     """All rooms' queues, keyed by room id; ``segments``: who holds each single-file
-    segment; ``segment_waiting``: the robots waiting for segments, first come first;
-    ``segment_waiting_since``: the time each of them began waiting, s (same order)."""
+    segment; ``segment_waiting``: the robots waiting for segments, first come first."""
 
     rooms: tuple[RoomQueue, ...] = ()
     segments: tuple[SegmentHold, ...] = ()
     segment_waiting: tuple[str, ...] = ()
-    segment_waiting_since: tuple[float, ...] = ()
 
     def holds_segments(self, robot: str, segments: tuple[tuple[int, bool], ...]) -> bool:
         """Whether ``robot`` holds every one of ``segments`` ((index, forward) pairs)."""

@@ -2,7 +2,6 @@
 room, or segment, at a time."""
 
 import dataclasses
-import math
 from collections.abc import Mapping, Sequence
 
 from pydrake.common.value import Value
@@ -78,16 +77,6 @@ class RoomQueues(LeafSystem):
        segment where it would stop (``stops``) waits while a robot that holds the room it
        asks for (on its way in) waits for that segment: stopped there, on the way to that
        room's queue, it would keep the holder out for good.
-       A robot that has waited ``starve_time`` (s) starves (``segment_waiting_since``) for
-       ``starve_hold`` (s): no other robot is newly given a segment it names (none joins a
-       holder driving the same way, none holding part of its set goes first), unless that
-       robot holds one of the segments the starving robot names (it is in or at the starving
-       one's lanes, maybe standing ahead of it the same way, which the line cannot see: it
-       must drive on for the way to clear; office seed 35) or the starving robot waits,
-       through others, for it; a starving robot is held back so only by one that
-       began waiting before it. The hold-back then lapses for ``starve_time`` and comes back
-       for ``starve_hold``, and so on while the robot waits: a robot held back standing in a
-       granted robot's way, which the line cannot see, keeps it at most ``starve_hold``.
     4. Each segment names the robots still waiting that name it (``SegmentHold.waiting``):
        a robot without a task standing in one drives out of the way (``WaypointPolicy``).
 
@@ -106,8 +95,6 @@ class RoomQueues(LeafSystem):
         holders: Mapping[int, str] | None = None,
         segments: int = 0,
         exclusive: frozenset[int] = frozenset(),
-        starve_time: float = math.inf,
-        starve_hold: float = math.inf,
     ):
         super().__init__()
         holders = dict(holders or {})
@@ -118,11 +105,6 @@ class RoomQueues(LeafSystem):
         self._rooms = tuple(rooms)
         self._segments = segments
         self._exclusive = frozenset(exclusive)
-        if not (starve_time > 0 and starve_hold > 0):
-            raise ValueError(f"starve_time and starve_hold must be > 0 s, got {starve_time}, "
-                             f"{starve_hold}")
-        self._starve_time = starve_time
-        self._starve_hold = starve_hold
         initial = QueueState(tuple(RoomQueue(room, holders.get(room)) for room in self._rooms),
                              segments=(FREE_SEGMENT,) * segments)
         self._state_index = self.DeclareAbstractState(Value[object](initial))
@@ -139,22 +121,19 @@ class RoomQueues(LeafSystem):
         requests = self._requests.values(context)
         new = self._applied(old, requests) if self._changes_anything(old, requests) else old
         if self._segments:
-            holds, waiting = self._segments_applied(old, requests, new.rooms, context.get_time())
+            holds, waiting = self._segments_applied(old, requests, new.rooms)
             if holds != old.segments or waiting != old.segment_waiting:
-                since = dict(zip(old.segment_waiting, old.segment_waiting_since, strict=True))
-                new = dataclasses.replace(new, segments=holds, segment_waiting=waiting,
-                                          segment_waiting_since=tuple(
-                                              since.get(r, context.get_time()) for r in waiting))
+                new = dataclasses.replace(new, segments=holds, segment_waiting=waiting)
         if new is old:  # unchanged: Drake applies an instant's updates only if one changed
             return EventStatus.DidNothing()
         state.get_mutable_abstract_state(self._state_index).set_value(new)
         return EventStatus.Succeeded()
 
     def _segments_applied(self, old: QueueState, requests: Sequence[QueueRequest],
-                          rooms: Sequence[RoomQueue], time: float
+                          rooms: Sequence[RoomQueue]
                           ) -> tuple[tuple[SegmentHold, ...], tuple[str, ...]]:
         """The segments' holders and waiting robots after ``requests`` (class docstring);
-        ``rooms``: the rooms' queues after this update's room rules; ``time``: now, s."""
+        ``rooms``: the rooms' queues after this update's room rules."""
         wanted = {robot: dict(request.segments)
                   for robot, request in zip(self._robots, requests, strict=True)}
         stops = {robot: set(request.stops).intersection(self._exclusive)
@@ -207,22 +186,15 @@ class RoomQueues(LeafSystem):
                  for robot, request in zip(self._robots, requests, strict=True)}
         entering = {queue.holder for queue in rooms if queue.holder is not None
                     and asked[queue.holder] == queue.room} - set(inside)
-        starving = self._starving(old, order, time)
         waiting, named = [], {}  # named: segment -> the robots still waiting that name it
         for robot in order:
             turns = set() if robot in inside else {
                 r for k in wanted[robot] for r in named.get(k, ()) if not reaches(r, robot)}
-            mine = {k for k in wanted[robot] if robot in holds[k].holders}
-            turns |= {r for r in starving[:starving.index(robot) if robot in starving else None]
-                      if not wanted[robot].keys().isdisjoint(wanted[r])
-                      and mine.isdisjoint(wanted[r]) and not reaches(r, robot)}
             if robot not in inside and robot not in entering:
                 turns |= {h for h in entering for k in stops[robot]
                           if k in wanted[robot] and k in wanted[h]
                           and h not in holds[k].holders}
             if not blocked(robot) and not turns:
-                if robot in starving:
-                    starving.remove(robot)
                 for k, way in wanted[robot].items():
                     if robot not in holds[k].holders:
                         holds[k] = SegmentHold((*holds[k].holders, robot), way)
@@ -236,21 +208,6 @@ class RoomQueues(LeafSystem):
         for k, robots in named.items():
             holds[k] = dataclasses.replace(holds[k], waiting=tuple(robots))
         return tuple(holds), tuple(waiting)
-
-    def _starving(self, old: QueueState, order: Sequence[str], time: float) -> list[str]:
-        """The robots of ``order`` (still needing segments) starving at ``time`` (s): having
-        waited ``starve_time`` or more, within a ``starve_hold`` of each
-        ``starve_time + starve_hold`` period of their wait; longest waiting first."""
-        since = dict(zip(old.segment_waiting, old.segment_waiting_since, strict=True))
-        return sorted((r for r in order if r in since and self._starves(time - since[r])),
-                      key=lambda r: (since[r], self._robots.index(r)))
-
-    def _starves(self, waited: float) -> bool:
-        """Whether a robot that has waited ``waited`` (s) for its segments starves now."""
-        if waited < self._starve_time:
-            return False
-        return math.isinf(self._starve_hold) or \
-            math.fmod(waited, self._starve_time + self._starve_hold) >= self._starve_time
 
     def _changes_anything(self, old: QueueState, requests: Sequence[QueueRequest]) -> bool:
         """False if applying ``requests`` to ``old`` gives ``old`` itself (the hot path: most

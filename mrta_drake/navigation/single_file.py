@@ -35,22 +35,17 @@ class SingleFileParams:
     (``hold_distance``), keep it until this far past its exit (``clear_distance``); stretches
     between segments shorter than ``chain_gap`` belong to the run. A robot whose centre is
     within ``stand_distance`` of a segment's lane stands in it (0.5 m: two 0.22 m robots
-    with a few centimetres between them). A robot that has waited ``starve_time`` (s) for its
-    segments starves for ``starve_hold`` (s): nobody else is newly given one of them; then
-    that lapses for ``starve_time``, and so on until it is served (``RoomQueues``)."""
+    with a few centimetres between them)."""
 
     request_distance: float = 4.0
     hold_distance: float = 1.5
     clear_distance: float = 1.0
     chain_gap: float = 5.0
     stand_distance: float = 0.5
-    starve_time: float = 20.0
-    starve_hold: float = 20.0
 
     def __post_init__(self):
         require_positive(self, "request_distance", "hold_distance", "clear_distance",
                          "chain_gap", "stand_distance", unit=" m")
-        require_positive(self, "starve_time", "starve_hold", unit=" s")
         if self.hold_distance > self.request_distance:
             raise InputError(None, "request_distance", f"must be >= hold_distance "
                              f"({self.hold_distance} m), got {self.request_distance}")

@@ -348,8 +348,7 @@ def _fifo_queues() -> BlockType:
                 holders.setdefault(location, name)
         return RoomQueues(ctx.robot_names, ctx.roadways.location_ids, rate_hz=ctx.rates.queues,
                           holders=holders, segments=ctx.roadways.segment_count,
-                          exclusive=stop_segments(ctx.roadways, lanes),
-                          starve_time=lanes.starve_time, starve_hold=lanes.starve_hold)
+                          exclusive=stop_segments(ctx.roadways, lanes))
 
     return BlockType(NoParams, make)
 

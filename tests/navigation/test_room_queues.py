@@ -116,10 +116,6 @@ def test_initial_holders():
     assert bench.queue() == RoomQueue(ROOM, "r1", ("r0",))
     with pytest.raises(ValueError):
         RoomQueues(["r0"], rooms=[ROOM], rate_hz=10.0, holders={ROOM: "nobody"})
-    with pytest.raises(ValueError):
-        RoomQueues(["r0"], rooms=[ROOM], rate_hz=10.0, starve_time=0.0)
-    with pytest.raises(ValueError):
-        RoomQueues(["r0"], rooms=[ROOM], rate_hz=10.0, starve_hold=-1.0)
 
 
 def test_an_update_keeps_the_state_when_no_rule_applies():
@@ -147,11 +143,9 @@ class SegmentBench(Bench):
     """A RoomQueues with three single-file segments; ``want`` sets a robot's segments as
     (index, forward) pairs."""
 
-    def __init__(self, robots, exclusive=frozenset(), starve_time=float("inf"),
-                 starve_hold=float("inf")):
+    def __init__(self, robots, exclusive=frozenset()):
         self.queues = RoomQueues(robots, rooms=[ROOM], rate_hz=10.0, segments=3,
-                                 exclusive=exclusive, starve_time=starve_time,
-                                 starve_hold=starve_hold)
+                                 exclusive=exclusive)
         self.simulator = Simulator(self.queues)
         self.context = self.simulator.get_mutable_context()
         for robot in robots:
@@ -211,62 +205,6 @@ def test_robots_standing_together_in_a_segment_turn_when_they_all_want_out():
     assert state.holds_segments("a", ((0, False), (1, True)))
     assert state.holds_segments("b", ((0, False), (1, True)))
     assert state.segment_waiting == ("c",)
-
-
-def starving_bench(starve_hold=float("inf"), standing_in=2):
-    """a holds segment 0 one way; b waits for 0 the other way and for 1, and starves from
-    1.2 s (``starve_time`` 1 s); c holds ``standing_in`` (it stands there), and at 1.3 s asks
-    for 0 too, a's way (it would join a); the bench at 1.35 s."""
-    bench = SegmentBench(["a", "b", "c", "d"], starve_time=1.0, starve_hold=starve_hold)
-    bench.want("a", (0, True))
-    bench.want("c", (standing_in, True))
-    bench.step()
-    bench.want("b", (0, False), (1, True))
-    bench.step(11)  # 1.25 s
-    assert bench.state().segment_waiting == ("b",)
-    bench.want("c", (standing_in, True), (0, True))
-    bench.step()
-    return bench
-
-
-def test_a_starving_robot_keeps_others_from_joining_the_holders_of_its_segments():
-    # c, holding part of its set, would go first and join a (office seed 35's relay).
-    bench = starving_bench()
-    state = bench.state()
-    assert state.segments[0].holders == ("a",)
-    assert state.segment_waiting == ("c", "b")
-    bench.want("a")
-    bench.step()
-    assert bench.state().holds_segments("b", ((0, False), (1, True)))
-    assert bench.state().segment_waiting == ("c",)
-
-
-@pytest.mark.parametrize("standing_in", [1, 2])
-def test_a_robot_in_a_starving_robots_segment_is_not_held_back(standing_in):
-    # c standing in 1, which b names, is in b's way (maybe ahead of it, the same way: office
-    # seed 35's knot with fair20's rule): it goes on, joining a in 0. In 2 it waits.
-    bench = starving_bench(standing_in=standing_in)
-    holders = bench.state().segments[0].holders
-    assert holders == (("a", "c") if standing_in == 1 else ("a",))
-
-
-@pytest.mark.parametrize("starve_hold", [1.0, float("inf")])
-def test_a_starving_robots_hold_back_lapses_after_starve_hold(starve_hold):
-    # b's hold-back of c lapses 1 s after it began (c, which may stand in a granted robot's
-    # way, the line cannot tell, joins a) and comes back 1 s later (d, asking for 0 a's way
-    # then, waits).
-    bench = starving_bench(starve_hold=starve_hold)
-    bench.step(10)  # 2.35 s
-    state = bench.state()
-    if starve_hold == 1.0:
-        assert state.segments[0].holders == ("a", "c")
-        bench.step(10)  # 3.35 s: b starves again
-        bench.want("d", (0, True))
-        bench.step()
-        assert bench.state().segments[0].holders == ("a", "c")
-        assert bench.state().segment_waiting == ("b", "d")
-    else:
-        assert state.segments[0].holders == ("a",)
 
 
 def test_a_robot_waiting_first_keeps_its_turn():
