@@ -131,6 +131,27 @@ class _WatchdogState:
         return self  # immutable: Drake's copies of the state can share it
 
 
+@dataclass(frozen=True)
+class _Waits:
+    """What steps 5 and 6 read at one update: the robots' states (N, ROBOT_STATE_SIZE) and
+    targets, their queue requests, the queues, the single-file segments each robot asks
+    for (``asks``: name -> segment indices), who waits for whom (``waits``:
+    ``standstills.waits_for``), the rooms' holders, the robots under an order in force
+    (``backing``) and the orders missed within ``retry_window`` (names; time ``now``, s)."""
+
+    context: object
+    now: float
+    states: np.ndarray
+    targets: Sequence[WaypointTarget]
+    requests: Sequence[QueueRequest]
+    queues: QueueState
+    asks: dict[str, set[int]]
+    waits: dict[str, set[str]]
+    holders: set[str]
+    backing: set[str]
+    misses: tuple[BackOff, ...]
+
+
 class DeadlockWatchdog(LeafSystem):
     """Resolves standstills of robots blocked by each other, as a fleet manager would.
 
@@ -408,6 +429,8 @@ class DeadlockWatchdog(LeafSystem):
         asks = {request.robot: {k for k, _ in request.segments} for request in requests}
         backing = {order.robot for order in active}
         holders = {queue.holder for queue in queues.rooms} - {None}
+        scene = _Waits(context, now, states, targets, requests, queues, asks, waits, holders,
+                       backing, misses)
         moving = {robot for k, robot in enumerate(self._robots)
                   if abs(states[k, 3]) > ROBOT_STOPPED_SPEED}
         serving = self._serving(states, targets, holders, queues.segment_waiting)
@@ -420,9 +443,7 @@ class DeadlockWatchdog(LeafSystem):
         going = {robot for robot, anchor in zip(self._robots, anchors, strict=True)
                  if robot in moving and anchor is not None
                  and now - anchor.since < self._params.cycle_time - 1e-9}
-        cycled, given = self._cycles(requests, asks, queues, waits, holders, serving,
-                                     going | at_lifts, backing, old.cycled, misses, context,
-                                     states, targets, now)
+        cycled, given = self._cycles(scene, serving, going | at_lifts, old.cycled)
         groups = gridlocks(waits, stalled_waits(waits, live))
         since = self._gridlock_anchors(old.gridlocked, groups, waits, states, now)
         if given:  # the cycle's robots (each order's blockers) get time to move again
@@ -437,11 +458,8 @@ class DeadlockWatchdog(LeafSystem):
                 continue
             given = (self._releasing(group, active, waits, holders, now)
                      if backing.intersection(group) else
-                     self._give_way(context, group, waits, holders, states, targets,
-                                    requests, asks, history, queues, backing, began, now)
-                     or self._make_way_for_boxed_in(context, group, waits, states, targets,
-                                                    requests, asks, queues, misses, began,
-                                                    now))
+                     self._give_way(scene, group, history, began)
+                     or self._make_way_for_boxed_in(scene, group, began))
             if given:
                 for k in index:
                     since[k] = replace(since[k], since=now)
@@ -469,19 +487,19 @@ class DeadlockWatchdog(LeafSystem):
             anchors.append(anchor)
         return anchors
 
-    def _cycles(self, requests, asks, queues, waits, holders, serving, going, backing, since,
-                misses, context, states, targets, now
+    def _cycles(self, scene: _Waits, serving, going, since
                 ) -> tuple[tuple[float | None, ...], tuple[BackOff, ...]]:
         """Step 6 (class docstring): since when each robot has been in a cycle of waits
         among the robots standing still (``standstills.wait_cycles``; not ``serving``,
         ``going``, at a lift, or ``backing`` off), and the orders that break one cycle
         that lasted ``cycle_time`` (or none)."""
-        doors = {request.robot: set(request.door) for request in requests}
+        doors = {request.robot: set(request.door) for request in scene.requests}
         still = [robot for robot in self._robots if robot not in going and robot not in
-                 backing and (robot not in serving or doors.get(robot))]
-        stands = {request.robot: set(request.standing) for request in requests}
-        cycles = wait_cycles({robot: {*waits.get(robot, ()), *doors.get(robot, ())}
-                              for robot in self._robots}, asks, stands, still)
+                 scene.backing and (robot not in serving or doors.get(robot))]
+        stands = {request.robot: set(request.standing) for request in scene.requests}
+        cycles = wait_cycles({robot: {*scene.waits.get(robot, ()), *doors.get(robot, ())}
+                              for robot in self._robots}, scene.asks, stands, still)
+        now = scene.now
         member = {robot for cycle in cycles for robot in cycle}
         since = tuple((s if s is not None else now) if robot in member else None
                       for robot, s in zip(self._robots, since, strict=True))
@@ -489,15 +507,14 @@ class DeadlockWatchdog(LeafSystem):
             began = min(since[self._robots.index(robot)] for robot in cycle)
             if now - began < self._params.cycle_time - 1e-9:
                 continue
-            given = self._free_cycle(context, cycle, asks, stands, doors, holders, states,
-                                     targets, requests, queues, backing, misses, began, now)
+            given = self._free_cycle(scene, cycle, stands, doors, began)
             if given:
                 return tuple(now if robot in cycle else s
                              for robot, s in zip(self._robots, since, strict=True)), given
         return since, ()
 
-    def _free_cycle(self, context, cycle, asks, stands, doors, holders, states, targets,
-                    requests, queues, backing, misses, began, now) -> tuple[BackOff, ...]:
+    def _free_cycle(self, scene: _Waits, cycle, stands, doors, began
+                    ) -> tuple[BackOff, ...]:
         """The ``releases`` orders that break ``cycle`` (class docstring, step 6), or ()
         when none of its robots can be freed: for the first of its robots (the rooms'
         holders first, then by priority, highest first) that the others stand in the way
@@ -509,11 +526,12 @@ class DeadlockWatchdog(LeafSystem):
         room with no spot off the ways go to the nearest spots any way; with no such
         robot, once the cycle (since ``began``) has lasted ``gridlock_time``, the same
         with rooms' holders among those going."""
-        broken = {self._robots[k] for k in self._disturbances_now(context).broken}
-        fixed = broken | {order.robot for order in misses}
+        holders, asks = scene.holders, scene.asks
+        broken = self._broken_down(scene.context)
+        fixed = broken | {order.robot for order in scene.misses}
         ranked = sorted(cycle, key=lambda r: (r not in holders, self._priorities[
             self._robots.index(r)], self._robots.index(r)))
-        late = now - began >= self._params.gridlock_time - 1e-9
+        late = scene.now - began >= self._params.gridlock_time - 1e-9
         for stay in (holders | fixed, fixed) if late else (holders | fixed,):
             for robot in ranked:
                 blockers = [other for other in cycle if other != robot and (
@@ -521,16 +539,14 @@ class DeadlockWatchdog(LeafSystem):
                 if not blockers or not stay.isdisjoint(blockers) or (
                         stay is fixed and holders.isdisjoint(blockers)):  # tried already
                     continue
-                given = self._orders(context, blockers, cycle, robot, states, targets,
-                                     requests, began, now) or (
-                    _queued_for(robot, blockers, queues)
-                    and self._orders(context, blockers, cycle, robot, states, targets,
-                                     requests, began, now, off_ways=False))
+                given = self._orders(scene, blockers, cycle, robot, began) or (
+                    _queued_for(robot, blockers, scene.queues)
+                    and self._orders(scene, blockers, cycle, robot, began, off_ways=False))
                 if not given:
                     continue
-                ahead = _before_in_line(queues.segment_waiting, robot, asks) - set(
-                    blockers) - broken - backing
-                return given + self._stand(ahead, robot, states, began, now)
+                ahead = _before_in_line(scene.queues.segment_waiting, robot, asks) - set(
+                    blockers) - broken - scene.backing
+                return given + self._stand(ahead, robot, scene.states, began, scene.now)
         return ()
 
     def _releasing(self, group, active, waits, holders, now) -> tuple[BackOff, ...]:
@@ -551,13 +567,14 @@ class DeadlockWatchdog(LeafSystem):
             robot for robot in self._robots if order.robot in waits.get(robot, ())))
             for order in orders)
 
-    def _give_way(self, context, group, waits, holders, states, targets, requests, asks,
-                  history, queues, backing, stalled_since, now) -> tuple[BackOff, ...]:
+    def _give_way(self, scene: _Waits, group, history, stalled_since
+                  ) -> tuple[BackOff, ...]:
         """The ``releases`` orders that break gridlock ``group`` (class docstring, step 5),
-        or () when no robot may give way with a spot to go to (``asks``: the segments each
-        robot asks for; ``backing``: the robots under an order already, given none)."""
+        or () when no robot may give way with a spot to go to (the robots already under an
+        order, ``scene.backing``, given none)."""
         p = self._params
-        broken = self._disturbances_now(context).broken
+        now, waits, holders, queues = scene.now, scene.waits, scene.holders, scene.queues
+        broken = self._disturbances_now(scene.context).broken
         recent = {order.robot for order in history
                   if order.releases and order.issued > now - p.gridlock_cooldown + 1e-9}
         may = {robot for k, robot in enumerate(self._robots)
@@ -571,26 +588,26 @@ class DeadlockWatchdog(LeafSystem):
                         self._priorities[self._robots.index(robot)], self._robots.index(robot))
                 for robot in group}
         for robot in sorted((r for r in group if r in line), key=rank.get):
-            inside = {j for k in asks[robot] for j in queues.segments[k].holders} - {robot}
-            ahead = _before_in_line(line, robot, asks) - inside
+            inside = {j for k in scene.asks[robot]
+                      for j in queues.segments[k].holders} - {robot}
+            ahead = _before_in_line(line, robot, scene.asks) - inside
             if (not (inside or ahead) or not inside <= may - recent or not ahead <= waiting
-                    or not backing.isdisjoint(inside | ahead)):
+                    or not scene.backing.isdisjoint(inside | ahead)):
                 continue
-            given = self._orders(context, sorted(inside, key=self._robots.index), group,
-                                 robot, states, targets, requests, stalled_since, now)
+            given = self._orders(scene, sorted(inside, key=self._robots.index), group, robot,
+                                 stalled_since)
             if inside and not given:
                 continue
-            return given + self._stand(ahead, robot, states, stalled_since, now)
+            return given + self._stand(ahead, robot, scene.states, stalled_since, now)
         for robot in sorted((may - recent).intersection(group),
                             key=lambda r: (-rank[r][2], rank[r][3])):
-            given = self._orders(context, [robot], group, None, states, targets, requests,
-                                 stalled_since, now)
+            given = self._orders(scene, [robot], group, None, stalled_since)
             if given:
                 return given
         return ()
 
-    def _make_way_for_boxed_in(self, context, group, waits, states, targets, requests, asks,
-                               queues, misses, stalled_since, now) -> tuple[BackOff, ...]:
+    def _make_way_for_boxed_in(self, scene: _Waits, group, stalled_since
+                               ) -> tuple[BackOff, ...]:
         """Step 5's last resort for gridlock ``group`` (class docstring): for the first of
         its robots (by priority, highest first) that stands in the way of robots of the
         group it waits for (``_waiters_in_way``) and is boxed in (``_boxed_in``: no spot
@@ -602,22 +619,21 @@ class DeadlockWatchdog(LeafSystem):
         has no spot. The case: a holder of single-file segments (and of the room at a
         corridor's end) driving to its point, and a robot waiting for its segments
         standing in its way, target inactive, with the corridor's end behind it."""
-        fixed = ({self._robots[k] for k in self._disturbances_now(context).broken}
-                 | {order.robot for order in misses})
-        in_way = self._waiters_in_way(group, waits, states, targets)
+        fixed = self._broken_down(scene.context) | {order.robot for order in scene.misses}
+        in_way = self._waiters_in_way(group, scene.waits, scene.states, scene.targets)
         for robot in sorted(group, key=lambda r: (self._priorities[self._robots.index(r)],
                                                   self._robots.index(r))):
-            giving = [other for other in group if other in waits.get(robot, ())
+            giving = [other for other in group if other in scene.waits.get(robot, ())
                       and robot in in_way.get(other, ())]
             if (not giving or not fixed.isdisjoint(giving)
-                    or not self._boxed_in(context, robot, states)):
+                    or not self._boxed_in(scene.context, robot, scene.states)):
                 continue
-            given = self._orders(context, giving, group, robot, states, targets, requests,
-                                 stalled_since, now)
+            given = self._orders(scene, giving, group, robot, stalled_since)
             if given:
-                ahead = _before_in_line(queues.segment_waiting, robot, asks) - set(
+                ahead = _before_in_line(scene.queues.segment_waiting, robot, scene.asks) - set(
                     giving) - fixed
-                return given + self._stand(ahead, robot, states, stalled_since, now)
+                return given + self._stand(ahead, robot, scene.states, stalled_since,
+                                           scene.now)
         return ()
 
     def _waiters_in_way(self, robots, waits, states, targets) -> dict[str, set[str]]:
@@ -644,13 +660,13 @@ class DeadlockWatchdog(LeafSystem):
         return self._spot(self._people(context), self._robots.index(robot), states[:, :2],
                           []) is None
 
+    def _humans_now(self, context) -> HumanStates:
+        """The people now (``NO_HUMANS`` where ``human_states`` is not connected)."""
+        return self._humans.Eval(context) if self._humans.HasValue(context) else NO_HUMANS
+
     def _people(self, context) -> tuple[np.ndarray, np.ndarray]:
-        """The people's positions (M, 2), m, world frame, and radii (M,), m (none where
-        ``human_states`` is not connected)."""
-        humans: HumanStates = (self._humans.Eval(context) if self._humans.HasValue(context)
-                               else NO_HUMANS)
-        return (np.asarray(humans.positions).reshape(-1, 2),
-                np.asarray(humans.radii).reshape(-1))
+        """The people's positions (M, 2), m, world frame, and radii (M,), m."""
+        return _positions_and_radii(self._humans_now(context))
 
     def _spot(self, people, k: int, xy, ways, avoid=()) -> tuple[float, float] | None:
         """``standstills.back_off_spot`` for robot ``k`` at ``xy[k]`` with this watchdog's
@@ -670,25 +686,26 @@ class DeadlockWatchdog(LeafSystem):
                              releases=True)
                      for k, robot in enumerate(self._robots) if robot in robots)
 
-    def _orders(self, context, robots, group, freed, states, targets, requests,
-                stalled_since, now, off_ways: bool = True) -> tuple[BackOff, ...]:
+    def _orders(self, scene: _Waits, robots, group, freed, stalled_since,
+                off_ways: bool = True) -> tuple[BackOff, ...]:
         """Orders sending each of ``robots`` (names) to its own spot, off the ways of the
         other robots of ``group`` (and of ``freed``, the robot they make way for): their
         targets' ways, the lanes of the segments they ask for and the doorways they wait at
         (``QueueRequest.door``; not kept clear with ``off_ways`` off: the nearest spot
-        any way); off every single-file
-        segment's lane if there is such a spot (standing on one it would hold it); and
-        off the spots given before. () if one of them has no spot."""
+        any way); off every single-file segment's lane if there is such a spot (standing
+        on one it would hold it); and off the spots given before. () if one of them has no
+        spot."""
         p = self._params
-        people = self._people(context)
-        xy = states[:, :2]
+        people = self._people(scene.context)
+        xy = scene.states[:, :2]
         given = []
         for robot in robots:
             k = self._robots.index(robot)
             others = [self._robots.index(j) for j in {*group, *([freed] if freed else [])}
                       if j != robot]
             others.sort()
-            ways = self._ways_of(others, xy, targets, requests) if off_ways else []
+            ways = (self._ways_of(others, xy, scene.targets, scene.requests) if off_ways
+                    else [])
             ways += [(np.asarray(order.point, dtype=float), self._radii[k]) for order in given]
             spot = None
             for extra in (self._all_lanes, []):
@@ -697,7 +714,7 @@ class DeadlockWatchdog(LeafSystem):
                     break
             if spot is None:
                 return ()
-            given.append(BackOff(robot, spot, now, now + p.yield_time,
+            given.append(BackOff(robot, spot, scene.now, scene.now + p.yield_time,
                                  tuple(self._robots[j] for j in others), stalled_since,
                                  releases=True))
         return tuple(given)
@@ -817,6 +834,10 @@ class DeadlockWatchdog(LeafSystem):
                 doors[k] = takers
         return doors
 
+    def _broken_down(self, context) -> set[str]:
+        """The names of the robots broken down now."""
+        return {self._robots[k] for k in self._disturbances_now(context).broken}
+
     def _disturbances_now(self, context):
         """The disturbances in force (``NO_DISTURBANCES`` where the input is not
         connected)."""
@@ -843,10 +864,8 @@ class DeadlockWatchdog(LeafSystem):
           the controller will not drive it (triple_H, seed 0: 32 s); from the spot its
           path is planned again. Farther from walls, nothing holds it, and a robot cut off
           from messages stands by design: no order."""
-        humans: HumanStates = (self._humans.Eval(context) if self._humans.HasValue(context)
-                               else NO_HUMANS)
-        people = np.asarray(humans.positions).reshape(-1, 2)
-        radii = np.asarray(humans.radii).reshape(-1)
+        humans = self._humans_now(context)
+        people, radii = _positions_and_radii(humans)
         xy = states[:, :2]
         with np.errstate(invalid="ignore"):  # people absent from the run are NaN
             near = np.flatnonzero(np.linalg.norm(people - xy[k], axis=-1) - radii
@@ -863,6 +882,11 @@ class DeadlockWatchdog(LeafSystem):
             return None
         return BackOff(self._robots[k], spot, now, now + p.yield_time,
                        tuple(humans.names[j] for j in near), anchor.since)
+
+
+def _positions_and_radii(humans: HumanStates) -> tuple[np.ndarray, np.ndarray]:
+    """``humans``' positions (M, 2), m, world frame, and radii (M,), m."""
+    return np.asarray(humans.positions).reshape(-1, 2), np.asarray(humans.radii).reshape(-1)
 
 
 def _way_through(start, through, length: float) -> np.ndarray:
