@@ -149,13 +149,16 @@ def _ranks_before(i, j, labels, active, stalled, keys, priorities):
 
 def stall_times_of(stall_times, speeds, members, starts, active, dt: float,
                    stall_time: float, stall_speed: float) -> np.ndarray:
-    """Per robot, how long (s) it has stood (|``speeds``| < ``stall_speed``, m/s) as the
-    active leader of one of the clusters ``members[starts[c]:starts[c + 1]]`` (leader first),
-    after one more tick of ``dt`` s. A robot that moves, is inactive or alone starts from 0;
-    a demoted leader keeps its time, so others lead first; when every active member of a
+    """Per robot, how long (s) it has stood as the active leader of one of the clusters
+    ``members[starts[c]:starts[c + 1]]`` (leader first), after one more tick of ``dt`` s.
+    A robot stands when it does not drive forward (``speeds`` below ``stall_speed``, m/s):
+    a robot driving backwards is pushed back by the QP (its nominal never reverses), which
+    is no progress. A robot that drives forward, is inactive or alone starts from 0; a
+    demoted leader keeps its time, so others lead first; when every active member of a
     cluster has stalled (>= ``stall_time``), all start again. A cluster whose leader is
     blocked (e.g. by a follower that must move first) thus passes the lead on instead of
-    waiting forever."""
+    waiting forever; the new leader driving on often pushes the one it took the lead from
+    back out of its way, and that does not give the lead back."""
     new = np.empty(len(speeds))
     _stall_times(np.ascontiguousarray(stall_times, dtype=float),
                  np.ascontiguousarray(speeds, dtype=float), members, starts,
@@ -167,14 +170,14 @@ def stall_times_of(stall_times, speeds, members, starts, active, dt: float,
 def _stall_times(stall_times, speeds, members, starts, active, dt, stall_time, stall_speed,
                  new):
     for i in range(len(speeds)):
-        new[i] = stall_times[i] if abs(speeds[i]) < stall_speed and active[i] else 0.0
+        new[i] = stall_times[i] if speeds[i] < stall_speed and active[i] else 0.0
     for c in range(len(starts) - 1):
         cluster = members[starts[c]:starts[c + 1]]
         leader = cluster[0]
         if len(cluster) == 1:
             new[leader] = 0.0
             continue
-        if active[leader] and abs(speeds[leader]) < stall_speed:
+        if active[leader] and speeds[leader] < stall_speed:
             new[leader] += dt
         candidates, stalled = 0, True
         for i in cluster:
