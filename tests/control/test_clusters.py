@@ -103,6 +103,28 @@ def test_a_leader_standing_too_long_passes_the_lead_on_in_turn():
     assert moving[0] == 0.0
 
 
+def test_a_demoted_leader_pushed_backwards_keeps_its_stall_time():
+    # Issue 14 (triple_H seed 1): robot3 stood 3 s as a leader blocked by robot4; robot4
+    # took the lead, and driving on, the joint QP pushed robot3 back out of its way (-0.06
+    # m/s). That restarted robot3's stall time: it took the lead back within 0.15 s, robot4
+    # got the slow-down again, every 3 s for 12 s.
+    positions = [[0.0, 0.0], [0.6, 0.0]]
+    active = np.array([True, True])
+    stall = np.array([3.0, 0.0])  # robot 0 has stood 3 s as the leader
+    for _ in range(20):  # 1 s: robot 1 leads and drives on, pushing robot 0 back
+        clusters = form_clusters(positions, 4.0, np.arange(2), np.zeros(2), active,
+                                 stalled=stall >= 3.0)
+        assert clusters == ((1, 0),)
+        stall = _leader_stall_times(stall, np.array([-0.1, 0.3]), clusters, active)
+    assert stall[0] == 3.0
+    # A leader pushed backwards makes no progress: its time grows as when standing.
+    pushed = _leader_stall_times(np.zeros(2), np.array([-0.1, 0.0]), ((0, 1),), active)
+    assert pushed[0] == pytest.approx(0.05)
+    # Driving forward, the demoted leader starts again from 0.
+    driving = _leader_stall_times(np.array([3.0, 0.0]), np.array([0.1, 0.3]), ((1, 0),), active)
+    assert driving[0] == 0.0
+
+
 def _led_by(rule: str) -> CbfParams:
     return CbfParams(coordination=CoordinationParams(leader_rule=rule))
 
