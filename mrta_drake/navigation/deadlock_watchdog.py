@@ -256,7 +256,11 @@ class DeadlockWatchdog(LeafSystem):
        standing in the way of members it waits for (ahead of them, on their way to their
        targets) is freed the other way round: those go (rooms' holders too, keeping their
        rooms), letting go of their segments, to spots off its way and the lanes it asks
-       for, and the robots before it in the line stand. While its order is in force a
+       for, and the robots before it in the line stand; failing that
+       (``_clear_round_boxed_in``), a member boxed in that others of the gridlock wait for
+       has the members standing within ``back_off_distance`` of it (surface to surface;
+       rooms' holders too, keeping their rooms) sent to spots off the others' ways (else
+       the nearest), so it has room to be sent aside in turn. While its order is in force a
        robot asks for no room (it leaves the queue) and only for the segments it stands
        in, so the others get them; when it ends, it asks again, at the queues' tails.
        Every member's gridlock time starts again, so the others get another
@@ -459,7 +463,8 @@ class DeadlockWatchdog(LeafSystem):
             given = (self._releasing(group, active, waits, holders, now)
                      if backing.intersection(group) else
                      self._give_way(scene, group, history, began)
-                     or self._make_way_for_boxed_in(scene, group, began))
+                     or self._make_way_for_boxed_in(scene, group, began)
+                     or self._clear_round_boxed_in(scene, group, began))
             if given:
                 for k in index:
                     since[k] = replace(since[k], since=now)
@@ -635,6 +640,40 @@ class DeadlockWatchdog(LeafSystem):
                 return given + self._stand(ahead, robot, scene.states, stalled_since,
                                            scene.now)
         return ()
+
+    def _clear_round_boxed_in(self, scene: _Waits, group, stalled_since
+                              ) -> tuple[BackOff, ...]:
+        """Step 5's last resort when ``_make_way_for_boxed_in`` has none (class
+        docstring): for the first robot of gridlock ``group`` (by priority, highest
+        first) that others of it wait for and that is boxed in (``_boxed_in``), orders
+        sending the group's robots standing within ``back_off_distance`` of it (surface
+        to surface; rooms' holders too: they keep their rooms; not broken down, no miss
+        within ``retry_window``) to spots off the group's ways (else the nearest); () if
+        there is none. The case: a robot queueing for a room inside the single-file
+        corridor that the room's holder waits to leave through, a robot of the group
+        beside it, no spot for it."""
+        fixed = self._broken_down(scene.context) | {order.robot for order in scene.misses}
+        xy = scene.states[:, :2]
+        for robot in sorted(group, key=lambda r: (self._priorities[self._robots.index(r)],
+                                                  self._robots.index(r))):
+            k = self._robots.index(robot)
+            waited = any(robot in scene.waits.get(other, ()) for other in group)
+            if (not waited or robot in fixed
+                    or not self._boxed_in(scene.context, robot, scene.states)):
+                continue
+            near = [other for other in group if other != robot and other not in fixed
+                    and self._gap(xy, k, self._robots.index(other))
+                    < self._params.back_off_distance]
+            given = near and (
+                self._orders(scene, near, group, robot, stalled_since)
+                or self._orders(scene, near, group, robot, stalled_since, off_ways=False))
+            if given:
+                return given
+        return ()
+
+    def _gap(self, xy, i: int, j: int) -> float:
+        """The distance between robots ``i`` and ``j``'s surfaces (m)."""
+        return math.dist(xy[i], xy[j]) - self._radii[i] - self._radii[j]
 
     def _waiters_in_way(self, robots, waits, states, targets) -> dict[str, set[str]]:
         """For each of ``robots`` (names) with an active target, the others of ``robots``

@@ -264,12 +264,13 @@ def test_a_robot_giving_way_leaves_its_rooms_queue():
     assert generator.GetOutputPort("queue_request").Eval(context).room is None
 
 
-def _watchdog_of_two(state, targets, requests, queues, roadways=None, obstacles=None):
-    """The watchdog alone with r0 and r1 (0.22 m) on the costmap of ``obstacles`` (None:
-    empty), its inputs fixed: ``state`` both robots' (x, y, theta, v), ``targets`` and
-    ``requests`` one each (r0's first), ``queues`` the queue state. Returns the watchdog and
-    its context."""
-    watchdog = DeadlockWatchdog(["r0", "r1"], [0.22, 0.22],
+def _watchdog_of(state, targets, requests, queues, roadways=None, obstacles=None):
+    """The watchdog alone with robots r0, r1, ... (0.22 m), one per request, on the costmap
+    of ``obstacles`` (None: empty), its inputs fixed: ``state`` the robots' (x, y, theta,
+    v), ``targets`` and ``requests`` one each (r0's first), ``queues`` the queue state.
+    Returns the watchdog and its context."""
+    names = [f"r{i}" for i in range(len(requests))]
+    watchdog = DeadlockWatchdog(names, [0.22] * len(names),
                                 Costmap.from_obstacles(obstacles or Obstacles(), BOUNDS),
                                 rate_hz=2.0, roadways=roadways)
     context = watchdog.CreateDefaultContext()
@@ -286,7 +287,7 @@ def test_robots_rocking_on_the_spot_in_a_cycle_of_waits_are_freed_within_seconds
     # cycle of waits. Both rock on the spot (0.1 m/s, never getting anywhere): moving, so
     # no gridlock of waits, yet standing still; r0 gives way once r1 has made no progress
     # for cycle_time and the cycle has lasted cycle_time.
-    watchdog, context = _watchdog_of_two(
+    watchdog, context = _watchdog_of(
         [0.0, 0.0, 0.0, 0.1, 3.0, 0.0, 0.0, -0.1],
         (WaypointTarget("r0"), WaypointTarget("r1", True, (-8.0, 0.0), None, True)),
         (QueueRequest("r0", 0, segments=((0, True),), standing=(0,)),
@@ -377,7 +378,7 @@ def test_a_rooms_holder_standing_in_the_segment_a_cycle_waits_for_gives_way_last
     # nothing) waiting for the segment, which r0 holds and asks for, kept out by r1: a
     # cycle of waits whose only robot in another's way is the holder. No other robot of
     # the cycle can be moved, so the holder gives way once the cycle has lasted cycle_time.
-    watchdog, context = _watchdog_of_two(
+    watchdog, context = _watchdog_of(
         [0.0, 0.0, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0],
         (WaypointTarget("r0", True, (8.0, 0.0), None, True),
          WaypointTarget("r1", True, (-8.0, 0.0), None, True)),
@@ -396,7 +397,7 @@ def _door_waits(r0_request, r1_request, queues, until):
     """The watchdog alone on ``_dead_end``: r0 stands still in room H's doorway at
     (0.8, 0.9), r1 at (3, 0) at its target (holding a room, so serving as the recorder
     counts it); each asks as given. The orders given by ``until`` (s)."""
-    watchdog, context = _watchdog_of_two(
+    watchdog, context = _watchdog_of(
         [0.8, 0.9, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0],
         (WaypointTarget("r0", True, (0.8, 0.9), None, True),
          WaypointTarget("r1", True, (3.0, 0.0), None, True)),
@@ -441,7 +442,7 @@ def test_a_holder_whose_way_a_boxed_in_robot_waiting_for_it_stands_in_gives_way(
     # holds a room; r1 has no spot) and no cycle (r1 stands in no segment r0 asks for).
     # r1 is boxed in, so r0 gives way to it once the gridlock has lasted gridlock_time (a
     # releases order: it lets segment 0 go), to a spot off r1's way.
-    watchdog, context = _watchdog_of_two(
+    watchdog, context = _watchdog_of(
         [15.6, 0.0, 0.0, 0.0, 16.5, 0.0, np.pi, 0.0],
         (WaypointTarget("r0", True, (17.0, 0.0), None, True), WaypointTarget("r1")),
         (QueueRequest("r0", R, segments=((0, True),)),
@@ -466,7 +467,7 @@ def test_a_robot_queueing_in_its_rooms_holders_way_out_goes_on_ahead_at_once():
     # r0 stands in). Every spot within search_reach lies on r1's way, so none is off it:
     # r0 is sent on ahead along that way once the cycle has lasted cycle_time (a releases
     # order: it leaves the queue while r1 passes), not after twice standstill_time.
-    watchdog, context = _watchdog_of_two(
+    watchdog, context = _watchdog_of(
         [14.6, 0.0, 0.0, 0.0, 15.6, 0.0, np.pi, 0.0],
         (WaypointTarget("r0", True, (14.6, 0.0), None, True),
          WaypointTarget("r1", True, (-8.0, 0.0), None, True)),
@@ -481,6 +482,31 @@ def test_a_robot_queueing_in_its_rooms_holders_way_out_goes_on_ahead_at_once():
     assert [(o.robot, o.releases, o.blockers) for o in orders] == [("r0", True, ("r1",))]
     assert orders[0].issued == pytest.approx(params.cycle_time)
     assert orders[0].point[0] < 14.6 - params.back_off_distance + 1e-9  # on ahead, west
+
+
+def test_robots_beside_a_boxed_in_robot_others_wait_for_step_aside():
+    # Office seed 64: r0 queues for room R at an overflow spot inside segment 0, which it
+    # holds, boxed in by the corridor's dead end and by r2, standing beside it; R's holder
+    # r1 waits for segment 0 to leave, and r2 (holding room H) waits for it too. No robot
+    # may give way (r0 has no spot, r1 and r2 hold rooms) and none stands in the way of a
+    # robot it waits for, so once the gridlock has lasted gridlock_time r2, within
+    # back_off_distance of r0, is sent aside (west, keeping room H), and r0 has room.
+    watchdog, context = _watchdog_of(
+        [16.5, 0.0, 0.0, 0.0, 5.0, 0.0, 0.0, 0.0, 15.6, 0.0, 0.0, 0.0],
+        (WaypointTarget("r0", True, (16.5, 0.0), None, True), WaypointTarget("r1"),
+         WaypointTarget("r2")),
+        (QueueRequest("r0", R, standing=(0,)), QueueRequest("r1", segments=((0, True),)),
+         QueueRequest("r2", segments=((0, True),))),
+        QueueState((RoomQueue(R, "r1", ("r0",)), RoomQueue(H, "r2")),
+                   segments=(SegmentHold(("r0",), False),), segment_waiting=("r1", "r2")),
+        obstacles=_corridor_to_dead_end(4.0, 17.6))
+    simulator = Simulator(watchdog, context)
+    params = WatchdogParams()
+    simulator.AdvanceTo(params.gridlock_time + 5.0)
+    orders = watchdog.GetOutputPort("back_offs").Eval(simulator.get_context()).history
+    assert [(o.robot, o.releases) for o in orders] == [("r2", True)]
+    assert orders[0].issued == pytest.approx(params.gridlock_time)
+    assert orders[0].point[0] < 15.6 - params.back_off_distance + 1e-9  # west, away
 
 
 def _corridor_to_dead_end(west: float, east: float) -> Obstacles:
