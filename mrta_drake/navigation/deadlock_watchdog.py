@@ -137,7 +137,8 @@ class _Waits:
     targets, their queue requests, the queues, the single-file segments each robot asks
     for (``asks``: name -> segment indices), who waits for whom (``waits``:
     ``standstills.waits_for``), the rooms' holders, the robots under an order in force
-    (``backing``) and the orders missed within ``retry_window`` (names; time ``now``, s)."""
+    (``backing``), the orders missed within ``retry_window`` and the robots broken down
+    (names; time ``now``, s)."""
 
     context: object
     now: float
@@ -150,6 +151,13 @@ class _Waits:
     holders: set[str]
     backing: set[str]
     misses: tuple[BackOff, ...]
+    broken: set[str]
+
+    @property
+    def fixed(self) -> set[str]:
+        """The robots no order may move: broken down, or one that missed an order within
+        ``retry_window``."""
+        return self.broken | {order.robot for order in self.misses}
 
 
 class DeadlockWatchdog(LeafSystem):
@@ -433,8 +441,9 @@ class DeadlockWatchdog(LeafSystem):
         asks = {request.robot: {k for k, _ in request.segments} for request in requests}
         backing = {order.robot for order in active}
         holders = {queue.holder for queue in queues.rooms} - {None}
+        broken = {self._robots[k] for k in self._disturbances_now(context).broken}
         scene = _Waits(context, now, states, targets, requests, queues, asks, waits, holders,
-                       backing, misses)
+                       backing, misses, broken)
         moving = {robot for k, robot in enumerate(self._robots)
                   if abs(states[k, 3]) > ROBOT_STOPPED_SPEED}
         serving = self._serving(states, targets, holders, queues.segment_waiting)
@@ -532,10 +541,8 @@ class DeadlockWatchdog(LeafSystem):
         robot, once the cycle (since ``began``) has lasted ``gridlock_time``, the same
         with rooms' holders among those going."""
         holders, asks = scene.holders, scene.asks
-        broken = self._broken_down(scene.context)
-        fixed = broken | {order.robot for order in scene.misses}
-        ranked = sorted(cycle, key=lambda r: (r not in holders, self._priorities[
-            self._robots.index(r)], self._robots.index(r)))
+        fixed = scene.fixed
+        ranked = sorted(cycle, key=lambda r: (r not in holders, *self._priority_key(r)))
         late = scene.now - began >= self._params.gridlock_time - 1e-9
         for stay in (holders | fixed, fixed) if late else (holders | fixed,):
             for robot in ranked:
@@ -550,7 +557,7 @@ class DeadlockWatchdog(LeafSystem):
                 if not given:
                     continue
                 ahead = _before_in_line(scene.queues.segment_waiting, robot, asks) - set(
-                    blockers) - broken - scene.backing
+                    blockers) - scene.broken - scene.backing
                 return given + self._stand(ahead, robot, scene.states, began, scene.now)
         return ()
 
@@ -579,18 +586,16 @@ class DeadlockWatchdog(LeafSystem):
         order, ``scene.backing``, given none)."""
         p = self._params
         now, waits, holders, queues = scene.now, scene.waits, scene.holders, scene.queues
-        broken = self._disturbances_now(scene.context).broken
         recent = {order.robot for order in history
                   if order.releases and order.issued > now - p.gridlock_cooldown + 1e-9}
-        may = {robot for k, robot in enumerate(self._robots)
-               if robot not in holders and k not in broken}
-        waiting = {robot for k, robot in enumerate(self._robots)
-                   if robot in waits and k not in broken}
+        may = {robot for robot in self._robots
+               if robot not in holders and robot not in scene.broken}
+        waiting = {robot for robot in self._robots
+                   if robot in waits and robot not in scene.broken}
         line = queues.segment_waiting
         awaited = {queue.holder for queue in queues.rooms
                    if not set(queue.waiting).isdisjoint(group)}
-        rank = {robot: (robot not in awaited, robot not in holders,
-                        self._priorities[self._robots.index(robot)], self._robots.index(robot))
+        rank = {robot: (robot not in awaited, robot not in holders, *self._priority_key(robot))
                 for robot in group}
         for robot in sorted((r for r in group if r in line), key=rank.get):
             inside = {j for k in scene.asks[robot]
@@ -624,10 +629,9 @@ class DeadlockWatchdog(LeafSystem):
         has no spot. The case: a holder of single-file segments (and of the room at a
         corridor's end) driving to its point, and a robot waiting for its segments
         standing in its way, target inactive, with the corridor's end behind it."""
-        fixed = self._broken_down(scene.context) | {order.robot for order in scene.misses}
+        fixed = scene.fixed
         in_way = self._waiters_in_way(group, scene.waits, scene.states, scene.targets)
-        for robot in sorted(group, key=lambda r: (self._priorities[self._robots.index(r)],
-                                                  self._robots.index(r))):
+        for robot in sorted(group, key=self._priority_key):
             giving = [other for other in group if other in scene.waits.get(robot, ())
                       and robot in in_way.get(other, ())]
             if (not giving or not fixed.isdisjoint(giving)
@@ -652,24 +656,28 @@ class DeadlockWatchdog(LeafSystem):
         there is none. The case: a robot queueing for a room inside the single-file
         corridor that the room's holder waits to leave through, a robot of the group
         beside it, no spot for it."""
-        fixed = self._broken_down(scene.context) | {order.robot for order in scene.misses}
+        fixed = scene.fixed
         xy = scene.states[:, :2]
-        for robot in sorted(group, key=lambda r: (self._priorities[self._robots.index(r)],
-                                                  self._robots.index(r))):
+        for robot in sorted(group, key=self._priority_key):
             k = self._robots.index(robot)
             waited = any(robot in scene.waits.get(other, ()) for other in group)
-            if (not waited or robot in fixed
-                    or not self._boxed_in(scene.context, robot, scene.states)):
-                continue
             near = [other for other in group if other != robot and other not in fixed
                     and self._gap(xy, k, self._robots.index(other))
                     < self._params.back_off_distance]
-            given = near and (
-                self._orders(scene, near, group, robot, stalled_since)
-                or self._orders(scene, near, group, robot, stalled_since, off_ways=False))
+            if (not waited or robot in fixed or not near  # the spot search last: it costs
+                    or not self._boxed_in(scene.context, robot, scene.states)):
+                continue
+            given = (self._orders(scene, near, group, robot, stalled_since)
+                     or self._orders(scene, near, group, robot, stalled_since, off_ways=False))
             if given:
                 return given
         return ()
+
+    def _priority_key(self, robot: str) -> tuple[float, int]:
+        """``robot``'s place when robots are taken by priority, highest (smallest) first,
+        then in the watchdog's order."""
+        k = self._robots.index(robot)
+        return self._priorities[k], k
 
     def _gap(self, xy, i: int, j: int) -> float:
         """The distance between robots ``i`` and ``j``'s surfaces (m)."""
@@ -872,10 +880,6 @@ class DeadlockWatchdog(LeafSystem):
             if k in group and takers:
                 doors[k] = takers
         return doors
-
-    def _broken_down(self, context) -> set[str]:
-        """The names of the robots broken down now."""
-        return {self._robots[k] for k in self._disturbances_now(context).broken}
 
     def _disturbances_now(self, context):
         """The disturbances in force (``NO_DISTURBANCES`` where the input is not
