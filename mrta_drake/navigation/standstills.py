@@ -237,8 +237,12 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
     steps = math.ceil((wall_clearance - costmap.params.inflation_radius) / SEARCH_STEP - 1e-9)
     spot_ok = (passable & _eroded(free, steps) & (robot_gaps >= clearance).all(axis=-1)
                & people_clear & (moved >= min_move))
-    for way, radius in ways:
-        spot_ok &= distance_to_polyline(points, way) >= radii[k] + radius + clearance
+    if ways:  # the costly test: every way's lanes at once, only where still spots
+        still = np.flatnonzero(spot_ok)
+        a, b, gap = _way_pieces(ways, radii[k] + clearance)
+        keep = (_piece_distances(points.reshape(-1, 2)[still], a, b) >= gap).all(axis=-1)
+        spot_ok = np.zeros(spot_ok.shape, dtype=bool)
+        spot_ok.flat[still[keep]] = True
     for missed in np.asarray(avoid, dtype=float).reshape(-1, 2):
         spot_ok &= np.linalg.norm(points - missed, axis=-1) > avoid_radius
     start = (n_side, n_side)
@@ -282,15 +286,36 @@ def _eroded(mask: np.ndarray, steps: int) -> np.ndarray:
     return mask
 
 
+def _way_pieces(ways: list[tuple[np.ndarray, float]], margin: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The straight pieces of all ``ways`` ((polyline (P, 2), radius)) as starts (S, 2),
+    ends (S, 2) and the least distance (S,) a spot keeps from each: its way's radius plus
+    ``margin`` (m); a way of one point is a piece of no length."""
+    starts, ends, gaps = [], [], []
+    for way, radius in ways:
+        way = np.asarray(way, dtype=float).reshape(-1, 2)
+        if len(way) == 1:
+            way = np.vstack([way, way])
+        starts.append(way[:-1])
+        ends.append(way[1:])
+        gaps.append(np.full(len(way) - 1, radius + margin))
+    return np.concatenate(starts), np.concatenate(ends), np.concatenate(gaps)
+
+
+def _piece_distances(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance (m) from each of ``points`` (..., 2) to each straight piece from ``a``
+    (S, 2) to ``b`` (S, 2): (..., S)."""
+    ab = b - a
+    length2 = np.maximum((ab * ab).sum(axis=1), 1e-12)
+    rel = points[..., None, :] - a
+    f = np.clip((rel * ab).sum(axis=-1) / length2, 0.0, 1.0)
+    return np.linalg.norm(rel - f[..., None] * ab, axis=-1)
+
+
 def distance_to_polyline(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
     """Distance (m) from each of ``points`` (..., 2) to the polyline (P, 2) (a point if
     P = 1)."""
     polyline = np.asarray(polyline, dtype=float).reshape(-1, 2)
     if len(polyline) == 1:
         return np.linalg.norm(points - polyline[0], axis=-1)
-    a, b = polyline[:-1], polyline[1:]
-    ab = b - a
-    length2 = np.maximum((ab * ab).sum(axis=1), 1e-12)
-    rel = points[..., None, :] - a
-    f = np.clip((rel * ab).sum(axis=-1) / length2, 0.0, 1.0)
-    return np.linalg.norm(rel - f[..., None] * ab, axis=-1).min(axis=-1)
+    return _piece_distances(points, polyline[:-1], polyline[1:]).min(axis=-1)

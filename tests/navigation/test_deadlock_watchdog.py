@@ -319,6 +319,41 @@ def test_no_spot_when_the_only_way_out_is_through_the_blocker():
     assert spot is not None and spot[0] < 12.0
 
 
+def test_a_spot_keeps_clear_of_every_way_and_is_the_nearest_such():
+    # Several ways at once (a polyline, a straight piece, a single point), each with its
+    # own radius: the spot is the one the search reaches first among the points that keep
+    # clear of them all, checked here by brute force over the same grid.
+    costmap = Costmap.from_obstacles(Obstacles(()), (-10.0, 10.0, -10.0, 10.0))
+    xy = np.array([[0.0, 0.0], [3.0, 0.0]])
+    ways = [(np.array([[0.0, -1.0], [0.0, 1.0], [2.0, 1.0]]), 0.3),
+            (np.array([[-2.0, -0.5], [-0.2, -0.5]]), 0.2),
+            (np.array([[0.5, -0.8]]), 0.4)]
+    none = np.zeros((0, 2))
+    spot = back_off_spot(0, xy, np.full(2, RADIUS), ways, none, np.zeros(0), costmap,
+                         3.0, 0.3, 0.5, min_move=0.4)
+    offsets = np.arange(-30, 31) * 0.1
+    grid = [np.array([x, y]) for x in offsets for y in offsets]
+    spots = [p for p in grid if _clear(p, ways, 0.3) and 0.4 <= np.hypot(*p) <= 3.0
+             and np.linalg.norm(p - xy[1]) - 2 * RADIUS >= 0.3]
+    fewest = min(round(abs(p[0]) / 0.1 + abs(p[1]) / 0.1) for p in spots)
+    assert spot is not None and _clear(np.array(spot), ways, 0.3)
+    assert round(abs(spot[0]) / 0.1 + abs(spot[1]) / 0.1) == fewest
+
+
+def _clear(p, ways, clearance: float) -> bool:
+    """Whether ``p`` keeps ``clearance`` (surface to surface) from every one of ``ways``."""
+    return all(min(_point_to_piece(p, way[i], way[min(i + 1, len(way) - 1)])
+                   for i in range(max(len(way) - 1, 1))) >= RADIUS + radius + clearance
+               for way, radius in ways)
+
+
+def _point_to_piece(p, a, b) -> float:
+    """Distance (m) from ``p`` to the straight piece from ``a`` to ``b``."""
+    ab = b - a
+    t = 0.0 if not ab.any() else float(np.clip((p - a) @ ab / (ab @ ab), 0.0, 1.0))
+    return float(np.linalg.norm(p - a - t * ab))
+
+
 @pytest.mark.parametrize("gap", [0.0, 0.1])
 def test_a_robot_pushed_against_a_wall_still_gets_a_spot(gap):
     # The hotel (rmf_demos), seed 4: robot6, pushed to within 3 mm of a wall's end, stood
