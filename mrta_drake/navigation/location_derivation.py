@@ -45,6 +45,7 @@ from mrta_drake.navigation.lane_derivation import (
 )
 from mrta_drake.scenario.schema import LocationConfig
 from mrta_drake.scenario.typed_yaml import load_typed, read_yaml
+from mrta_drake.world.segment_distances import segment_distances
 
 _CANDIDATE_STEP = 0.1  # m between the centre-line points tried for an access
 _SEARCH_STEP = 0.1  # m between the places along the lanes tried for a queue slot
@@ -352,6 +353,7 @@ def _parking(point: np.ndarray, way_in: np.ndarray, queue: np.ndarray, lanes: La
     nodes = lanes.roadways.nodes
     segments = [(nodes[a], nodes[b]) for a, b in lanes.roadways.edges]
     segments += list(zip(way_in[:-1], way_in[1:], strict=True))
+    starts, ends = np.array(segments, dtype=float).reshape(-1, 2, 2).transpose(1, 0, 2)
     low, high = params.parking_distance
     candidates = []
     for radius in np.arange(low, high + 1e-9, 0.2):
@@ -360,7 +362,7 @@ def _parking(point: np.ndarray, way_in: np.ndarray, queue: np.ndarray, lanes: La
             room = float(clearance(spot[None])[0])
             if (room >= params.wall_safety
                     and segment_clearance(clearance, point, spot, 0.05) >= params.wall_safety
-                    and _distance_to_segments(spot, segments) >= params.aside
+                    and segment_distances(spot, starts, ends).min() >= params.aside
                     and np.linalg.norm(queue - spot, axis=1).min() >= params.aside):
                 candidates.append((-room, radius, angle, spot))
     spots = []
@@ -369,13 +371,3 @@ def _parking(point: np.ndarray, way_in: np.ndarray, queue: np.ndarray, lanes: La
                 np.linalg.norm(spot - other) >= params.aside for other in spots):
             spots.append(spot)
     return spots
-
-
-def _distance_to_segments(xy: np.ndarray, segments) -> float:
-    best = math.inf
-    for a, b in segments:
-        a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-        chord = b - a
-        t = 0.0 if not chord.any() else float(np.clip((xy - a) @ chord / (chord @ chord), 0, 1))
-        best = min(best, float(np.linalg.norm(a + t * chord - xy)))
-    return best

@@ -13,6 +13,7 @@ import numpy as np
 
 from mrta_drake.navigation.costmap import FREE, INSCRIBED, Costmap
 from mrta_drake.payloads import QueueRequest, QueueState
+from mrta_drake.world.segment_distances import distance_to_polyline, segment_distances
 
 SEARCH_STEP = 0.1  # m between the points searched for a back-off spot
 
@@ -240,7 +241,7 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
     if ways:  # the costly test: every way's lanes at once, only where still spots
         still = np.flatnonzero(spot_ok)
         a, b, gap = _way_pieces(ways, radii[k] + clearance)
-        keep = (_piece_distances(points.reshape(-1, 2)[still], a, b) >= gap).all(axis=-1)
+        keep = (segment_distances(points.reshape(-1, 2)[still], a, b) >= gap).all(axis=-1)
         spot_ok = np.zeros(spot_ok.shape, dtype=bool)
         spot_ok.flat[still[keep]] = True
     for missed in np.asarray(avoid, dtype=float).reshape(-1, 2):
@@ -300,22 +301,3 @@ def _way_pieces(ways: list[tuple[np.ndarray, float]], margin: float
         ends.append(way[1:])
         gaps.append(np.full(len(way) - 1, radius + margin))
     return np.concatenate(starts), np.concatenate(ends), np.concatenate(gaps)
-
-
-def _piece_distances(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance (m) from each of ``points`` (..., 2) to each straight piece from ``a``
-    (S, 2) to ``b`` (S, 2): (..., S)."""
-    ab = b - a
-    length2 = np.maximum((ab * ab).sum(axis=1), 1e-12)
-    rel = points[..., None, :] - a
-    f = np.clip((rel * ab).sum(axis=-1) / length2, 0.0, 1.0)
-    return np.linalg.norm(rel - f[..., None] * ab, axis=-1)
-
-
-def distance_to_polyline(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
-    """Distance (m) from each of ``points`` (..., 2) to the polyline (P, 2) (a point if
-    P = 1)."""
-    polyline = np.asarray(polyline, dtype=float).reshape(-1, 2)
-    if len(polyline) == 1:
-        return np.linalg.norm(points - polyline[0], axis=-1)
-    return _piece_distances(points, polyline[:-1], polyline[1:]).min(axis=-1)

@@ -22,7 +22,6 @@ from mrta_drake.navigation.single_file import (
     standing,
     stands_in,
 )
-from mrta_drake.navigation.standstills import distance_to_polyline
 from mrta_drake.payloads import (
     NO_BACK_OFFS,
     NO_DISTURBANCES,
@@ -42,6 +41,7 @@ from mrta_drake.payloads import (
     Visit,
     WaypointTarget,
 )
+from mrta_drake.world.segment_distances import distance_to_polyline
 
 # The phases in which a robot asks the room queues for its stop's room.
 _ASKING_PHASES = (RobotMode.QUEUE, RobotMode.ENTER, RobotMode.SERVE)

@@ -42,7 +42,6 @@ from mrta_drake.control.nominal import NominalParams
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.roadways import Roadways, single_file_lanes
 from mrta_drake.navigation.single_servers import trip_holds
-from mrta_drake.navigation.standstills import distance_to_polyline
 from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig, TasksConfig
 from mrta_drake.scenario.stream_sizing import BATCH_SIZE, LEG_SHARE, StreamSize, size_stream
 from mrta_drake.world.floor_plan import FloorPlan
@@ -55,6 +54,7 @@ from mrta_drake.world.rmf_scenario import (
     imported_navigation,
     imported_world,
 )
+from mrta_drake.world.segment_distances import distance_to_polyline
 
 ROBOT_RADIUS = 0.22  # m, the scenario default (RobotConfig.radius)
 START_GAP = 0.3  # m kept free between two robots' bodies at the start

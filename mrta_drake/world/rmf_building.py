@@ -18,6 +18,7 @@ from types import MappingProxyType
 from mrta_drake.errors import InputError
 from mrta_drake.scenario.typed_yaml import read_yaml
 from mrta_drake.world.rmf_coordinates import CoordinateSystem, level_transforms
+from mrta_drake.world.segment_distances import segment_distances
 
 ParamValue = bool | int | float | str
 PARAM_TYPES = {1: "string", 2: "int", 3: "double", 4: "bool"}
@@ -520,16 +521,11 @@ class _Parser:
 def _on_a_wall(level: Level, point) -> bool:
     """Whether ``point`` (m) lies on one of ``level``'s walls, within
     ``DOOR_ON_WALL_TOLERANCE`` (a wall's end vertices included)."""
-    return any(_distance_to_segment(point, level.point(wall.start), level.point(wall.end))
-               <= DOOR_ON_WALL_TOLERANCE for wall in level.walls)
-
-
-def _distance_to_segment(p, a, b) -> float:
-    dx, dy = b[0] - a[0], b[1] - a[1]
-    length2 = dx * dx + dy * dy
-    t = 0.0 if length2 == 0 else max(0.0, min(1.0, ((p[0] - a[0]) * dx + (p[1] - a[1]) * dy)
-                                               / length2))
-    return math.hypot(p[0] - a[0] - t * dx, p[1] - a[1] - t * dy)
+    if not level.walls:
+        return False
+    starts = [level.point(wall.start) for wall in level.walls]
+    ends = [level.point(wall.end) for wall in level.walls]
+    return bool(segment_distances(point, starts, ends).min() <= DOOR_ON_WALL_TOLERANCE)
 
 
 def _moved(level: Level, transform) -> Level:

@@ -57,6 +57,7 @@ from mrta_drake.navigation.lane_derivation import (
 from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig
 from mrta_drake.world.floor_plan import FloorPlan
 from mrta_drake.world.rmf_building import Building, Level, Vertex
+from mrta_drake.world.segment_distances import segment_distances
 
 NOT_TASK_FLAGS = ("is_charger", "is_passthrough_point")
 
@@ -440,7 +441,7 @@ def _beside(vertex: np.ndarray, aside: "_Aside", floor_plan: FloorPlan,
                                 np.outer(radii, np.sin(angles))], axis=-1)).reshape(-1, 2)
     sd = floor_plan.obstacles.signed_distance
     # Lanes farther than serve_reach + slot_lane_gap from the vertex clear every spot.
-    near = _lane_distances(vertex[None], aside.lanes)[0] <= (
+    near = segment_distances(vertex, aside.lanes[:, 0], aside.lanes[:, 1]) <= (
         params.serve_reach + params.slot_lane_gap)
     ok = sd(spots) >= params.slot_clearance
     if near.any():
@@ -674,12 +675,4 @@ def _spaced(spots: np.ndarray, taken: list, spacing: float) -> np.ndarray:
 
 def _off_lanes(points: np.ndarray, lanes: np.ndarray) -> np.ndarray:
     """Each of ``points`` (k, 2)'s distance to the nearest of ``lanes`` (m, 2, 2), m."""
-    return _lane_distances(points, lanes).min(axis=1)
-
-
-def _lane_distances(points: np.ndarray, lanes: np.ndarray) -> np.ndarray:
-    """The distances (k, m) from each of ``points`` (k, 2) to each of ``lanes`` (m, 2, 2), m."""
-    a, d = lanes[:, 0], lanes[:, 1] - lanes[:, 0]
-    rel = points[:, None, :] - a[None]
-    t = np.clip((rel * d).sum(axis=2) / np.maximum((d * d).sum(axis=1), 1e-18), 0.0, 1.0)
-    return np.linalg.norm(rel - t[..., None] * d, axis=2)
+    return segment_distances(points, lanes[:, 0], lanes[:, 1]).min(axis=1)

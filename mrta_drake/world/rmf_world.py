@@ -28,6 +28,7 @@ from mrta_drake.world.floor_plan import FloorPlan
 from mrta_drake.world.obstacles import Box, Cylinder, Obstacles
 from mrta_drake.world.rmf_building import Building, Level, Lift, Model
 from mrta_drake.world.rmf_footprints import footprint
+from mrta_drake.world.segment_distances import segment_distances
 
 _ON_WALL = 0.05  # m: a door end this near a wall's centre line lies on it
 
@@ -195,29 +196,19 @@ def _nearest_lane(shape, segments: np.ndarray) -> float:
     if not len(segments):
         return math.inf
     if isinstance(shape, Cylinder):
-        return float(_segment_distances(np.array([shape.center]), segments).min()
+        return float(segment_distances(shape.center, segments[:, 0], segments[:, 1]).min()
                      - shape.radius)
     c, s = math.cos(shape.yaw), math.sin(shape.yaw)
     hx, hy = 0.5 * shape.size[0], 0.5 * shape.size[1]
     local = np.array([[hx, hy], [-hx, hy], [-hx, -hy], [hx, -hy]])
     corners = shape.center + local @ np.array([[c, s], [-s, c]])
-    from_corners = _segment_distances(corners, segments).min()
+    from_corners = segment_distances(corners, segments[:, 0], segments[:, 1]).min()
     ends = segments.reshape(-1, 2)
     from_ends = Obstacles((shape,)).signed_distance(ends).min()
     edges = np.stack([corners, np.roll(corners, -1, axis=0)], axis=1)
     if from_ends <= 0 or _any_crossing(edges, segments):
         return 0.0
     return float(min(from_corners, from_ends))
-
-
-def _segment_distances(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
-    """(k, n) distances (m) from each of ``points`` (k, 2) to each of ``segments``
-    (n, 2, 2)."""
-    a, d = segments[:, 0], segments[:, 1] - segments[:, 0]
-    length2 = np.maximum((d * d).sum(axis=1), 1e-18)
-    rel = points[:, None, :] - a[None]
-    t = np.clip((rel * d[None]).sum(axis=2) / length2, 0.0, 1.0)
-    return np.linalg.norm(rel - t[..., None] * d[None], axis=2)
 
 
 def _any_crossing(first: np.ndarray, second: np.ndarray) -> bool:

@@ -22,7 +22,6 @@ from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.room_queues import RoomQueues
 from mrta_drake.navigation.single_file import Need, SingleFileParams, stop_segments
 from mrta_drake.navigation.standstills import (
-    distance_to_polyline,
     gridlocks,
     wait_cycles,
     waits_for,
@@ -47,6 +46,7 @@ from mrta_drake.payloads import (
 from mrta_drake.results.deadlocks import stalled_waits
 from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig
 from mrta_drake.world.obstacles import Box, Obstacles
+from mrta_drake.world.segment_distances import distance_to_polyline
 from tests.navigation.test_waypoint_generator import (
     B,
     FakeRobots,
