@@ -35,7 +35,9 @@ def format_summary(summary: dict) -> str:
         f"scenario   {summary['scenario']}",
         f"           hash {summary['scenario_hash']}, seed {summary['seed']}, "
         f"drake {summary['versions'].get('drake')}",
-        f"simulated  {summary['duration']:.1f} s in {summary['wall_time']:.2f} s wall "
+        f"simulated  {summary['duration']:.1f} s"
+        + (" (interrupted)" if summary.get("interrupted") else "")
+        + f" in {summary['wall_time']:.2f} s wall "
         f"(real-time factor {_number(summary['real_time_factor'], '.1f')})",
         f"tasks      {tasks['total']} total, {tasks['released']} released, "
         f"{tasks['completed']} completed: {tasks['on_time']} on time, {tasks['late']} late; "

@@ -4,7 +4,9 @@
 clearances), times in s of simulation time unless named ``wall``/``cpu``. The keys:
 
 - ``scenario``, ``scenario_hash``, ``seed``, ``versions``, ``duration`` (simulated),
-  ``wall_time``, ``cpu_time``, ``real_time_factor`` (simulated / wall).
+  ``wall_time``, ``cpu_time``, ``real_time_factor`` (simulated / wall); ``interrupted``
+  (added by ``stack.simulate``): True when the run was stopped (Ctrl-C, SIGTERM) before
+  the duration asked for, which ``duration`` then is not: it is the simulated time reached.
 - ``tasks``: ``timing.task_totals`` plus ``per_task``: ``timing.task_rows``.
 - ``legs``: ``timing.leg_rows``, predicted against actual duration of every completed stop.
 - ``predictions``: how well the allocator's predictions held (``predictions.predictions``):

@@ -186,18 +186,20 @@ def check_scenario(scenario: Scenario, file: str) -> None:
     if scenario.tasks.stream and ids != set(range(len(ids))):
         raise InputError(path, "locations", f"ids must be 0..{len(ids) - 1} when there are "
                          f"tasks (they index the travel-time matrix), got {sorted(ids)}")
-    if not scenario.tasks.estimate_speed > 0:
+    if not 0 < scenario.tasks.estimate_speed < math.inf:
         raise InputError(path, "tasks.estimate_speed",
-                         f"must be > 0 m/s, got {scenario.tasks.estimate_speed}")
-    if scenario.tasks.service_time < 0:
-        raise InputError(path, "tasks.service_time", f"must be >= 0, got "
+                         f"must be a finite number > 0 m/s, got {scenario.tasks.estimate_speed}")
+    if not 0 <= scenario.tasks.service_time < math.inf:
+        raise InputError(path, "tasks.service_time", f"must be a finite number >= 0 s, got "
                          f"{scenario.tasks.service_time}")
     for rate in dataclasses.fields(scenario.rates):
         value = getattr(scenario.rates, rate.name)
-        if not value > 0:
-            raise InputError(path, f"rates.{rate.name}", f"must be > 0 Hz, got {value}")
-    if not scenario.duration > 0:
-        raise InputError(path, "duration", f"must be > 0 s, got {scenario.duration}")
+        if not 0 < value < math.inf:
+            raise InputError(path, f"rates.{rate.name}",
+                             f"must be a finite number > 0 Hz, got {value}")
+    if not 0 < scenario.duration < math.inf:
+        raise InputError(path, "duration",
+                         f"must be a finite number > 0 s, got {scenario.duration}")
     if scenario.world.kind not in ("floor_plan", "ros_map", "rmf_building"):
         raise InputError(path, "world.kind", f"must be floor_plan, ros_map or rmf_building, "
                          f"got {scenario.world.kind!r}")

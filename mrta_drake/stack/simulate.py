@@ -14,6 +14,7 @@ from mrta_drake.results.summary import summarize
 from mrta_drake.scenario.schema import Scenario
 from mrta_drake.stack.diagram import Stack, build_diagram
 
+SLICE = 10.0  # s of simulated time at most between two checks for a stop request
 
 @dataclass(frozen=True, eq=False)
 class SimulationResult:
@@ -34,11 +35,15 @@ def simulate(scenario: Scenario, *, duration: float | None = None,
              meshcat: Meshcat | None = None, record_html: str | None = None,
              out_dir: str | None = None, progress: bool = False,
              realtime_rate: float = 0.0, plots: bool = True,
-             before_run: Callable[[], None] | None = None) -> SimulationResult:
+             before_run: Callable[[], None] | None = None,
+             stop_requested: Callable[[], bool] | None = None) -> SimulationResult:
     """Run ``scenario`` for ``duration`` s (default: the scenario's), headless unless a
     ``meshcat`` is given. ``record_html`` writes a self-contained replay page;
     ``out_dir`` receives timeline.csv and events.jsonl as the run goes and summary.json
-    (and, with ``plots``, the PNG plots of ``mrta_drake.results.plots``) at the end; ``progress``
+    (and, with ``plots``, the PNG plots of ``mrta_drake.results.plots``) at the end, also
+    when the run stops early: ``stop_requested()`` true (asked between slices of at most
+    ``SLICE`` s; the CLI's answer to Ctrl-C and SIGTERM), or a ``KeyboardInterrupt``. The
+    results then cover the simulated time reached (summary ``interrupted``); ``progress``
     shows a progress bar; ``realtime_rate`` > 0 paces the run. ``before_run`` is called once
     the diagram is built, before the simulator initializes (the CLI finishes compiling the
     kernels there: ``kernel_cache.Compilation``)."""
@@ -55,16 +60,24 @@ def simulate(scenario: Scenario, *, duration: float | None = None,
     start_cpu, start_wall = time.process_time(), time.perf_counter()
     simulator.Initialize()
     bar = _progress_bar(duration) if progress else None
+    interrupted = False
     try:
-        # Advance in slices so the progress bar moves; results do not depend on the slicing.
-        step = max(1.0, duration / 200.0)
+        # Advance in slices so the progress bar moves and a stop is heard; results do not
+        # depend on the slicing.
+        step = min(max(1.0, duration / 200.0), SLICE)
         t = 0.0
         while t < duration:
+            if stop_requested is not None and stop_requested():
+                interrupted = True
+                break
             t = min(duration, t + step)
             simulator.AdvanceTo(t)
             if bar is not None:
                 bar.update(t - bar.n)
-        stack.diagram.ForcedPublish(simulator.get_context())
+        if not interrupted:
+            stack.diagram.ForcedPublish(simulator.get_context())
+    except KeyboardInterrupt:  # a long run never loses its results: keep what ran
+        interrupted = True
     finally:
         if bar is not None:
             bar.close()
@@ -78,7 +91,9 @@ def simulate(scenario: Scenario, *, duration: float | None = None,
         with open(record_html, "w") as f:
             f.write(meshcat.StaticHtml())
     times, states, humans = stack.recorder.arrays()
-    summary = summarize(stack, duration, wall, cpu)
+    if interrupted:  # up to the last sample recorded
+        duration = float(times[-1]) if len(times) else 0.0
+    summary = summarize(stack, duration, wall, cpu) | {"interrupted": interrupted}
     if out_dir:
         os.makedirs(out_dir, exist_ok=True)
         with open(os.path.join(out_dir, "summary.json"), "w") as f:

@@ -2,6 +2,8 @@
 
 import argparse
 import gc
+import math
+import signal
 import sys
 
 from mrta_drake.errors import InputError
@@ -12,8 +14,8 @@ def _positive(text: str) -> float:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
+    if not 0 < value < math.inf:
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
     return value
 
 
@@ -120,15 +122,44 @@ def main(argv=None) -> int:
             gc.freeze()
 
 
+class _StopRequests:
+    """SIGINT (Ctrl-C) and SIGTERM (a batch system's or ``timeout``'s stop) once a run
+    goes (``listen``): the first asks it to stop after its current slice, writing its results
+    so far (``simulate``'s ``stop_requested``); a second one interrupts it at once."""
+
+    def __init__(self):
+        self.requested = False
+        self._previous = {}
+
+    def listen(self) -> None:
+        for number in (signal.SIGINT, signal.SIGTERM):
+            try:
+                self._previous[number] = signal.signal(number, self._handle)
+            except ValueError:  # off the main thread, where no handler can be set
+                return
+
+    def restore(self) -> None:
+        for number, handler in self._previous.items():
+            signal.signal(number, handler)
+        self._previous.clear()
+
+    def _handle(self, number, frame) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+
 def _run(args) -> int:
     # Start-up (imports, loading, building) makes little cyclic garbage, and what it builds
     # lives as long as the run: collecting meanwhile only walks the growing heap again and
     # again (``_before_run`` turns collecting back on).
     gc.disable()
     compiling = _start_compiling()  # first: a second process may start compiling at once
+    stops = _StopRequests()
     try:
-        return _run_scenario(args, compiling)
+        return _run_scenario(args, compiling, stops)
     finally:
+        stops.restore()
         compiling.cancel()  # when the run failed before it was done
         gc.unfreeze()  # collectable again by a caller that goes on (tests, a benchmark)
         gc.enable()
@@ -143,7 +174,7 @@ def _before_run(compiling) -> None:
     gc.enable()
 
 
-def _run_scenario(args, compiling) -> int:
+def _run_scenario(args, compiling, stops: _StopRequests) -> int:
     from mrta_drake.results.report import format_summary
     from mrta_drake.scenario.loading import load_scenario
     from mrta_drake.stack.simulate import simulate
@@ -165,13 +196,14 @@ def _run_scenario(args, compiling) -> int:
                       record_html=args.record, out_dir=args.out,
                       progress=not args.quiet and sys.stderr.isatty(), realtime_rate=realtime,
                       plots=args.plots,
-                      before_run=lambda: _before_run(compiling))
+                      before_run=lambda: (_before_run(compiling), stops.listen()),
+                      stop_requested=lambda: stops.requested)
     print(format_summary(result.summary))
     if args.record:
         print(f"replay written to {args.record}")
     if args.out:
         print(f"results written to {args.out}")
-    return 0
+    return 130 if result.summary["interrupted"] else 0
 
 
 def _start_compiling():

@@ -30,14 +30,15 @@ row and the sweep goes on.
 ``run_sweep`` runs every combination once: each in a fresh local process
 (``ProcessPoolExecutor``), or as a task on a Ray cluster (the ``distributed`` extra; the
 cluster's workers need mrta-drake installed). A run writes its files (timeline, events,
-``summary.json``) to ``OUT/runs/<run_id>/``; a run whose ``summary.json`` exists is not run
-again, its row is rebuilt from the file, so a sweep stopped half way, or one given more grid
-values, resumes. Run names come from the grid values only: after changing ``fixed`` or the
-base scenario, use a new ``OUT``. The results table, one row per run, goes to
-``OUT/results.csv`` (and ``OUT/results.parquet`` when pyarrow is installed): the run's grid
-values, ``status`` (ok or error), the summary's task figures (``tasks_*``), smallest
-clearances (``min_*``, m) and contact counts, the deadlock count, planner and controller
-failures, real-time factor, wall time (s) and the error message.
+``summary.json``) to ``OUT/runs/<run_id>/``; a run whose ``summary.json`` exists, and does
+not say it was interrupted, is not run again, its row is rebuilt from the file, so a sweep
+stopped half way, or one given more grid values, resumes. Run names come from the grid
+values only: after changing ``fixed`` or the base scenario, use a new ``OUT``. The results
+table, one row per run, goes to ``OUT/results.csv`` (and ``OUT/results.parquet`` when
+pyarrow is installed): the run's grid values, ``status`` (ok or error), the summary's task
+figures (``tasks_*``), smallest clearances (``min_*``, m) and contact counts, the deadlock
+count, planner and controller failures, real-time factor, wall time (s) and the error
+message.
 """
 
 import csv
@@ -179,10 +180,13 @@ def run_sweep(spec: SweepSpec, out_dir: str, *, workers: int | None = None,
     todo = []
     for run in runs:
         summary_file = os.path.join(out_dir, "runs", run.run_id, "summary.json")
+        summary = None
         if os.path.isfile(summary_file):
             with open(summary_file, encoding="utf-8") as f:
-                rows[run.run_id] = _row(run, json.load(f), None)
-        else:
+                summary = json.load(f)
+        if summary is not None and not summary.get("interrupted"):
+            rows[run.run_id] = _row(run, summary, None)
+        else:  # not run yet, or stopped part way (Ctrl-C): run again
             todo.append(run)
     reused = len(rows)
     if ray_address:
@@ -223,6 +227,8 @@ def run_one(scenario_path: str, run: SweepRun, run_dir: str, plots: bool = False
             f.write(traceback.format_exc())
         lines = str(error).strip().splitlines()
         return None, f"{type(error).__name__}: {lines[0] if lines else ''}"
+    if result.summary["interrupted"]:  # Ctrl-C stopped it part way: so ends the sweep
+        raise KeyboardInterrupt
     return result.summary, None
 
 

@@ -268,7 +268,7 @@ class _Parser:
         return MappingProxyType(result)
 
     def param(self, code, value, where) -> ParamValue:
-        if isinstance(code, bool) or code not in PARAM_TYPES:
+        if not isinstance(code, int) or isinstance(code, bool) or code not in PARAM_TYPES:
             known = ", ".join(f"{k} {name}" for k, name in PARAM_TYPES.items())
             self.fail(where, f"unknown parameter type {_short(code)} (known: {known})")
         kind = PARAM_TYPES[code]

@@ -1,8 +1,12 @@
 """End to end: the hospital scenario runs, is reproducible, and its replay page renders."""
 
+import json
 import pathlib
 import shutil
+import signal
 import subprocess
+import sys
+import time
 
 import numpy as np
 import pytest
@@ -37,6 +41,30 @@ def test_cli_run_prints_summary_and_writes_results(tmp_path, capsys):
     rows = (out / "timeline.csv").read_text().splitlines()
     assert rows[0] == "time,robot,x,y,theta,v"
     assert len(rows) == 1 + 6 * 51
+
+
+@pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGINT])
+def test_a_run_stopped_by_a_signal_writes_its_results_so_far(tmp_path, stop):
+    # A batch system's stop (SIGTERM) or Ctrl-C (SIGINT) ends the run after its current
+    # slice: the summary covers the simulated time reached and says it was interrupted; the
+    # exit code is 130.
+    out = tmp_path / "run"
+    run = subprocess.Popen([sys.executable, "-m", "mrta_drake.tools.cli", "run", str(ROUTES),
+                            "--duration", "1e6", "--out", str(out), "--no-plots", "--quiet"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    timeline = out / "timeline.csv"
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline and run.poll() is None and (
+            not timeline.is_file() or timeline.stat().st_size < 20_000):
+        time.sleep(0.5)
+    assert run.poll() is None, run.communicate()
+    run.send_signal(stop)
+    printed, err = run.communicate(timeout=120)
+    assert run.returncode == 130, err
+    summary = json.loads((out / "summary.json").read_text())
+    last = float(timeline.read_text().splitlines()[-1].split(",")[0])
+    assert summary["interrupted"] and 0 < summary["duration"] == pytest.approx(last)
+    assert "(interrupted)" in printed and "Traceback" not in err
 
 
 def _chromium():

@@ -2,6 +2,7 @@
 runs and records a failing run as an error row; bad specs name the spec file and field."""
 
 import csv
+import json
 import pathlib
 import sys
 
@@ -63,13 +64,19 @@ def test_tiny_sweep_runs_every_combination_and_writes_the_table(first_sweep, cap
 def test_sweep_resumes_and_records_a_failing_run_as_an_error_row(first_sweep, capsys):
     folder, out, _ = first_sweep
     summaries = sorted((out / "runs").glob("*/summary.json"))
+    # A run stopped part way (Ctrl-C) wrote a summary saying so: it is run again.
+    stopped, *summaries = summaries
+    summary = json.loads(stopped.read_text())
+    stopped.write_text(json.dumps(summary | {"interrupted": True, "duration": 2.0}))
     stamps = [p.stat().st_mtime_ns for p in summaries]
     spec = write_spec(folder / "more.yaml", "[cluster_cbf, go_to_goal, no_such_controller]")
     capsys.readouterr()
     assert main(["sweep", spec, "--out", str(out), "--workers", "2", "--quiet"]) == 0
     printed = capsys.readouterr().out
-    assert "6 runs (2 run now, 4 reused, 2 failed)" in printed
+    assert "6 runs (3 run now, 3 reused, 2 failed)" in printed
     assert [p.stat().st_mtime_ns for p in summaries] == stamps  # not redone
+    redone = json.loads(stopped.read_text())
+    assert not redone["interrupted"] and redone["duration"] == 5.0
     rows = read_table(out)
     assert len(rows) == 6
     failed = [r for r in rows if r["status"] == "error"]
