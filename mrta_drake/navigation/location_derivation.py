@@ -72,8 +72,6 @@ def load_points(path) -> list[NamedPoint]:
     """The named points of YAML file ``path``; bad content raises ``InputError``."""
     path = str(path)
     points = load_typed(read_yaml(path, "points file"), NamedPoints, path).points
-    if not points:
-        raise InputError(path, "points", "at least one point is required")
     names = set()
     for i, point in enumerate(points):
         if not point.name:
@@ -84,6 +82,9 @@ def load_points(path) -> list[NamedPoint]:
         if len(point.point) != 2 or not all(math.isfinite(v) for v in point.point):
             raise InputError(path, f"points[{i}].point",
                              f"expected [x, y] in metres, got {point.point}")
+    if len(points) < 2:
+        raise InputError(path, "points", f"at least two points are required (the roadways "
+                         f"join them), got {len(points)}")
     return points
 
 

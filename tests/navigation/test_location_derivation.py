@@ -40,7 +40,10 @@ def test_points_file(tmp_path):
 
 
 @pytest.mark.parametrize("text, field, message", [
-    ("points: []", "points", "at least one point is required"),
+    ("points: []", "points", "at least two points are required (the roadways join them), "
+     "got 0"),
+    ("points: [{name: a, point: [1.0, 1.0]}]", "points", "at least two points are required "
+     "(the roadways join them), got 1"),
     ("points:\n  - {point: [0, 0]}", "points[0].name", "is required"),
     ("points:\n  - {name: a, point: [0, 0]}\n  - {name: a, point: [1, 0]}", "points[1].name",
      "duplicate name 'a'"),
