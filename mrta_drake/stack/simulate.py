@@ -16,6 +16,7 @@ from mrta_drake.stack.diagram import Stack, build_diagram
 
 SLICE = 10.0  # s of simulated time at most between two checks for a stop request
 
+
 @dataclass(frozen=True, eq=False)
 class SimulationResult:
     """What a run produced. ``times`` (T,) s; ``robot_states`` (T, N, 4) [x, y, theta, v];
