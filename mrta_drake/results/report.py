@@ -10,7 +10,9 @@ SUMMARY_FILE = "summary.json"
 
 
 def load_summary(folder: str) -> dict:
-    """The summary of the run whose results ``mrta-sim run --out`` wrote to ``folder``."""
+    """The summary of the run whose results ``mrta-sim run --out`` wrote to ``folder``,
+    checked printable (``format_summary``): one edited by hand, or written by another
+    version, that is not raises ``InputError``."""
     path = os.path.join(folder, SUMMARY_FILE)
     if not os.path.isdir(folder):
         raise InputError(folder, None, "no such folder")
@@ -24,7 +26,22 @@ def load_summary(folder: str) -> dict:
         raise InputError(path, None, f"unreadable: {error}") from None
     if not isinstance(summary, dict) or not {"tasks", "robots", "safety"} <= summary.keys():
         raise InputError(path, None, "not a run summary (tasks, robots, safety missing)")
+    printed(path, format_summary, summary)
     return summary
+
+
+def printed(where: str, format_results, *summaries) -> str:
+    """``format_results(*summaries)``; a field missing or of another type than this
+    version writes raises ``InputError`` naming ``where`` (the file or files)."""
+    try:
+        return format_results(*summaries)
+    except KeyError as error:
+        raise InputError(where, None, f"not a summary this version can print: field "
+                         f"{error.args[0]!r} missing (written by another version, or "
+                         "edited?)") from None
+    except (TypeError, ValueError, IndexError, AttributeError) as error:
+        raise InputError(where, None, f"not a summary this version can print: a field "
+                         f"has another type ({error})") from None
 
 
 def format_summary(summary: dict) -> str:

@@ -270,12 +270,13 @@ def _report(args) -> int:
 def _compare(args) -> int:
     import os
 
-    from mrta_drake.results.report import format_comparison, load_summary
+    from mrta_drake.results.report import format_comparison, load_summary, printed
 
     names = tuple(os.path.basename(os.path.normpath(f)) for f in (args.first, args.second))
     if names[0] == names[1]:
         names = (args.first, args.second)
-    print(format_comparison(load_summary(args.first), load_summary(args.second), names))
+    print(printed(f"{args.first} and {args.second}", format_comparison,
+                  load_summary(args.first), load_summary(args.second), names))
     return 0
 
 

@@ -116,3 +116,36 @@ def test_report_on_a_folder_without_a_summary_is_a_one_line_error(folders, tmp_p
     assert main([part.format(**paths) for part in command]) == 2
     error = capsys.readouterr().err
     assert error.startswith("error: ") and error.count("\n") == 1
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda s: s["robots"]["robot2"].pop("idle_time"), "field 'idle_time' missing"),
+    (lambda s: s["safety"].update(max_cbf_slack=None), "a field has another type"),
+    (lambda s: s["tasks"].update(per_task=[True]), "a field has another type"),
+])
+@pytest.mark.parametrize("command", [["report", "{edited}"], ["compare", "{run}", "{edited}"]])
+def test_a_summary_this_version_cannot_print_is_a_one_line_error(folders, tmp_path, capsys,
+                                                                  change, words, command):
+    # summary.json edited by hand, or written by another version: no traceback.
+    summary = json.loads((folders[0] / "summary.json").read_text())
+    change(summary)
+    edited = tmp_path / "edited"
+    edited.mkdir()
+    (edited / "summary.json").write_text(json.dumps(summary))
+    assert main([part.format(run=folders[0], edited=edited) for part in command]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and error.startswith(f"error: {edited / 'summary.json'}: ")
+    assert "not a summary this version can print" in error and words in error
+
+
+def test_a_comparison_that_cannot_be_made_names_both_runs(folders, tmp_path, capsys):
+    summary = json.loads((folders[0] / "summary.json").read_text())
+    summary["safety"]["robot_wall_contacts"] = {"walls": 1}  # printable, not comparable
+    edited = tmp_path / "edited"
+    edited.mkdir()
+    (edited / "summary.json").write_text(json.dumps(summary))
+    assert main(["report", str(edited)]) == 0
+    capsys.readouterr()
+    assert main(["compare", str(folders[0]), str(edited)]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and error.startswith(f"error: {folders[0]} and {edited}: ")
