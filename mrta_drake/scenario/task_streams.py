@@ -161,12 +161,14 @@ def _check(config: TaskGenerationConfig, end: float, file) -> None:
     if (config.rate > 0) == bool(config.times):
         raise InputError(file, f"{FIELD}.rate", "give either `rate` (batches per s) or "
                          f"`times` (s), got rate {config.rate} and times {config.times}")
-    if config.rate < 0:
-        raise InputError(file, f"{FIELD}.rate", f"must be > 0 batches per s, got {config.rate}")
+    if not 0 <= config.rate < math.inf:
+        raise InputError(file, f"{FIELD}.rate", f"must be a finite number > 0 batches per s, "
+                         f"got {config.rate}")
     for k, t in enumerate(config.times):
-        if t < 0:
-            raise InputError(file, f"{FIELD}.times[{k}]", f"must be >= 0 s, got {t}")
-    if config.start < 0 or (config.rate > 0 and not end > config.start):
+        if not 0 <= t < math.inf:
+            raise InputError(file, f"{FIELD}.times[{k}]", f"must be a finite number >= 0 s, "
+                             f"got {t}")
+    if not 0 <= config.start < math.inf or (config.rate > 0 and not end > config.start):
         raise InputError(file, f"{FIELD}.start", f"need 0 <= start < end, got start "
                          f"{config.start} and end {end}")
     _check_range(config.batch_size, file, "batch_size", minimum=1)
@@ -178,8 +180,8 @@ def _check(config: TaskGenerationConfig, end: float, file) -> None:
 
 def _check_range(values, file, name: str, minimum: float, open_below: bool = False) -> None:
     low_ok = len(values) == 2 and (values[0] > minimum if open_below else values[0] >= minimum)
-    if not low_ok or values[0] > values[1]:
+    if not low_ok or not values[0] <= values[1] < math.inf:
         bound = ">" if open_below else ">="
         raise InputError(file, f"{FIELD}.{name}",
-                         f"expected [min, max] with min {bound} {minimum} and min <= max, "
-                         f"got {values}")
+                         f"expected finite [min, max] with min {bound} {minimum} and min <= "
+                         f"max, got {values}")

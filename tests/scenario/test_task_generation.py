@@ -3,6 +3,7 @@ scenario's ``tasks.generate`` block and the MRTA-Sim JSON writer."""
 
 import dataclasses
 import json
+import math
 import pathlib
 
 import numpy as np
@@ -101,6 +102,11 @@ def test_changing_batch_sizes_keeps_the_arrivals():
     ({"rate": 0.0}, "tasks.generate.rate", "either"),
     ({"batch_size": [3, 1]}, "tasks.generate.batch_size", "[3, 1]"),
     ({"slack": [0.0, 2.0]}, "tasks.generate.slack", "min > 0"),
+    ({"slack": [2.0, math.nan]}, "tasks.generate.slack", "finite [min, max]"),
+    ({"slack": [2.0, math.inf]}, "tasks.generate.slack", "finite [min, max]"),
+    ({"rate": math.inf}, "tasks.generate.rate", "must be a finite number > 0"),
+    ({"rate": 0.0, "times": [1.0, math.nan]}, "tasks.generate.times[1]",
+     "must be a finite number >= 0 s, got nan"),
     ({"pickup_weights": {"kitchen": 1.0}}, "tasks.generate.pickup_weights.kitchen",
      "unknown location 'kitchen'"),
     ({"pickup_weights": {"lab": 1.0}, "dropoff_weights": {"lab": 1.0}},
