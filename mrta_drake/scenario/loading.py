@@ -225,11 +225,12 @@ def _check_robots(robots: list[RobotConfig], file: str) -> None:
         if robot.name in names:
             raise InputError(file, f"{where}.name", f"duplicate robot name {robot.name!r}")
         names.add(robot.name)
-        if len(robot.start) not in (2, 3):
-            raise InputError(file, f"{where}.start", f"expected [x, y] or [x, y, theta], "
-                             f"got {robot.start}")
-        if not robot.radius > 0:
-            raise InputError(file, f"{where}.radius", f"must be > 0 m, got {robot.radius}")
+        if len(robot.start) not in (2, 3) or not all(map(math.isfinite, robot.start)):
+            raise InputError(file, f"{where}.start", f"expected finite [x, y] or [x, y, "
+                             f"theta], got {robot.start}")
+        if not 0 < robot.radius < math.inf:
+            raise InputError(file, f"{where}.radius", f"must be a finite number > 0 m, got "
+                             f"{robot.radius}")
         if robot.capacity < 1:
             raise InputError(file, f"{where}.capacity", f"must be >= 1, got {robot.capacity}")
     for i, a in enumerate(robots):
