@@ -24,6 +24,7 @@ import copy
 import dataclasses
 import math
 import os
+import re
 from collections.abc import Mapping
 
 from mrta_drake.errors import InputError
@@ -59,6 +60,7 @@ def load_scenario(path: str, *, check_world: bool = True,
     base = os.path.dirname(os.path.abspath(path))
     raw = dict(raw)
     robots_file = None
+    sections = {}  # section -> the file it was read from
     if isinstance(raw.get("robots"), str):
         robots_file = _resolve(base, raw["robots"])
         raw["robots"] = read_robot_setup(robots_file)
@@ -69,21 +71,25 @@ def load_scenario(path: str, *, check_world: bool = True,
             if not isinstance(content, dict) or key not in content:
                 raise InputError(section_file, key, f"file has no `{key}:` section")
             raw[key] = content[key]
+            sections[key] = section_file
     raw.pop("source", None)
     raw = with_profile(_with_overrides(raw, overrides or {}, path), path)
-    scenario = load_typed(raw, Scenario, path)
-    scenario = _resolve_files(scenario, base, path)
-    task_file = load_task_file(scenario.tasks.file) if scenario.tasks.file else TaskFile([])
-    scenario = _with_task_file(scenario, task_file)
-    if scenario.world.kind == "rmf_building":
-        from mrta_drake.world.rmf_scenario import with_building_navigation
+    try:
+        scenario = load_typed(raw, Scenario, path)
+        scenario = _resolve_files(scenario, base, path)
+        task_file = load_task_file(scenario.tasks.file) if scenario.tasks.file else TaskFile([])
+        scenario = _with_task_file(scenario, task_file)
+        if scenario.world.kind == "rmf_building":
+            from mrta_drake.world.rmf_scenario import with_building_navigation
 
-        scenario = with_building_navigation(scenario)
-    check_scenario(scenario, robots_file or path)
-    check_agents(task_file, scenario)
-    if scenario.tasks.generate is not None:
-        scenario = add_generated_tasks(scenario)
-        check_scenario(scenario, robots_file or path)  # with the generated tasks
+            scenario = with_building_navigation(scenario)
+        check_scenario(scenario, robots_file or path)
+        check_agents(task_file, scenario)
+        if scenario.tasks.generate is not None:
+            scenario = add_generated_tasks(scenario)
+            check_scenario(scenario, robots_file or path)  # with the generated tasks
+    except InputError as error:
+        raise _in_section_file(error, path, sections) from None
     if check_world:
         from mrta_drake.world.plant import check_robot_starts, load_floor_plan_of
 
@@ -91,6 +97,16 @@ def load_scenario(path: str, *, check_world: bool = True,
         check_robot_starts(scenario, floor_plan)
         check_blockages_inside(scenario.disturbances, floor_plan.bounds, scenario.source)
     return scenario
+
+
+def _in_section_file(error: InputError, path: str, sections: Mapping[str, str]
+                     ) -> InputError:
+    """``error``, about the scenario ``path``, naming the file its section was read from
+    instead where that section is one of ``sections`` (``locations: navigation.yaml``)."""
+    head = re.split(r"[.\[]", error.field or "", maxsplit=1)[0]
+    if head in sections and error.file and os.path.abspath(error.file) == os.path.abspath(path):
+        return InputError(sections[head], error.field, error.message)
+    return error
 
 
 def _with_overrides(raw: dict, overrides: Mapping[str, object], path: str) -> dict:
@@ -210,8 +226,8 @@ def check_scenario(scenario: Scenario, file: str) -> None:
 
 
 def _check_point(point, file, field) -> None:
-    if len(point) != 2:
-        raise InputError(file, field, f"expected [x, y], got {point}")
+    if len(point) != 2 or not all(map(math.isfinite, point)):
+        raise InputError(file, field, f"expected [x, y] in metres, got {point}")
 
 
 def _check_robots(robots: list[RobotConfig], file: str) -> None:
@@ -258,10 +274,9 @@ def _check_locations(locations: list[LocationConfig], roadways: RoadwaysConfig,
         names.add(location.name)
         if location.point:
             _check_point(location.point, file, f"{where}.point")
-        for k, slot in enumerate(location.queue):
-            _check_point(slot, file, f"{where}.queue[{k}]")
-        for k, point in enumerate(location.entry):
-            _check_point(point, file, f"{where}.entry[{k}]")
+        for key in ("queue", "entry", "parking", "overflow"):
+            for k, point in enumerate(getattr(location, key)):
+                _check_point(point, file, f"{where}.{key}[{k}]")
         for key in ("exit_node", "approach_node"):
             node = getattr(location, key)
             if node and node not in roadways.nodes:

@@ -98,6 +98,27 @@ def test_robot_setup_in_our_format_names_its_own_file(tmp_path):
     assert str(error.value) == f"{robots}: robots[0].radius: expected a number, got 'big'"
 
 
+@pytest.mark.parametrize("navigation, field, words", [
+    ("locations:\n  - {id: 0, point: [.nan, 1.0]}\n", "locations[0].point",
+     "expected [x, y] in metres, got [nan, 1.0]"),
+    ("locations:\n  - {id: 0, point: here}\n", "locations[0].point", "expected a list"),
+    ("roadways:\n  nodes: {a: [0.0, 1.0]}\n  edges: [[a, b]]\n", "roadways.edges[0]",
+     "unknown node 'b'"),
+])
+def test_a_section_in_its_own_file_names_that_file(tmp_path, navigation, field, words):
+    # `locations: navigation.yaml` (as `mrta-sim import` writes): a bad value in that file
+    # names that file, not the scenario that reads it.
+    section = "locations" if navigation.startswith("locations") else "roadways"
+    (tmp_path / "navigation.yaml").write_text(navigation)
+    scenario_file = tmp_path / "s.yaml"
+    scenario_file.write_text(f"world: {{floor_plan: {ROOT / 'models/hospital/floor_plan.yaml'}}}\n"
+                             "robots:\n  - {name: robot1, start: [0.0, 2.2]}\n"
+                             f"{section}: navigation.yaml\n")
+    with pytest.raises(InputError) as error:
+        load_scenario(scenario_file, check_world=False)
+    assert str(error.value).startswith(f"{tmp_path / 'navigation.yaml'}: {field}: {words}")
+
+
 def test_original_task_stream_json_and_our_stream_agree(tmp_path):
     legacy = tmp_path / "legacy.json"
     legacy.write_text('{"tasks_stream": [{"arrival": 40, "tasks": [{"start": 3, "end": 0, '
