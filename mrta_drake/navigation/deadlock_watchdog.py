@@ -631,12 +631,13 @@ class DeadlockWatchdog(LeafSystem):
         standing in its way, target inactive, with the corridor's end behind it."""
         fixed = scene.fixed
         in_way = self._waiters_in_way(group, scene.waits, scene.states, scene.targets)
-        for robot in sorted(group, key=self._priority_key):
+
+        def giving_way(robot):
             giving = [other for other in group if other in scene.waits.get(robot, ())
                       and robot in in_way.get(other, ())]
-            if (not giving or not fixed.isdisjoint(giving)
-                    or not self._boxed_in(scene.context, robot, scene.states)):
-                continue
+            return giving if fixed.isdisjoint(giving) else []
+
+        for robot, giving in self._boxed_in_among(scene, group, giving_way):
             given = self._orders(scene, giving, group, robot, stalled_since)
             if given:
                 ahead = _before_in_line(scene.queues.segment_waiting, robot, scene.asks) - set(
@@ -658,15 +659,16 @@ class DeadlockWatchdog(LeafSystem):
         beside it, no spot for it."""
         fixed = scene.fixed
         xy = scene.states[:, :2]
-        for robot in sorted(group, key=self._priority_key):
+
+        def standing_near(robot):
+            if robot in fixed or not any(robot in scene.waits.get(other, ()) for other in group):
+                return []
             k = self._robots.index(robot)
-            waited = any(robot in scene.waits.get(other, ()) for other in group)
-            near = [other for other in group if other != robot and other not in fixed
+            return [other for other in group if other != robot and other not in fixed
                     and self._gap(xy, k, self._robots.index(other))
                     < self._params.back_off_distance]
-            if (not waited or robot in fixed or not near  # the spot search last: it costs
-                    or not self._boxed_in(scene.context, robot, scene.states)):
-                continue
+
+        for robot, near in self._boxed_in_among(scene, group, standing_near):
             given = (self._orders(scene, near, group, robot, stalled_since)
                      or self._orders(scene, near, group, robot, stalled_since, off_ways=False))
             if given:
@@ -700,6 +702,15 @@ class DeadlockWatchdog(LeafSystem):
                             self._params.spot_clearance)
             blocks[robot] = {self._robots[j] for j in near if ahead[j]}
         return blocks
+
+    def _boxed_in_among(self, scene: _Waits, group, movers):
+        """Each robot of ``group`` (by priority, highest first) with robots to move for it,
+        ``movers(robot)`` (names; empty: none), that is boxed in (``_boxed_in``, tested last:
+        it costs), with those robots."""
+        for robot in sorted(group, key=self._priority_key):
+            moving = movers(robot)
+            if moving and self._boxed_in(scene.context, robot, scene.states):
+                yield robot, moving
 
     def _boxed_in(self, context, robot: str, states) -> bool:
         """Whether ``robot`` has no spot to back off to (``standstills.back_off_spot``
