@@ -22,6 +22,7 @@ import numpy as np
 from mrta_drake.errors import InputError
 from mrta_drake.payloads import frozen_array
 from mrta_drake.scenario.schema import LiftEdgeConfig, LocationConfig, RoadwaysConfig
+from mrta_drake.world.segment_distances import segment_distances
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,9 +100,7 @@ def single_file_lanes(graph: nx.DiGraph, segment: Sequence[str]) -> list[tuple[s
 def _on_segment(p, a, b, tolerance: float = 1e-3) -> bool:
     """Whether point ``p`` lies on the segment from ``a`` to ``b`` (within ``tolerance``,
     m)."""
-    d = np.subtract(b, a)
-    t = float(np.clip(np.dot(np.subtract(p, a), d) / max(float(d @ d), 1e-18), 0.0, 1.0))
-    return float(np.linalg.norm(np.subtract(p, a) - t * d)) <= tolerance
+    return float(segment_distances(p, a, b)[0]) <= tolerance
 
 
 def _shortest(graph, source: str, target: str) -> list[str] | None:
@@ -322,10 +321,8 @@ class Roadways:
                 for a, b, lift in self.graph.edges(data="lift") if not lift]
         if not ends:
             return math.inf
-        a, b = (np.array(side, dtype=float) for side in zip(*ends, strict=True))
-        ab, rel = b - a, np.asarray(xy, dtype=float) - a
-        t = np.clip((rel * ab).sum(axis=1) / np.maximum((ab * ab).sum(axis=1), 1e-18), 0, 1)
-        return float(np.linalg.norm(rel - t[:, None] * ab, axis=1).min())
+        starts, stops = zip(*ends, strict=True)
+        return float(segment_distances(xy, starts, stops).min())
 
     def route_length(self, points) -> float:
         """Length (m) of the route ``points`` (k, 2), a lift ride counted as its edge's
