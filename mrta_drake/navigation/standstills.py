@@ -11,10 +11,11 @@ from dataclasses import dataclass
 import networkx as nx
 import numpy as np
 
-from mrta_drake.navigation.costmap import FREE, INSCRIBED, Costmap
+from mrta_drake.navigation.costmap import FREE, INSCRIBED, Costmap, inflation_cost
 from mrta_drake.payloads import QueueRequest, QueueState
 from mrta_drake.world.segment_distances import distance_to_polyline, segment_distances
 
+PASS_WALL_GAP = 0.08  # m, surface to wall, kept by a robot driving to a back-off spot
 SEARCH_STEP = 0.1  # m between the points searched for a back-off spot
 
 
@@ -188,11 +189,13 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
                   ) -> tuple[float, float] | None:
     """The nearest spot to which robot ``k`` at ``xy[k]`` can drive out of the others' way,
     or None: searched on a grid of ``SEARCH_STEP`` within ``reach`` of it, moving between
-    neighbouring points (4-connected) where its centre may be: on the costmap's ``FREE``
-    cells (beyond its inflation radius from walls, where the controller keeps a robot
-    anyway), or, within the inflation radius of where it stands, on cells no costlier
-    than that (never lethal: it gets out of a door, or off a wall it was pushed to), no
-    nearer another robot than ``clearance`` (surface to surface), except within
+    neighbouring points (4-connected) where its centre may be: on cells at least the
+    costmap's robot radius plus ``PASS_WALL_GAP`` from walls (the controller's contact
+    guard, ``SafetyDistances.wall_contact``, keeps about that: robots drive corridors
+    narrower than twice the inflation radius, as the office's between furniture, which
+    have no ``FREE`` cell), or, within the inflation radius of where it stands, on cells
+    no costlier than that (never lethal: it gets out of a door, or off a wall it was
+    pushed to), no nearer another robot than ``clearance`` (surface to surface), except within
     ``clearance`` of where it stands, and there no nearer than it is now. A spot is such a
     point at least ``wall_clearance`` from walls (the free points eroded by the grid steps
     beyond the inflation radius), at least ``clearance`` (surface to surface) from every
@@ -229,7 +232,11 @@ def back_off_spot(k: int, xy: np.ndarray, radii: np.ndarray,
     leaving = ((cost <= min(int(costmap.cost_at(xy[k:k + 1])[0]), INSCRIBED))
                & (moved <= costmap.params.inflation_radius))
     squeezed = robot_gaps < clearance
-    passable = ((free | leaving) & (moved <= reach)
+    cp = costmap.params  # the cells beyond robot radius + PASS_WALL_GAP from walls:
+    drivable = cost <= inflation_cost(cp.robot_radius + PASS_WALL_GAP, cp.robot_radius,
+                                      cp.inflation_radius, cp.cost_scaling,
+                                      costmap.resolution)
+    passable = ((drivable | leaving) & (moved <= reach)
                 & (~squeezed | ((robot_gaps >= start_gaps - 1e-9)
                                 & (moved[..., None] <= clearance))).all(axis=-1))
     with np.errstate(invalid="ignore"):  # people absent from the run are NaN

@@ -354,6 +354,32 @@ def _point_to_piece(p, a, b) -> float:
     return float(np.linalg.norm(p - a - t * ab))
 
 
+def test_a_robot_in_a_corridor_narrower_than_the_inflation_finds_a_spot_beyond_it():
+    # The office (rmf_demos), seeds 58, 68, 76, 85 and 86: a corridor 1.0-1.2 m wide
+    # between furniture has no cell beyond the inflation radius from both sides, so a
+    # search on such cells only never left a robot standing in it: no order, 30-90 s of
+    # standstill. Robots drive such corridors; the search crosses them (cells where a
+    # robot keeps PASS_WALL_GAP from walls), to a spot in the room at the corridor's west
+    # end.
+    half, t = 0.45, 0.2
+    obstacles = Obstacles((
+        Box("corridor_south", (4.0, -half - t / 2), (8.0, t)),
+        Box("corridor_north", (4.0, half + t / 2), (8.0, t)),
+        Box("corridor_end", (8.0 + t / 2, 0.0), (t, 2 * half)),
+        Box("room_south", (-2.0, -2.0 - t / 2), (4.0, t)),
+        Box("room_north", (-2.0, 2.0 + t / 2), (4.0, t)),
+        Box("room_west", (-4.0 - t / 2, 0.0), (t, 4.0 + 2 * t)),
+    ))
+    costmap = Costmap.from_obstacles(obstacles, (-5.0, 9.0, -3.0, 3.0))
+    xy = np.array([[3.0, 0.0], [3.8, 0.0]])  # r1 drives west behind r0 and stands there
+    assert not (costmap.cost_at(np.array([[x, 0.0] for x in np.arange(0.2, 7.9, 0.1)]))
+                == 0).any()
+    spot = back_off_spot(0, xy, np.full(2, RADIUS), [(xy[1:], RADIUS)], np.zeros((0, 2)),
+                         np.zeros(0), costmap, 8.0, 0.3, 0.8)
+    assert spot is not None and spot[0] < 0.0
+    assert costmap.cost_at(np.array([spot]))[0] == 0
+
+
 @pytest.mark.parametrize("gap", [0.0, 0.1])
 def test_a_robot_pushed_against_a_wall_still_gets_a_spot(gap):
     # The hotel (rmf_demos), seed 4: robot6, pushed to within 3 mm of a wall's end, stood
@@ -453,11 +479,13 @@ def test_a_pose_moves_on_only_when_its_robot_moves_or_turns():
     assert next_pose(pose, (0.0, 0.6, 3.1, 0.0), 2.0, 0.5, 0.5).since == 2.0
 
 
-@pytest.mark.parametrize("wall_y, way_out", [(1.2, False), (1.4, True)])
+@pytest.mark.parametrize("wall_y, way_out", [(1.1, False), (1.2, True), (1.4, True)])
 def test_no_spot_past_a_blocker_it_would_have_to_slide_along(wall_y, way_out):
-    # A 2.2 m corridor (walls' faces at +-1.1 m): r1 stands 0.6 m ahead of r0 on the axis
-    # and will drive west through r0. Going round r1 means keeping its 0.16 m gap all the
-    # way past: no way out, so no spot. A 2.6 m corridor leaves room to pass.
+    # A 2.0 m corridor (walls' faces at +-1.0 m): r1 stands 0.6 m ahead of r0 on the axis
+    # and will drive west through r0. Going round r1 with 0.3 m to it leaves r0's surface
+    # less than PASS_WALL_GAP from the wall: no way out, so no spot. A 2.2 m corridor
+    # leaves room to pass that way (the controller keeps both distances), a 2.6 m one
+    # room to pass on FREE cells.
     obstacles = Obstacles((Box("south", (0.0, -wall_y), (20.0, 0.2)),
                            Box("north", (0.0, wall_y), (20.0, 0.2))))
     costmap = Costmap.from_obstacles(obstacles, (-10.0, 10.0, -1.6, 1.6))
