@@ -300,9 +300,10 @@ class DeadlockWatchdog(LeafSystem):
        or on its way out; it keeps its room while it stands aside).
 
     ``costmap``: the static costmap the spots are checked against (the way to a spot
-    keeps to its ``FREE`` cells). ``priorities``: per robot, smaller keeps its way
-    (default: robot order, as the controller's cluster leaders). ``roadways``: where the
-    single-file segments lie (step 5; None: no segments' lanes kept clear).
+    keeps the robot ``standstills.PASS_WALL_GAP`` from walls). ``priorities``: per robot,
+    smaller keeps its way (default: robot order, as the controller's cluster leaders).
+    ``roadways``: where the single-file segments lie (step 5; None: no segments' lanes
+    kept clear).
     """
 
     def __init__(self, robot_names: Sequence[str], radii: Sequence[float], costmap: Costmap,
