@@ -34,6 +34,7 @@ START_GAP = 0.2  # m, extra surface gap between generated start points
 CLEARANCE_RESOLUTION = 0.05  # m, cell size of the clearance raster for legs and routes
 ROUTE_RESOLUTION = 0.2  # m, cell size of the routing grid
 ROUTE_MARGIN = 0.2  # m, clearance beyond the body radius a routing cell needs
+SQUEEZE_MARGIN = 0.0  # m, the same where no path keeps ROUTE_MARGIN (narrow passages)
 SIGHT_MARGIN = 0.1  # m, clearance beyond the body radius along a straight leg
 SIGHT_STEP = 0.05  # m, sampling step when checking a straight leg
 MAX_TRIES = 200  # draws of a random point before giving up
@@ -112,7 +113,7 @@ class _Builder:
         self.occupied = [(float(c[0]), float(c[1]), float(c[2])) for c in keep_clear]
         self.names: set[str] = set()
         self._clearance = _ClearanceMap(obstacles)
-        self._router = None
+        self._routers: dict[float, _Router] = {}  # by the clearance their cells keep
 
     # --- walkers and groups ------------------------------------------------------------------
 
@@ -321,10 +322,16 @@ class _Builder:
         return loop
 
     def _route(self, a, b, where: str) -> list[tuple[float, float]]:
-        """Intermediate waypoints of a clear path from a to b (excluding both)."""
-        if self._router is None:
-            self._router = _Router(self._clearance, self.radius + ROUTE_MARGIN)
-        cells = self._router.path(a, b)
+        """Intermediate waypoints of a clear path from a to b (excluding both): through
+        cells ``ROUTE_MARGIN`` clear beyond the body radius, else, where only a narrower
+        passage leads there, ``SQUEEZE_MARGIN``."""
+        cells = None
+        for margin in (ROUTE_MARGIN, SQUEEZE_MARGIN):
+            if margin not in self._routers:
+                self._routers[margin] = _Router(self._clearance, self.radius + margin)
+            cells = self._routers[margin].path(a, b)
+            if cells is not None:
+                break
         if cells is None:
             raise InputError(self.file, where,
                              f"no walkable path from {list(a)} to {list(b)}")

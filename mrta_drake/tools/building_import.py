@@ -58,7 +58,7 @@ from mrta_drake.world.segment_distances import distance_to_polyline
 
 ROBOT_RADIUS = 0.22  # m, the scenario default (RobotConfig.radius)
 START_GAP = 0.3  # m kept free between two robots' bodies at the start
-PEOPLE_GAP = 1.0  # m between a person's first point and any robot start
+PEOPLE_GAP = 1.0  # m from a person's first point to robot starts and earlier people's
 WALL_SAFETY = SafetyDistances().wall  # m, the controller's default safety distance to walls
 WALL_SAFETY_MARGIN = 0.06  # m kept between that distance and the lanes' clearance
 HEAD_ON_CLEARANCE = 0.75  # m, below the lanes' 0.9 m spacing (LaneParams.offset)
@@ -339,8 +339,8 @@ def people_section(level: Level, navigation: BuildingNavigation, starts, count: 
         return {}
     if level.human_lanes:
         walkers = []
-        for k in range(count):
-            loop = _walk(level, rng, starts)
+        for k in range(count):  # each first point away from the robots and earlier people
+            loop = _walk(level, rng, [*starts, *(w["waypoints"][0] for w in walkers)])
             if loop is None:
                 break
             walkers.append({"name": f"person{k + 1}", "waypoints": loop})
@@ -357,21 +357,30 @@ def people_section(level: Level, navigation: BuildingNavigation, starts, count: 
 
 
 def _walk(level: Level, rng: np.random.Generator, starts, steps: int = 4):
-    """Waypoints of a random walk of ``steps`` human lanes, starting away from the
-    robots; None when the human lanes offer none."""
+    """Waypoints of a random walk along the human lanes: a first point on a lane (a node,
+    or a point every ``PEOPLE_GAP`` along the lane) ``PEOPLE_GAP`` from each of ``starts``
+    (x, y, ...: robots, and people placed before), then ``steps`` lanes on from the node it
+    walks to; None when the human lanes offer no such first point."""
     neighbours: dict[int, list[int]] = {}
     for lane in level.human_lanes:
         neighbours.setdefault(lane.start, []).append(lane.end)
         neighbours.setdefault(lane.end, []).append(lane.start)
-    free = [v for v in sorted(neighbours)
-            if all(math.dist(level.point(v), s[:2]) >= PEOPLE_GAP for s in starts)]
+    firsts = []  # (first point, the node walked to, the node walked from)
+    for a in sorted(neighbours):
+        for b in sorted(set(neighbours[a])):
+            pa, pb = np.asarray(level.point(a)), np.asarray(level.point(b))
+            pieces = max(1, math.ceil(float(np.linalg.norm(pb - pa)) / PEOPLE_GAP))
+            firsts += [(tuple(pa + (pb - pa) * k / pieces), b, a) for k in range(pieces)]
+    free = [first for first in firsts
+            if all(math.dist(first[0], s[:2]) >= PEOPLE_GAP for s in starts)]
     if not free:
         return None
-    path = [free[int(rng.integers(len(free)))]]
+    point, node, came_from = free[int(rng.integers(len(free)))]
+    path = [came_from, node]
     for _ in range(steps):
-        options = [n for n in neighbours[path[-1]] if len(path) < 2 or n != path[-2]]
+        options = [n for n in neighbours[path[-1]] if n != path[-2]]
         path.append(int(rng.choice(options or neighbours[path[-1]])))
-    points = [[round(c, 3) for c in level.point(v)] for v in path]
+    points = [[round(float(c), 3) for c in xy] for xy in (point, *map(level.point, path[1:]))]
     return [p for k, p in enumerate(points) if k == 0 or p != points[k - 1]]
 
 

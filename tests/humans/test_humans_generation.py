@@ -184,3 +184,15 @@ def test_unreachable_point_of_interest_is_an_input_error():
     with pytest.raises(InputError, match="no walkable path"):
         generate_people(_config(HumanGroupConfig("visitors", 1, points=POINTS)), PARAMS, 0,
                         closed)
+
+
+def test_people_squeeze_through_a_door_too_narrow_for_a_comfortable_walk():
+    # A 1 m door: 0.25 m to spare each side of a 0.5 m body, less than ROUTE_MARGIN (0.2 m)
+    # once the routing grid's rasters are counted; people walk through it all the same
+    # (the office, 4 people, seed 301: a dead end behind a 1 m gap between furniture).
+    narrow = ROOMS.added(boxes=[Box("door_n", (0.0, 0.6), (0.2, 0.2)),
+                                Box("door_s", (0.0, -0.6), (0.2, 0.2))])
+    (person,) = generate_people(_config(HumanGroupConfig("visitors", 1, points=POINTS)),
+                                PARAMS, 0, narrow)
+    assert _legs_clear(person, narrow)
+    assert min(x for x, _ in person.waypoints) < 0 < max(x for x, _ in person.waypoints)

@@ -14,6 +14,7 @@ from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.scenario.loading import load_scenario
 from mrta_drake.tools.building_import import (
     HEAD_ON_CLEARANCE,
+    PEOPLE_GAP,
     ImportOptions,
     controller_params,
     import_building,
@@ -237,3 +238,18 @@ def test_cli_broken_building_has_no_traceback(tmp_path):
     assert result.returncode == 2
     assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
     assert "levels.L1.measurements: none on the reference level" in result.stderr
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_people_start_apart_from_each_other_as_from_the_robots(tmp_path, seed):
+    # Airport terminal, 4 people, seed 301: two walkers drew the same first lane node and
+    # the run refused the scenario.
+    import_building(str(ONE_LEVEL), str(tmp_path), ImportOptions(robots=1, people=3,
+                                                                  seed=seed))
+    humans = load_scenario(tmp_path / "scenario.yaml").humans
+    # The 5 m human lane has two nodes, too few for three people: they start along it.
+    assert len(humans.walkers) == 3 and not humans.groups
+    firsts = [walker.waypoints[0] for walker in humans.walkers]
+    assert all(y == pytest.approx(-4.9) and 5.5 <= x <= 10.5 for x, y in firsts)
+    assert all(np.hypot(a[0] - b[0], a[1] - b[1]) >= PEOPLE_GAP
+               for k, a in enumerate(firsts) for b in firsts[k + 1:])
