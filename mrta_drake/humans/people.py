@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import distance_transform_edt
 from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import dijkstra
+from scipy.sparse.csgraph import connected_components, dijkstra
 
 from mrta_drake.errors import InputError
 from mrta_drake.humans.social_force_params import SocialForceParams
@@ -34,7 +34,6 @@ START_GAP = 0.2  # m, extra surface gap between generated start points
 CLEARANCE_RESOLUTION = 0.05  # m, cell size of the clearance raster for legs and routes
 ROUTE_RESOLUTION = 0.2  # m, cell size of the routing grid
 ROUTE_MARGIN = 0.2  # m, clearance beyond the body radius a routing cell needs
-SQUEEZE_MARGIN = 0.0  # m, the same where no path keeps ROUTE_MARGIN (narrow passages)
 SIGHT_MARGIN = 0.1  # m, clearance beyond the body radius along a straight leg
 SIGHT_STEP = 0.05  # m, sampling step when checking a straight leg
 MAX_TRIES = 200  # draws of a random point before giving up
@@ -96,6 +95,29 @@ def generate_people(
     return tuple(people)
 
 
+def walkable_groups(points: Sequence[Sequence[float]], obstacles: Obstacles,
+                    params: SocialForceParams | None = None) -> list[list[int]]:
+    """The indices of ``points`` (x, y; m) in groups people walk between as
+    ``generate_people`` routes them (through cells ``ROUTE_MARGIN`` clear beyond the body
+    radius), largest group first (ties: lowest index first); [] without a walkable cell
+    among obstacles; one group without obstacles.
+    Points of interest from different groups give a group of people no routed loop.
+    ``params``: the people's (default ``SocialForceParams()``)."""
+    if len(points) == 0:
+        return []
+    if len(obstacles) == 0:  # nothing in the way (an outdoor map without walls)
+        return [list(range(len(points)))]
+    radius = float((params or SocialForceParams()).radius)
+    router = _Router(_ClearanceMap(obstacles), radius + ROUTE_MARGIN)
+    if len(router.free_ids) == 0:
+        return []
+    _, labels = connected_components(router.graph, directed=False)
+    groups: dict[int, list[int]] = {}
+    for k, point in enumerate(points):
+        groups.setdefault(int(labels[router._nearest(point)]), []).append(k)
+    return sorted(groups.values(), key=lambda group: (-len(group), group[0]))
+
+
 def _is_number(value) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool) and np.isfinite(value)
 
@@ -113,7 +135,7 @@ class _Builder:
         self.occupied = [(float(c[0]), float(c[1]), float(c[2])) for c in keep_clear]
         self.names: set[str] = set()
         self._clearance = _ClearanceMap(obstacles)
-        self._routers: dict[float, _Router] = {}  # by the clearance their cells keep
+        self._router = None
 
     # --- walkers and groups ------------------------------------------------------------------
 
@@ -322,16 +344,10 @@ class _Builder:
         return loop
 
     def _route(self, a, b, where: str) -> list[tuple[float, float]]:
-        """Intermediate waypoints of a clear path from a to b (excluding both): through
-        cells ``ROUTE_MARGIN`` clear beyond the body radius, else, where only a narrower
-        passage leads there, ``SQUEEZE_MARGIN``."""
-        cells = None
-        for margin in (ROUTE_MARGIN, SQUEEZE_MARGIN):
-            if margin not in self._routers:
-                self._routers[margin] = _Router(self._clearance, self.radius + margin)
-            cells = self._routers[margin].path(a, b)
-            if cells is not None:
-                break
+        """Intermediate waypoints of a clear path from a to b (excluding both)."""
+        if self._router is None:
+            self._router = _Router(self._clearance, self.radius + ROUTE_MARGIN)
+        cells = self._router.path(a, b)
         if cells is None:
             raise InputError(self.file, where,
                              f"no walkable path from {list(a)} to {list(b)}")

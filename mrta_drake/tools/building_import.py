@@ -40,11 +40,13 @@ import yaml
 from mrta_drake.control.barriers import SafetyDistances
 from mrta_drake.control.nominal import NominalParams
 from mrta_drake.errors import InputError
+from mrta_drake.humans.people import ROUTE_MARGIN, walkable_groups
 from mrta_drake.navigation.roadways import Roadways, single_file_lanes
 from mrta_drake.navigation.single_servers import trip_holds
 from mrta_drake.scenario.schema import LocationConfig, RoadwaysConfig, TasksConfig
 from mrta_drake.scenario.stream_sizing import BATCH_SIZE, LEG_SHARE, StreamSize, size_stream
 from mrta_drake.world.floor_plan import FloorPlan
+from mrta_drake.world.obstacles import Obstacles
 from mrta_drake.world.rmf_building import Building, Level
 from mrta_drake.world.rmf_levels import laned_levels, left_out_levels
 from mrta_drake.world.rmf_navigation import BuildingNavigation
@@ -141,7 +143,8 @@ def _write_level(building: Building, level_name: str, out_dir: str, options: Imp
     used = [navigation.locations[i].point for i in stream.locations]
     starts = robot_starts(level, navigation, lanes, world.floor_plan, options.robots,
                           work=(used, LEG_SHARE * options.duration * TasksConfig().estimate_speed))
-    humans = people_section(level, navigation, starts, options.people, rng)
+    humans = people_section(level, navigation, starts, options.people, rng,
+                            world.floor_plan.obstacles)
     os.makedirs(out_dir, exist_ok=True)
     copy = os.path.join(out_dir, os.path.basename(building.source))
     if os.path.abspath(copy) != os.path.abspath(building.source):
@@ -333,8 +336,11 @@ def _heading(lines, node: str) -> float:
 
 
 def people_section(level: Level, navigation: BuildingNavigation, starts, count: int,
-                   rng: np.random.Generator) -> dict:
-    """The ``humans:`` section: walkers looping along human lanes, else visitors."""
+                   rng: np.random.Generator, obstacles: Obstacles) -> dict:
+    """The ``humans:`` section: walkers looping along human lanes, else visitors walking
+    between lane nodes, all of one group people walk between (``humans.people``'s
+    ``walkable_groups`` among ``obstacles``: in corridors too narrow to walk through in
+    comfort a person stands in the robots' way for good)."""
     if count == 0:
         return {}
     if level.human_lanes:
@@ -348,9 +354,12 @@ def people_section(level: Level, navigation: BuildingNavigation, starts, count: 
             return {"walkers": walkers}
     nodes = [xy for xy in navigation.centre_lines.nodes.values()
              if all(math.dist(xy, s[:2]) >= PEOPLE_GAP for s in starts)]
-    if len(nodes) < 2:
-        raise InputError(None, "--people", "the level has too few free lane nodes for people "
-                         "to walk between")
+    groups = walkable_groups(nodes, obstacles)
+    if not groups or len(groups[0]) < 2:
+        raise InputError(None, "--people", f"the level has too few free lane nodes people "
+                         f"walk between (corridors {2 * ROUTE_MARGIN:.1f} m wider than a "
+                         f"person)")
+    nodes = [nodes[k] for k in groups[0]]
     picked = rng.choice(len(nodes), size=min(len(nodes), 8), replace=False)
     return {"groups": [{"kind": "visitors", "count": count,
                         "points": [list(nodes[int(k)]) for k in picked]}]}

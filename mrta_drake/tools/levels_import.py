@@ -56,7 +56,8 @@ def write_all_levels(building: Building, out_dir: str, options: ImportOptions,
                                     shares[name], [lift.xy for lift in building.lifts.values()
                                                    if name in lift.level_doors])
         for group, entries in people_section(building.levels[name], navigation, level_starts,
-                                      people[name], rng).items():
+                                             people[name], rng,
+                                             world.floor_plan.obstacles).items():
             humans.setdefault(group, []).extend(
                 _shifted_people(entries, levels, name, len(humans.get(group, ()))))
         starts += [[*levels.layout.to_world(name, s[:2]), s[2]] for s in level_starts]

@@ -18,9 +18,11 @@ from mrta_drake.tools.building_import import (
     ImportOptions,
     controller_params,
     import_building,
+    people_section,
     robot_starts,
 )
 from mrta_drake.tools.cli import main
+from mrta_drake.world.obstacles import Box
 from mrta_drake.world.plant import load_floor_plan_of
 from mrta_drake.world.rmf_building import load_building
 from mrta_drake.world.rmf_navigation import level_navigation
@@ -253,3 +255,27 @@ def test_people_start_apart_from_each_other_as_from_the_robots(tmp_path, seed):
     assert all(y == pytest.approx(-4.9) and 5.5 <= x <= 10.5 for x, y in firsts)
     assert all(np.hypot(a[0] - b[0], a[1] - b[1]) >= PEOPLE_GAP
                for k, a in enumerate(firsts) for b in firsts[k + 1:])
+
+
+def _cartesian_level():
+    building = load_building(str(BUILDINGS / "cartesian.building.yaml"))
+    floor_plan = level_world(building, "ground").floor_plan
+    return (building.levels["ground"], level_navigation(building, "ground", floor_plan),
+            floor_plan.obstacles)
+
+
+def test_visitors_walk_between_lane_nodes_people_can_walk_between():
+    # Lane nodes at x = 2 and 5 west of a wall at x = 6.5, three at x = 8 east of it:
+    # visitors' points are the three, the larger group; without the wall, any five.
+    level, navigation, obstacles = _cartesian_level()
+    wall = obstacles.added(boxes=[Box("wall", (6.5, 3.0), (0.2, 10.0))])
+    humans = people_section(level, navigation, [], 3, np.random.default_rng(0), wall)
+    assert sorted(x for x, _ in humans["groups"][0]["points"]) == [8.0, 8.0, 8.0]
+    humans = people_section(level, navigation, [], 3, np.random.default_rng(0), obstacles)
+    assert len(humans["groups"][0]["points"]) == 5
+    # Every node walled in alone: no two nodes people walk between.
+    boxed = wall.added(boxes=[Box("west", (3.5, 3.0), (0.2, 10.0)),
+                              Box("low", (9.0, 2.1), (5.0, 0.2)),
+                              Box("high", (9.0, 3.9), (5.0, 0.2))])
+    with pytest.raises(InputError, match="too few free lane nodes people walk between"):
+        people_section(level, navigation, [], 3, np.random.default_rng(0), boxed)
