@@ -213,6 +213,9 @@ def check_scenario(scenario: Scenario, file: str) -> None:
         if not 0 < value < math.inf:
             raise InputError(path, f"rates.{rate.name}",
                              f"must be a finite number > 0 Hz, got {value}")
+    if scenario.seed < 0:
+        raise InputError(path, "seed", f"must be >= 0 (numpy's seeds are non-negative "
+                         f"integers), got {scenario.seed}")
     if not 0 < scenario.duration < math.inf:
         raise InputError(path, "duration",
                          f"must be a finite number > 0 s, got {scenario.duration}")

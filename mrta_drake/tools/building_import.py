@@ -90,6 +90,8 @@ class ImportOptions:
             raise InputError(None, "--robots", f"must be >= 1, got {self.robots}")
         if self.people < 0:
             raise InputError(None, "--people", f"must be >= 0, got {self.people}")
+        if self.seed < 0:
+            raise InputError(None, "--seed", f"must be >= 0, got {self.seed}")
         if self.graph < 0:
             raise InputError(None, "--graph", f"must be >= 0, got {self.graph}")
         if not self.duration > 0:

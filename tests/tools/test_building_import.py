@@ -228,6 +228,8 @@ def test_cli_import(tmp_path, capsys):
     assert "chair_on_lane" in out  # the model left out is named
     assert main(["import", str(ONE_LEVEL), "--robots", "0", "--out", str(tmp_path)]) == 2
     assert capsys.readouterr().err == "error: --robots: must be >= 1, got 0\n"
+    assert main(["import", str(ONE_LEVEL), "--seed", "-1", "--out", str(tmp_path)]) == 2
+    assert capsys.readouterr().err == "error: --seed: must be >= 0, got -1\n"
     assert main(["import", str(TWO_LEVELS), "--level", "L5", "--out", str(tmp_path)]) == 2
     assert "'L5' is not a level" in capsys.readouterr().err
 
