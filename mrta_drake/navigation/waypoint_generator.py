@@ -254,6 +254,22 @@ def _points_or_none(array) -> tuple[tuple[float, float], ...] | None:
     return None if array is None else _points(array)
 
 
+def _leads_to(lanes, a, b, node) -> bool:
+    """Whether the lane ``a`` -> ``b`` leads on along ``lanes`` (start, end pairs: one
+    single-file segment's) to ``node`` without turning back."""
+    came, here = a, b
+    seen = set()
+    while here != node:
+        if here in seen:
+            return False
+        seen.add(here)
+        ahead = [end for start, end in lanes if start == here and end != came]
+        if len(ahead) != 1:
+            return False  # a dead end, or a fork: no one way on
+        came, here = here, ahead[0]
+    return True
+
+
 def _distance(a, b) -> float:
     return math.hypot(a[0] - b[0], a[1] - b[1])
 
@@ -1017,18 +1033,21 @@ class WaypointPolicy:
         """Setting off to wait elsewhere (phase home) from inside single-file segments it
         holds, farther than ``single_file.stand_distance`` from the route's first point
         ``first`` (a roadway node): those segments, each the way it drives along them to
-        ``first`` (index -> forward), kept until it is there (its route begins at that
-        node: without them it would give up the segment it drives out of, and a robot
-        granted it would drive in head-on)."""
+        ``first`` (index -> forward: the way of a lane it stands by that leads on along the
+        segment to ``first``, through any number of its lanes), kept until it is there (its
+        route begins at that node: without them it would give up the segment it drives out
+        of, and a robot granted it would drive in head-on)."""
         reach = self._params.single_file.stand_distance
         held = self._held(queues)
         if not held or _distance(xy, first) <= reach:
             return {}
         out = {}
         for k in stands_in(self._roadways, xy, self._params.single_file):
-            for a, b in segment_lanes(self._roadways, k) if k in held else ():
-                if b == first and distance_to_polyline(
-                        np.array([xy], dtype=float), np.array([a, b], dtype=float))[0] <= reach:
+            lanes = segment_lanes(self._roadways, k) if k in held else ()
+            for a, b in lanes:
+                if distance_to_polyline(np.array([xy], dtype=float),
+                                        np.array([a, b], dtype=float))[0] <= reach \
+                        and _leads_to(lanes, a, b, first):
                     out[k] = self._roadways.segment_of(a, b)[1]
         return out
 

@@ -872,3 +872,27 @@ def test_where_a_robot_waits_is_kept_per_roadways_and_place_not_mixed_across_clo
     assert answers == [policy()._spots_reached(roadways.place(place), lanes)
                        for place in (B, A) for lanes in (roadways, closed, roadways, closed)]
     assert answers[0] == (True, ()) and not answers[1][0] and answers[1][1]
+
+
+def test_a_robot_without_a_stop_keeps_the_whole_segment_it_drives_out_of():
+    # The corridor W - M - J is one segment of two lanes. r0, idle 2 m from W, stands in
+    # it; r1 at W waits for it: r0 leaves by J, two lanes on, and keeps the corridor, the
+    # way to J, until there. Before, it kept only a segment whose lane it stood by ended at
+    # J, so it gave the corridor up, and r1, granted it, drove in head-on (office seed 20:
+    # robot3, done at patrol_B, gave up segment 16 to robot6 and drove along it to v54).
+    nodes = {"W": [0.0, 0.0], "M": [5.0, 0.0], "J": [10.0, 0.0], "E": [20.0, 0.0],
+             "S": [10.0, 5.0]}
+    pairs = [("W", "M"), ("M", "J"), ("J", "E"), ("J", "S")]
+    edges = [[a, b] for a, b in pairs] + [[b, a] for a, b in pairs]
+    world = Roadways(RoadwaysConfig(nodes=nodes, edges=edges, single_file=[
+        ["W", "M", "J"], ["J", "E"], ["J", "S"]]), [LocationConfig(
+            id=0, name="A", point=[16.0, 3.0], queue=[[14.0, 3.0]], exit_node="E",
+            approach_node="E")])
+    policy = WaypointPolicy(["r0", "r1"], 0, world, None, WaypointParams())
+    wanted = QueueState(segments=(SegmentHold(("r0",), True, ("r1",)), SegmentHold(),
+                                  SegmentHold()))
+    s = policy.update(policy.initial_state(),
+                      _Inputs(1.0, wanted, [[2.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]]))
+    assert s.phase == RobotMode.HOME and s.route[0] == (10.0, 0.0)
+    forward = world.segment_of((0.0, 0.0), (5.0, 0.0))[1]
+    assert s.lanes.segments == ((0, forward),)  # the spur's: 4 m before it
