@@ -27,8 +27,8 @@ def _parser() -> argparse.ArgumentParser:
 
     run = commands.add_parser("run", help="run a scenario (headless unless --meshcat)")
     run.add_argument("scenario", help="scenario YAML file")
-    run.add_argument("--duration", type=_positive, help="simulated seconds (default: the "
-                     "scenario's)")
+    run.add_argument("--duration", type=_positive, help="simulated seconds, the scenario's "
+                     "duration (a generated task stream runs to it; default: the scenario's)")
     run.add_argument("--meshcat", action="store_true", help="serve the live 3D view")
     run.add_argument("--realtime", type=_positive, default=None,
                      help="pace the run at this multiple of real time (default with "
@@ -179,8 +179,10 @@ def _run_scenario(args, compiling, stops: _StopRequests) -> int:
     from mrta_drake.scenario.loading import load_scenario
     from mrta_drake.stack.simulate import simulate
 
-    scenario = load_scenario(args.scenario,
-                             overrides=None if args.seed is None else {"seed": args.seed})
+    overrides = {name: value for name, value in (("seed", args.seed),
+                                                   ("duration", args.duration))
+                 if value is not None}
+    scenario = load_scenario(args.scenario, overrides=overrides or None)
     _check_writable("--out", args.out, folder=True)
     _check_writable("--record", args.record)
     _announce(compiling)

@@ -32,6 +32,26 @@ def test_same_scenario_twice_gives_bit_identical_trajectories(routes_scenario):
     assert (moved > 1.0).all()
 
 
+def test_cli_run_duration_is_the_scenarios_so_a_generated_stream_runs_to_it(tmp_path):
+    # The scenario lasts 2 s; --duration 6 runs 6 s and its tasks keep arriving after 2 s,
+    # as a sweep's duration does (before, the stream stopped at the scenario's 2 s).
+    text = (ROOT / "scenarios/hospital_6_robots.yaml").read_text()
+    text = text.replace("../models", str(ROOT / "models"))
+    text = text.replace("  file: tasks/hospital_paper_stream.json\n",
+                        "  generate: {rate: 2.0, batch_size: [1, 1], deadline_range: [60, 90]}\n")
+    text = text.replace("  travel_times: travel_times/hospital.yaml", "").replace(
+        "duration: 600.0", "duration: 2.0")
+    scenario = tmp_path / "short.yaml"
+    scenario.write_text(text)
+    out = tmp_path / "run"
+    assert main(["run", str(scenario), "--duration", "6", "--out", str(out), "--quiet",
+                 "--no-plots"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    arrivals = [task["arrival"] for task in summary["tasks"]["per_task"]]
+    assert summary["duration"] == pytest.approx(6.0)
+    assert max(arrivals) > 2.0 and all(arrival < 6.0 for arrival in arrivals)
+
+
 def test_cli_run_prints_summary_and_writes_results(tmp_path, capsys):
     out = tmp_path / "run"
     assert main(["run", str(ROUTES), "--duration", "5", "--out", str(out), "--quiet"]) == 0
