@@ -13,6 +13,21 @@ def load_summary(folder: str) -> dict:
     """The summary of the run whose results ``mrta-sim run --out`` wrote to ``folder``,
     checked printable (``format_summary``): one edited by hand, or written by another
     version, that is not raises ``InputError``."""
+    path, summary = _read_summary(folder)
+    printed(path, format_summary, summary)
+    return summary
+
+
+def summary_report(folder: str) -> str:
+    """The tables ``mrta-sim report`` prints for the run in ``folder`` (``format_summary``;
+    ``InputError`` as for ``load_summary``)."""
+    path, summary = _read_summary(folder)
+    return printed(path, format_summary, summary)
+
+
+def _read_summary(folder: str) -> tuple[str, dict]:
+    """The path of ``folder``'s summary and the summary read from it, a mapping with the
+    tasks, robots and safety sections; else ``InputError``."""
     path = os.path.join(folder, SUMMARY_FILE)
     if not os.path.isdir(folder):
         raise InputError(folder, None, "no such folder")
@@ -26,8 +41,7 @@ def load_summary(folder: str) -> dict:
         raise InputError(path, None, f"unreadable: {error}") from None
     if not isinstance(summary, dict) or not {"tasks", "robots", "safety"} <= summary.keys():
         raise InputError(path, None, "not a run summary (tasks, robots, safety missing)")
-    printed(path, format_summary, summary)
-    return summary
+    return path, summary
 
 
 def printed(where: str, format_results, *summaries) -> str:

@@ -263,9 +263,9 @@ def _diagram(args) -> int:
 
 
 def _report(args) -> int:
-    from mrta_drake.results.report import format_summary, load_summary
+    from mrta_drake.results.report import summary_report
 
-    print(format_summary(load_summary(args.folder)))
+    print(summary_report(args.folder))
     return 0
 
 
