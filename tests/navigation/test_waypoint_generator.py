@@ -741,20 +741,26 @@ def test_a_robot_without_a_stop_does_not_leave_towards_the_robot_that_needs_its_
     assert s.phase == RobotMode.HOME and s.route == ((10.0, 0.0), (10.0, 5.0))
 
 
-def test_a_robot_without_a_stop_with_no_other_refuge_waits_by_a_queue_slot():
-    # The corridor W - M - J (one segment, 0) with J - E (1) and the spur J - S (2), A's
-    # queue slot 0.6 m from S. r0 idle at M; r1, holding W-M-J and J-E, drives in from W:
-    # r0 must leave by J, and every spot but S is in a segment r1 holds. S, by the slot,
-    # is the only refuge: r0 drives there rather than stand in r1's way for good (office
-    # seed 26: robot5 at v57, the dead end v62 0.79 m from coe's queue slot, 207 s).
+def corridor_world() -> Roadways:
+    """The corridor W (0, 0) - M (5, 0) - J (10, 0), one single-file segment (0), with
+    J - E (20, 0) (1) and the spur J - S (10, 5) (2); location A's queue slot 0.6 m from S."""
     nodes = {"W": [0.0, 0.0], "M": [5.0, 0.0], "J": [10.0, 0.0], "E": [20.0, 0.0],
              "S": [10.0, 5.0]}
     pairs = [("W", "M"), ("M", "J"), ("J", "E"), ("J", "S")]
     edges = [[a, b] for a, b in pairs] + [[b, a] for a, b in pairs]
     locations = [LocationConfig(id=0, name="A", point=[14.0, 5.0], queue=[[10.6, 5.0]],
                                 exit_node="J", approach_node="J")]
-    world = Roadways(RoadwaysConfig(nodes=nodes, edges=edges, single_file=[
+    return Roadways(RoadwaysConfig(nodes=nodes, edges=edges, single_file=[
         ["W", "M", "J"], ["J", "E"], ["J", "S"]]), locations)
+
+
+def test_a_robot_without_a_stop_with_no_other_refuge_waits_by_a_queue_slot():
+    # The corridor W - M - J (one segment, 0) with J - E (1) and the spur J - S (2), A's
+    # queue slot 0.6 m from S. r0 idle at M; r1, holding W-M-J and J-E, drives in from W:
+    # r0 must leave by J, and every spot but S is in a segment r1 holds. S, by the slot,
+    # is the only refuge: r0 drives there rather than stand in r1's way for good (office
+    # seed 26: robot5 at v57, the dead end v62 0.79 m from coe's queue slot, 207 s).
+    world = corridor_world()
     policy = WaypointPolicy(["r0", "r1"], 0, world, None, WaypointParams())
     held = QueueState(segments=(SegmentHold(("r0", "r1"), True), SegmentHold(("r1",), True),
                                 SegmentHold()))
@@ -880,14 +886,7 @@ def test_a_robot_without_a_stop_keeps_the_whole_segment_it_drives_out_of():
     # way to J, until there. Before, it kept only a segment whose lane it stood by ended at
     # J, so it gave the corridor up, and r1, granted it, drove in head-on (office seed 20:
     # robot3, done at patrol_B, gave up segment 16 to robot6 and drove along it to v54).
-    nodes = {"W": [0.0, 0.0], "M": [5.0, 0.0], "J": [10.0, 0.0], "E": [20.0, 0.0],
-             "S": [10.0, 5.0]}
-    pairs = [("W", "M"), ("M", "J"), ("J", "E"), ("J", "S")]
-    edges = [[a, b] for a, b in pairs] + [[b, a] for a, b in pairs]
-    world = Roadways(RoadwaysConfig(nodes=nodes, edges=edges, single_file=[
-        ["W", "M", "J"], ["J", "E"], ["J", "S"]]), [LocationConfig(
-            id=0, name="A", point=[16.0, 3.0], queue=[[14.0, 3.0]], exit_node="E",
-            approach_node="E")])
+    world = corridor_world()
     policy = WaypointPolicy(["r0", "r1"], 0, world, None, WaypointParams())
     wanted = QueueState(segments=(SegmentHold(("r0",), True, ("r1",)), SegmentHold(),
                                   SegmentHold()))
@@ -895,4 +894,4 @@ def test_a_robot_without_a_stop_keeps_the_whole_segment_it_drives_out_of():
                       _Inputs(1.0, wanted, [[2.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]]))
     assert s.phase == RobotMode.HOME and s.route[0] == (10.0, 0.0)
     forward = world.segment_of((0.0, 0.0), (5.0, 0.0))[1]
-    assert s.lanes.segments == ((0, forward),)  # the spur's: 4 m before it
+    assert s.lanes.segments == ((0, forward),)  # its way on it asks for from 4 m before
