@@ -24,8 +24,11 @@ import functools
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from mrta_drake.errors import InputError, require_positive
 from mrta_drake.navigation.roadways import Roadways
+from mrta_drake.world.segment_distances import segment_distances
 
 
 @dataclass(frozen=True)
@@ -212,22 +215,23 @@ def _near(roadways: Roadways, xy, distance: float) -> tuple[int, ...]:
     return _near_point(roadways, float(xy[0]), float(xy[1]), distance)
 
 
+@functools.lru_cache(maxsize=64)
+def _lane_pieces(roadways: Roadways) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``_segment_lanes`` as arrays: each lane's segment index (L,), start and end (L, 2)."""
+    lanes = _segment_lanes(roadways)
+    return (np.array([k for k, _, _ in lanes], dtype=int),
+            np.array([a for _, a, _ in lanes], dtype=float).reshape(-1, 2),
+            np.array([b for _, _, b in lanes], dtype=float).reshape(-1, 2))
+
+
 @functools.lru_cache(maxsize=4096)
 def _near_point(roadways: Roadways, x: float, y: float, distance: float
                 ) -> tuple[int, ...]:
     """``_near`` of the point (``x``, ``y``), kept per point: robots standing still (idle,
     queueing) ask for the same point at every update."""
-    xy = (x, y)
-    found = set()
-    for k, (ax, ay), (bx, by) in _segment_lanes(roadways):
-        if k in found:
-            continue
-        dx, dy = bx - ax, by - ay
-        t = ((xy[0] - ax) * dx + (xy[1] - ay) * dy) / max(dx * dx + dy * dy, 1e-18)
-        t = min(max(t, 0.0), 1.0)
-        if math.hypot(xy[0] - ax - t * dx, xy[1] - ay - t * dy) <= distance:
-            found.add(k)
-    return tuple(sorted(found))
+    segments, starts, ends = _lane_pieces(roadways)
+    near = segment_distances((x, y), starts, ends) <= distance
+    return tuple(sorted({int(k) for k in segments[near]}))
 
 
 def stands_in(roadways: Roadways, xy, params: SingleFileParams) -> tuple[int, ...]:
