@@ -57,6 +57,12 @@ def load_scenario(path: str, *, check_world: bool = True,
     if "tasks_stream" in raw:
         raise InputError(path, "tasks_stream", "this is an MRTA-Sim task stream, not a "
                          "scenario; reference it from a scenario as `tasks: {file: <file>}`")
+    if "levels" in raw and "world" not in raw:
+        raise InputError(path, "levels", "this is an Open-RMF building map, not a scenario; "
+                         "make one from it with `mrta-sim import FILE --out DIR`")
+    if "image" in raw and "resolution" in raw and "world" not in raw:
+        raise InputError(path, "image", "this is a ROS map, not a scenario; make one from it "
+                         "with `mrta-sim import FILE --locations POINTS.yaml --out DIR`")
     base = os.path.dirname(os.path.abspath(path))
     raw = dict(raw)
     robots_file = None
