@@ -49,6 +49,8 @@ from mrta_drake.world.segment_distances import segment_distances
 
 _CANDIDATE_STEP = 0.1  # m between the centre-line points tried for an access
 _SEARCH_STEP = 0.1  # m between the places along the lanes tried for a queue slot
+_POINT_SPACING = 1.0  # m between two points at least: the waypoint generator's reach
+# tolerance, within which a robot counts as at a location's point
 
 
 @dataclass(frozen=True)
@@ -82,6 +84,12 @@ def load_points(path) -> list[NamedPoint]:
         if len(point.point) != 2 or not all(math.isfinite(v) for v in point.point):
             raise InputError(path, f"points[{i}].point",
                              f"expected [x, y] in metres, got {point.point}")
+        for k, other in enumerate(points[:i]):
+            gap = math.dist(point.point, other.point)
+            if gap < _POINT_SPACING:
+                raise InputError(path, f"points[{i}].point", (
+                    f"{point.point} is {gap:.2f} m from points[{k}] ({other.name!r}); "
+                    f"points must be at least {_POINT_SPACING:g} m apart"))
     if len(points) < 2:
         raise InputError(path, "points", f"at least two points are required (the roadways "
                          f"join them), got {len(points)}")

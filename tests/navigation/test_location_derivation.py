@@ -51,6 +51,9 @@ def test_points_file(tmp_path):
      "expected [x, y] in metres, got [0.0]"),
     ("points:\n  - {name: a, point: [0, 0], colour: red}", "points[0].colour",
      "unknown field"),
+    ("points:\n  - {name: a, point: [0, 0]}\n  - {name: b, point: [3, 0]}\n"
+     "  - {name: c, point: [0.3, 0.4]}", "points[2].point",
+     "[0.3, 0.4] is 0.50 m from points[0] ('a'); points must be at least 1 m apart"),
 ])
 def test_bad_points_file(tmp_path, text, field, message):
     path = tmp_path / "points.yaml"
