@@ -31,6 +31,7 @@ STREAM_STOPS = 3  # points visited by a stream person before walking back to its
 CROWD_SPEED_FACTOR = 0.5  # a milling crowd walks at half the default desired speed
 CROWD_MIN_LEG = 0.5  # consecutive crowd stops are at least this fraction of spread apart
 START_GAP = 0.2  # m, extra surface gap between generated start points
+ROBOT_START_GAP = 0.3  # m, extra gap between a person's start point and a robot's start
 CLEARANCE_RESOLUTION = 0.05  # m, cell size of the clearance raster for legs and routes
 ROUTE_RESOLUTION = 0.2  # m, cell size of the routing grid
 ROUTE_MARGIN = 0.2  # m, clearance beyond the body radius a routing cell needs
@@ -93,6 +94,17 @@ def generate_people(
     for g, (group, rng) in enumerate(zip(config.groups, rngs, strict=True)):
         people += builder.group(g, group, rng, places or {})
     return tuple(people)
+
+
+def scenario_people(scenario, params: SocialForceParams, obstacles: Obstacles,
+                    places: Mapping[str, Sequence[float]]) -> tuple[Person, ...]:
+    """The people of ``scenario`` (a ``Scenario``) as a run draws them: ``generate_people``
+    with its seed, keeping their start points clear of every robot's start by its radius
+    and ``ROBOT_START_GAP``."""
+    keep_clear = [(r.start[0], r.start[1], r.radius + ROBOT_START_GAP)
+                  for r in scenario.robots]
+    return generate_people(scenario.humans, params, scenario.seed, obstacles, places=places,
+                           keep_clear=keep_clear, file=scenario.source)
 
 
 def walkable_groups(points: Sequence[Sequence[float]], obstacles: Obstacles,

@@ -387,18 +387,15 @@ def _back_off_watchdog() -> BlockType:
 
 
 def _social_force_humans() -> BlockType:
-    from mrta_drake.humans.people import generate_people
+    from mrta_drake.humans.people import scenario_people
     from mrta_drake.humans.social_force_humans import SocialForceHumans
     from mrta_drake.humans.social_force_params import SocialForceParams
 
     def make(ctx: BuildContext, params: SocialForceParams):
-        robots = ctx.scenario.robots
-        keep_clear = [(r.start[0], r.start[1], r.radius + 0.3) for r in robots]
-        people = generate_people(ctx.scenario.humans, params, ctx.scenario.seed, ctx.obstacles,
-                                 places=ctx.floor_plan.places, keep_clear=keep_clear,
-                                 file=ctx.scenario.source)
+        people = scenario_people(ctx.scenario, params, ctx.obstacles, ctx.floor_plan.places)
         return SocialForceHumans(people, params, ctx.obstacles, ctx.robot_names,
-                                 [r.radius for r in robots], rate_hz=ctx.rates.humans)
+                                 [r.radius for r in ctx.scenario.robots],
+                                 rate_hz=ctx.rates.humans)
 
     return BlockType(SocialForceParams, make)
 

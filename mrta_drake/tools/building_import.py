@@ -169,6 +169,29 @@ def _write_level(building: Building, level_name: str, out_dir: str, options: Imp
                             f"a lane: {'; '.join(world.left_out)}")
 
 
+def check_people_fit(scenarios: Sequence[str], count: int) -> None:
+    """Draw the people of each scenario written (paths) as a run will; where they do not
+    fit, remove that scenario file and raise a one-line ``--people`` error (an import
+    writes only scenarios that run)."""
+    if count == 0:
+        return
+    from mrta_drake.humans.people import scenario_people
+    from mrta_drake.humans.social_force_params import SocialForceParams
+    from mrta_drake.scenario.loading import load_scenario
+    from mrta_drake.world.plant import load_floor_plan_of
+
+    for path in scenarios:
+        scenario = load_scenario(path)
+        floor_plan = load_floor_plan_of(scenario)
+        try:
+            scenario_people(scenario, SocialForceParams(), floor_plan.obstacles,
+                            floor_plan.places)
+        except InputError as error:
+            os.remove(path)
+            raise InputError(None, "--people", f"{count} people do not fit: "
+                             f"{error.message}") from None
+
+
 def robot_starts(level: Level, navigation: BuildingNavigation, lanes: Roadways,
                  floor_plan: FloorPlan, count: int, lifts: Sequence[tuple[float, float]] = (),
                  work: tuple[Sequence, float] = ((), 0.0)) -> list[list[float]]:

@@ -234,6 +234,21 @@ def test_cli_import(tmp_path, capsys):
     assert "'L5' is not a level" in capsys.readouterr().err
 
 
+def test_cli_import_refuses_more_people_than_fit(tmp_path, capsys):
+    # The office with 40 people imported, and its scenario then stopped at the run's start:
+    # no free start point for a visitor. The import draws the people as a run does, and
+    # writes no scenario where they do not fit.
+    assert main(["import", str(ONE_LEVEL), "--robots", "1", "--people", "60", "--out",
+                 str(tmp_path)]) == 2
+    assert capsys.readouterr().err == (
+        "error: --people: 60 people do not fit: no free start point found; too many "
+        "people?\n")
+    assert not (tmp_path / "scenario.yaml").exists()
+    assert main(["import", str(ONE_LEVEL), "--robots", "1", "--people", "3", "--out",
+                 str(tmp_path)]) == 0
+    assert (tmp_path / "scenario.yaml").exists()
+
+
 def test_cli_broken_building_has_no_traceback(tmp_path):
     broken = Path(__file__).parents[1] / "data" / "broken_buildings" / "no_scale.building.yaml"
     result = subprocess.run([sys.executable, "-m", "mrta_drake.tools.cli", "import",
