@@ -111,7 +111,14 @@ class ImportReport:
 
 def import_building(path: str, out_dir: str, options: ImportOptions = ImportOptions()
                     ) -> ImportReport:
-    """Write the scenario folder(s) of the building in ``path`` under ``out_dir``."""
+    """Write the scenario folder(s) of the building in ``path`` under ``out_dir``; only
+    scenarios whose people fit (``check_people_fit``)."""
+    report = _write_building(path, out_dir, options)
+    check_people_fit(report.scenarios, options.people)
+    return report
+
+
+def _write_building(path: str, out_dir: str, options: ImportOptions) -> ImportReport:
     building = building_at(path)
     report = ImportReport()
     lifts = f", {len(building.lifts)} lifts" if building.lifts else ""

@@ -328,11 +328,7 @@ def _travel_times(args) -> int:
 
 
 def _import(args) -> int:
-    from mrta_drake.tools.building_import import (
-        ImportOptions,
-        check_people_fit,
-        import_building,
-    )
+    from mrta_drake.tools.building_import import ImportOptions, import_building
     from mrta_drake.tools.map_import import import_ros_map
     from mrta_drake.world.rmf_scenario import building_at
 
@@ -344,7 +340,6 @@ def _import(args) -> int:
                              "(an Open-RMF building file ends in .building.yaml)")
         _check_writable("--out", args.out, folder=True)
         report = import_ros_map(args.building, args.locations, args.out, options)
-        check_people_fit(report.scenarios, options.people)
         print("\n".join(report.lines))
         return 0
     if args.locations:
@@ -352,7 +347,6 @@ def _import(args) -> int:
     building_at(args.building)  # a broken building is refused before anything is written
     _check_writable("--out", args.out, folder=True)
     report = import_building(args.building, args.out, options)
-    check_people_fit(report.scenarios, options.people)
     print("\n".join(report.lines))
     return 0
 

@@ -16,7 +16,12 @@ import numpy as np
 from mrta_drake.errors import InputError
 from mrta_drake.navigation.location_derivation import load_points
 from mrta_drake.navigation.navigation_derivation import derive_navigation, write_navigation
-from mrta_drake.tools.building_import import ImportOptions, ImportReport, write_yaml
+from mrta_drake.tools.building_import import (
+    ImportOptions,
+    ImportReport,
+    check_people_fit,
+    write_yaml,
+)
 from mrta_drake.world.floor_plan import FloorPlan
 from mrta_drake.world.ros_map import load_ros_map
 
@@ -28,7 +33,8 @@ WALK_CLEARANCE = 0.5  # m from walls people need to pass (a 0.25 m body and its 
 def import_ros_map(map_path: str, points_path: str, out_dir: str,
                    options: ImportOptions) -> ImportReport:
     """Writes ``out_dir/navigation.yaml`` and ``out_dir/scenario.yaml`` (see the module
-    docstring); bad input raises ``InputError`` before anything is written."""
+    docstring); bad input raises ``InputError`` before anything is written, or, where the
+    people do not fit, once the scenario is written and removed (``check_people_fit``)."""
     plan = load_ros_map(map_path)
     navigation = derive_navigation(plan, load_points(points_path), points_file=points_path)
     starts = _robot_starts(navigation["locations"], options.robots, points_path)
@@ -57,6 +63,7 @@ def import_ros_map(map_path: str, points_path: str, out_dir: str,
                                          "points": walk_points}]}
     write_yaml(scenario, f"# {os.path.basename(map_path)}: imported by `mrta-sim import` "
                f"(seed {options.seed}).\n# Run: mrta-sim run scenario.yaml\n", content)
+    check_people_fit([scenario], options.people)
     locations, lanes = navigation["locations"], navigation["roadways"]["edges"]
     return ImportReport([scenario], [
         f"{len(locations)} locations, {len(navigation['roadways']['nodes'])} roadway nodes, "
