@@ -7,7 +7,10 @@ locations with their queues, entries and parking spots.
 - **One-way lanes**: ``one_way_lanes``, the shared lane step
   (``navigation.lane_derivation``): right-hand lanes offset from the centre lines where the
   free width allows, single-file segments elsewhere and around task locations that are not
-  dead ends (their lanes then meet on the vertex, the location's point).
+  dead ends (their lanes then meet on the vertex, the location's point). Single-file lanes
+  that lie on a loop of the lane graph (no bridge) are then driven one way round it
+  (``one_way_round_loops``, ``circulation``): robots on them follow each other and never
+  meet head-on; the dead ends and the stretches between loops stay single-file segments.
 - **Task locations**: the vertices with ``pickup_dispenser`` or ``dropoff_ingestor``, then
   the other named vertices (in the demos most destinations are named holding points or
   parking spots), except chargers, pass-through points and lift cabins; only those in the
@@ -89,6 +92,7 @@ class BuildingNavigationParams:
     overflow_spots: int = 5  # waiting spots beyond the tail slot that are checked: the
     # import's default fleet of 6 less the room's holder
     overflow_reach: float = 2.0  # m: a waiting spot too near an obstacle moves at most this far
+    circulation: bool = True  # single-file lanes on a loop are driven one way round it
 
     def __post_init__(self):
         if self.graph < 0:
@@ -204,7 +208,8 @@ def _node_name(vertex: Vertex, index: int, taken) -> str:
     return name
 
 
-def one_way_lanes(lines: CentreLines, floor_plan: FloorPlan, shared: set[str]) -> Lanes:
+def one_way_lanes(lines: CentreLines, floor_plan: FloorPlan, shared: set[str],
+                  circulation: bool = False) -> Lanes:
     """The lane step (``navigation.lane_derivation``): right-hand one-way lanes along the
     centre lines where the free width of ``floor_plan`` allows, else single-file segments;
     the edges at the vertices ``shared`` (task locations that are not dead ends) stay single
@@ -215,8 +220,57 @@ def one_way_lanes(lines: CentreLines, floor_plan: FloorPlan, shared: set[str]) -
         edges=tuple(CentrelineEdge(a, b, one_way=not two_way,
                                    single_file=a in shared or b in shared)
                     for a, b, two_way in lines.edges))
+    lanes = derive_lanes(graph, floor_plan.obstacles.signed_distance, LaneParams(),
+                         frozenset(shared))
+    if not circulation:
+        return lanes
+    ways = one_way_round_loops(graph, lanes.single_file)
+    if not ways:
+        return lanes
+    graph = CentrelineGraph(nodes=graph.nodes, edges=tuple(
+        CentrelineEdge(*ways[frozenset((e.a, e.b))], one_way=True)
+        if frozenset((e.a, e.b)) in ways else e for e in graph.edges))
     return derive_lanes(graph, floor_plan.obstacles.signed_distance, LaneParams(),
                         frozenset(shared))
+
+
+def one_way_round_loops(graph: CentrelineGraph, single_file) -> dict:
+    """The single-file edges of ``graph`` that lie on a loop (no bridge), each given the
+    one way (a, b) that keeps every vertex reachable from every other it was reachable
+    from (Robbins' orientation: a depth-first search drives its tree edges away from the
+    root and the others back towards it); keyed by frozenset((a, b))."""
+    single = {frozenset(pair) for segment in single_file
+              for pair in zip(segment.vertices, segment.vertices[1:])}
+    undirected = nx.Graph()
+    undirected.add_nodes_from(sorted(graph.nodes))
+    undirected.add_edges_from((e.a, e.b) for e in graph.edges)
+    bridges = {frozenset(edge) for edge in nx.bridges(undirected)}
+    ways = {}
+    for a, b, kind in nx.dfs_labeled_edges(undirected):
+        key = frozenset((a, b))
+        if kind in ("forward", "nontree") and a != b and key not in ways:
+            ways[key] = (a, b)
+    fixed = {frozenset((e.a, e.b)): (e.a, e.b) for e in graph.edges if e.one_way}
+    oriented = {key: way for key, way in ways.items()
+                if key in single and key not in bridges and key not in fixed}
+    return oriented if _reach_kept(graph, oriented) else {}
+
+
+def _reach_kept(graph: CentrelineGraph, oriented: dict) -> bool:
+    """Whether orienting ``oriented`` keeps the strongly connected parts of ``graph``."""
+    def parts(ways):
+        directed = nx.DiGraph()
+        directed.add_nodes_from(graph.nodes)
+        for e in graph.edges:
+            key = frozenset((e.a, e.b))
+            if key in ways:
+                directed.add_edge(*ways[key])
+            else:
+                directed.add_edge(e.a, e.b)
+                if not e.one_way:
+                    directed.add_edge(e.b, e.a)
+        return {frozenset(c) for c in nx.strongly_connected_components(directed)}
+    return parts({}) == parts(oriented)
 
 
 def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
@@ -229,7 +283,8 @@ def level_navigation(building: Building, level_name: str, floor_plan: FloorPlan,
     candidates = _task_vertices(level, lines)
     degree = Counter(v for a, b, _ in lines.edges for v in (a, b))
     lanes = one_way_lanes(lines, floor_plan, {lines.vertex_node[i] for i in candidates
-                                              if degree[lines.vertex_node[i]] > 1})
+                                              if degree[lines.vertex_node[i]] > 1},
+                          params.circulation)
     roadways = dataclasses.replace(lanes.roadways, single_file=[
         list(segment.nodes) for segment in lanes.single_file])
     graph = nx.DiGraph()

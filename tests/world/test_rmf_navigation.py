@@ -10,17 +10,23 @@ from mrta_drake.navigation.roadways import Roadways
 from mrta_drake.navigation.single_file import SingleFileParams
 from mrta_drake.world.obstacles import Obstacles
 from mrta_drake.world.rmf_building import load_building
+from mrta_drake.navigation.lane_derivation import (
+    CentrelineEdge,
+    CentrelineGraph,
+    SingleFileSegment,
+)
 from mrta_drake.world.rmf_navigation import (
     BuildingNavigationParams,
     _spaced,
     centre_lines,
     level_navigation,
+    one_way_round_loops,
 )
 from mrta_drake.world.rmf_world import level_world
 
 BUILDINGS = Path(__file__).parents[1] / "data" / "buildings"
 LEVELS = [("one_level", "L1"), ("two_levels", "L1"), ("two_levels", "L2"),
-          ("cartesian", "ground")]
+          ("cartesian", "ground"), ("narrow_loop", "ground")]
 PARAMS = BuildingNavigationParams()
 
 
@@ -175,6 +181,66 @@ def test_one_way_lanes_stay_one_way():
     _, _, navigation = derived("wgs84", "L1")
     assert ["gate", "v1"] in navigation.roadways.edges
     assert ["v1", "gate"] not in navigation.roadways.edges
+
+
+def _ring_lanes(navigation):
+    """The roadway lanes between the ring's vertices of narrow_loop (both ends on the ring,
+    x or y at the corridor's centre line)."""
+    def on_ring(name):
+        x, y = navigation.roadways.nodes[name]
+        return min(abs(x - 0.8), abs(x - 15.2), abs(y - 0.8), abs(y - 9.2)) < 0.05
+    return {(a, b) for a, b in navigation.roadways.edges if on_ring(a) and on_ring(b)}
+
+
+def test_single_file_lanes_round_a_loop_are_driven_one_way_round_it():
+    # narrow_loop's corridor is single file all round: robots driving it both ways would
+    # meet head-on; driven one way round, they only follow each other.
+    _, _, navigation = derived("narrow_loop", "ground")
+    ring = _ring_lanes(navigation)
+    assert len(ring) >= 8
+    assert not any((b, a) in ring for a, b in ring)
+    # The dead end to the charging room is no loop: driven both ways.
+    lanes = navigation.roadways.edges
+    assert any(b == "dock" for _, b in lanes) and any(a == "dock" for a, _ in lanes)
+    assert all("dock" in s.vertices for s in navigation.single_file)
+    _, _, both_ways = derived("narrow_loop", "ground",
+                              BuildingNavigationParams(circulation=False))
+    assert any((b, a) in _ring_lanes(both_ways) for a, b in _ring_lanes(both_ways))
+    assert len(both_ways.single_file) > 1
+
+
+def _square(one_way=()):
+    nodes = {"a": (0, 0), "b": (4, 0), "c": (4, 4), "d": (0, 4), "e": (-3, 4)}
+    pairs = [("a", "b"), ("b", "c"), ("c", "d"), ("d", "a"), ("d", "e")]
+    return CentrelineGraph(nodes, tuple(CentrelineEdge(a, b, one_way=(a, b) in one_way)
+                                        for a, b in pairs))
+
+
+def test_a_loop_is_oriented_round_and_its_bridges_and_wide_lanes_stay_two_way():
+    single = (SingleFileSegment(("a", "b", "c"), ()), SingleFileSegment(("c", "d"), ()),
+              SingleFileSegment(("d", "e"), ()))  # d - a has two lanes
+    ways = one_way_round_loops(_square(), single)
+    assert set(ways) == {frozenset(p) for p in (("a", "b"), ("b", "c"), ("c", "d"))}
+    way = [ways[frozenset(p)] for p in (("a", "b"), ("b", "c"), ("c", "d"))]
+    assert way in ([("a", "b"), ("b", "c"), ("c", "d")], [("b", "a"), ("c", "b"), ("d", "c")])
+
+
+def test_a_loop_whose_one_way_lanes_forbid_a_round_trip_is_left_two_way():
+    # a -> b is one way in the file, d -> a too: orienting b - c - d against them would cut
+    # a off; whichever way the search goes, every vertex still reaches every other.
+    single = (SingleFileSegment(("b", "c", "d"), ()),)
+    for one_way in ((("a", "b"), ("d", "a")), (("b", "a"), ("a", "d"))):
+        graph = _square(one_way)
+        ways = one_way_round_loops(graph, single)
+        directed = {(e.a, e.b) for e in graph.edges if e.one_way} | set(ways.values())
+        for e in graph.edges:
+            if not e.one_way and frozenset((e.a, e.b)) not in ways:
+                directed |= {(e.a, e.b), (e.b, e.a)}
+        reach = {v: {v} for v in graph.nodes}
+        for _ in graph.nodes:
+            for a, b in directed:
+                reach[a] |= reach[b]
+        assert all(reach[v] == set(graph.nodes) for v in graph.nodes), ways
 
 
 def test_lanes_into_a_lift_cabin_are_left_out():
