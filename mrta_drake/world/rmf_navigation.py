@@ -214,7 +214,9 @@ def one_way_lanes(lines: CentreLines, floor_plan: FloorPlan, shared: set[str],
     centre lines where the free width of ``floor_plan`` allows, else single-file segments;
     the edges at the vertices ``shared`` (task locations that are not dead ends) stay single
     file, so that their lanes meet on the vertex itself, and single-file segments end there
-    (a robot queueing on one side leaves the other side to the robot leaving)."""
+    (a robot queueing on one side leaves the other side to the robot leaving). With
+    ``circulation``, the single-file lanes too narrow for two that lie on loops are then
+    driven one way round them (``one_way_round_loops``)."""
     graph = CentrelineGraph(
         nodes=lines.nodes,
         edges=tuple(CentrelineEdge(a, b, one_way=not two_way,
@@ -222,9 +224,8 @@ def one_way_lanes(lines: CentreLines, floor_plan: FloorPlan, shared: set[str],
                     for a, b, two_way in lines.edges))
     lanes = derive_lanes(graph, floor_plan.obstacles.signed_distance, LaneParams(),
                          frozenset(shared))
-    if not circulation:
-        return lanes
-    ways = one_way_round_loops(graph, lanes.single_file)
+    ways = one_way_round_loops(graph, _too_narrow(graph, floor_plan, lanes)) \
+        if circulation else {}
     if not ways:
         return lanes
     graph = CentrelineGraph(nodes=graph.nodes, edges=tuple(
@@ -234,13 +235,24 @@ def one_way_lanes(lines: CentreLines, floor_plan: FloorPlan, shared: set[str],
                         frozenset(shared))
 
 
+def _too_narrow(graph: CentrelineGraph, floor_plan: FloorPlan, lanes: Lanes):
+    """The single-file segments of ``graph`` where two lanes do not fit (``lanes``, its
+    lanes, also has those single file for a task location on them: where two lanes fit,
+    a loop through such locations keeps its two ways)."""
+    if not any(e.single_file for e in graph.edges):
+        return lanes.single_file
+    free = CentrelineGraph(nodes=graph.nodes, edges=tuple(
+        dataclasses.replace(e, single_file=False) for e in graph.edges))
+    return derive_lanes(free, floor_plan.obstacles.signed_distance, LaneParams()).single_file
+
+
 def one_way_round_loops(graph: CentrelineGraph, single_file) -> dict:
     """The single-file edges of ``graph`` that lie on a loop (no bridge), each given the
     one way (a, b) that keeps every vertex reachable from every other it was reachable
     from (Robbins' orientation: a depth-first search drives its tree edges away from the
     root and the others back towards it); keyed by frozenset((a, b))."""
     single = {frozenset(pair) for segment in single_file
-              for pair in zip(segment.vertices, segment.vertices[1:])}
+              for pair in zip(segment.vertices[:-1], segment.vertices[1:], strict=True)}
     undirected = nx.Graph()
     undirected.add_nodes_from(sorted(graph.nodes))
     undirected.add_edges_from((e.a, e.b) for e in graph.edges)

@@ -6,15 +6,15 @@ import numpy as np
 import pytest
 
 from mrta_drake.errors import InputError
-from mrta_drake.navigation.roadways import Roadways
-from mrta_drake.navigation.single_file import SingleFileParams
-from mrta_drake.world.obstacles import Obstacles
-from mrta_drake.world.rmf_building import load_building
 from mrta_drake.navigation.lane_derivation import (
     CentrelineEdge,
     CentrelineGraph,
     SingleFileSegment,
 )
+from mrta_drake.navigation.roadways import Roadways
+from mrta_drake.navigation.single_file import SingleFileParams
+from mrta_drake.world.obstacles import Obstacles
+from mrta_drake.world.rmf_building import load_building
 from mrta_drake.world.rmf_navigation import (
     BuildingNavigationParams,
     _spaced,
@@ -207,6 +207,16 @@ def test_single_file_lanes_round_a_loop_are_driven_one_way_round_it():
                               BuildingNavigationParams(circulation=False))
     assert any((b, a) in _ring_lanes(both_ways) for a, b in _ring_lanes(both_ways))
     assert len(both_ways.single_file) > 1
+
+
+def test_a_loop_single_file_only_for_a_task_location_on_it_keeps_both_ways():
+    # wgs84's loop gate -> v1 - lab -> gate: v1 - lab is single file only because lab, a
+    # task location on a passage, is served on its vertex; two lanes would fit, so it is
+    # not turned one way round the loop.
+    pytest.importorskip("pyproj")
+    _, _, navigation = derived("wgs84", "L1")
+    assert ["lab", "v1"] in navigation.roadways.edges
+    assert [s.vertices for s in navigation.single_file] == [("v1", "lab")]
 
 
 def _square(one_way=()):
