@@ -20,7 +20,10 @@
   head on along a corridor's two lanes pass each other instead of one yielding
   (``control.followers``; docs/worlds.md, "Yielding on two-lane corridors"). A building
   whose lanes are all single file keeps the default: its robots meet head on only beside
-  the lanes, waiting at queue slots and spots, where yielding is kept.
+  the lanes, waiting at queue slots and spots, where yielding is kept. Where some lanes are
+  single-file segments, the scenario sets the deadlock watchdog's ``standstill_time`` and
+  ``gridlock_time`` to 10 s (``SINGLE_FILE_WATCHDOG``): robots there cannot pass each
+  other, and a standoff lasts until the watchdog breaks it.
 
 A building with several levels and no ``level`` gets one folder running them all,
 joined by the lifts (``levels_import``).
@@ -64,6 +67,7 @@ PEOPLE_GAP = 1.0  # m from a person's first point to robot starts and earlier pe
 WALL_SAFETY = SafetyDistances().wall  # m, the controller's default safety distance to walls
 WALL_SAFETY_MARGIN = 0.06  # m kept between that distance and the lanes' clearance
 HEAD_ON_CLEARANCE = 0.75  # m, below the lanes' 0.9 m spacing (LaneParams.offset)
+SINGLE_FILE_WATCHDOG = {"standstill_time": 10.0, "gridlock_time": 10.0}  # s: see below
 START_ORDER = ("is_charger", "is_parking_spot", "spawn_robot_name")
 QUEUE_BERTH = 2.0  # m: a start spot off a task location keeps this far from its point and queue
 ROUTE_BERTH = 1.0  # m: a leg this near a start spot passes it
@@ -162,7 +166,7 @@ def _write_level(building: Building, level_name: str, out_dir: str, options: Imp
                       options.graph, navigation)
     scenario = os.path.join(out_dir, "scenario.yaml")
     write_scenario(scenario, os.path.basename(building.source), level_name, options, starts,
-                    humans, controller_params(navigation.roadways, world.floor_plan), stream)
+                    humans, scenario_blocks(navigation.roadways, world.floor_plan), stream)
     report.scenarios.append(scenario)
     roadways = navigation.roadways
     report.lines.append(
@@ -334,6 +338,20 @@ def wall_safety(roadways: RoadwaysConfig, floor_plan: FloorPlan) -> float:
     return round(min(WALL_SAFETY, max(ROBOT_RADIUS + 0.05, least - WALL_SAFETY_MARGIN)), 3)
 
 
+def scenario_blocks(roadways: RoadwaysConfig, floor_plan: FloorPlan) -> dict:
+    """The ``blocks`` the scenario sets (see the module docstring): the controller's params
+    (``controller_params``) when there are any, and where some lanes are single-file
+    segments the deadlock watchdog's ``SINGLE_FILE_WATCHDOG`` (a standoff between robots
+    that cannot pass each other lasts until the watchdog breaks it: it acts after 10 s
+    rather than 15 s and 20 s; docs/worlds.md, "Single-file loops driven one way round")."""
+    blocks = {}
+    if controller := controller_params(roadways, floor_plan):
+        blocks["controller"] = {"kind": "cluster_cbf", "params": controller}
+    if roadways.single_file:
+        blocks["watchdog"] = {"params": dict(SINGLE_FILE_WATCHDOG)}
+    return blocks
+
+
 def controller_params(roadways: RoadwaysConfig, floor_plan: FloorPlan) -> dict:
     """The controller's params the scenario sets (see the module docstring): the wall safety
     distance when below the default, ``coordination.head_on_clearance`` when some lanes of
@@ -437,12 +455,12 @@ def _write_navigation(path: str, building: Building, level: str, graph: int,
 
 
 def write_scenario(path: str, building_file: str, level: str, options: ImportOptions,
-                   starts, humans: dict, controller: dict, stream: StreamSize | None = None,
+                   starts, humans: dict, blocks: dict, stream: StreamSize | None = None,
                    ) -> None:
     """Writes the imported scenario to ``path``: the building's ``level`` ("" for every
     level), robots at ``starts``, the ``humans`` section, a generated task stream (sized
-    by ``stream`` when given, else ``options.tasks_per_robot``), and the controller's
-    params ``controller`` (``controller_params``) when there are any."""
+    by ``stream`` when given, else ``options.tasks_per_robot``), and ``blocks``
+    (``scenario_blocks``) when there are any."""
     content = {
         "world": {"kind": "rmf_building", "floor_plan": building_file, "level": level,
                   "graph": options.graph},
@@ -455,8 +473,8 @@ def write_scenario(path: str, building_file: str, level: str, options: ImportOpt
     }
     if humans:
         content["humans"] = humans
-    if controller:
-        content["blocks"] = {"controller": {"kind": "cluster_cbf", "params": controller}}
+    if blocks:
+        content["blocks"] = blocks
     where = f"level {level}" if level else "every level"
     header = (f"# {building_file}, {where}: imported by `mrta-sim import` (seed "
               f"{options.seed}).\n# Run: mrta-sim run {os.path.basename(path)}\n")

@@ -24,9 +24,9 @@ from mrta_drake.scenario.schema import RoadwaysConfig, TasksConfig
 from mrta_drake.tools.building_import import (
     ImportOptions,
     ImportReport,
-    controller_params,
     people_section,
     robot_starts,
+    scenario_blocks,
     servable_stream,
     stream_line,
     write_scenario,
@@ -73,7 +73,7 @@ def write_all_levels(building: Building, out_dir: str, options: ImportOptions,
                              [levels.layout.level_of(loc.point[:2]) for loc in levels.locations])
     write_scenario(scenario, os.path.basename(building.source), "", options,
                     [[round(float(v), 3) for v in s] for s in starts], humans,
-                    controller_params(levels.roadways, levels.floor_plan), stream)
+                    scenario_blocks(levels.roadways, levels.floor_plan), stream)
     report.scenarios.append(scenario)
     report.lines.append(
         f"all levels ({', '.join(names)}) side by side: {len(levels.locations)} task "

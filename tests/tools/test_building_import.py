@@ -15,6 +15,7 @@ from mrta_drake.scenario.loading import load_scenario
 from mrta_drake.tools.building_import import (
     HEAD_ON_CLEARANCE,
     PEOPLE_GAP,
+    SINGLE_FILE_WATCHDOG,
     ImportOptions,
     controller_params,
     import_building,
@@ -71,6 +72,20 @@ def test_head_on_passing_is_set_only_where_some_lanes_are_two_way_corridors(tmp_
     # Every lane single file (driven one way at a time): robots never pass head on.
     all_single = dataclasses.replace(roadways, single_file=segments)
     assert "coordination" not in controller_params(all_single, floor_plan)
+
+
+def test_the_watchdog_acts_sooner_only_where_some_lanes_are_single_file(tmp_path):
+    # narrow_corridor's corridor is single file: robots there cannot pass each other, and a
+    # standoff lasts until the watchdog breaks it. open_hall's lanes all fit two.
+    import_building(str(BUILDINGS / "narrow_corridor.building.yaml"), str(tmp_path / "n"),
+                    ImportOptions(robots=2))
+    narrow = load_scenario(tmp_path / "n" / "scenario.yaml")
+    assert narrow.roadways.single_file
+    assert narrow.blocks.watchdog.params == SINGLE_FILE_WATCHDOG
+    import_building(str(BUILDINGS / "open_hall.building.yaml"), str(tmp_path / "o"),
+                    ImportOptions(robots=2))
+    hall = load_scenario(tmp_path / "o" / "scenario.yaml")
+    assert not hall.roadways.single_file and hall.blocks.watchdog.params == {}
 
 
 def test_robots_start_where_they_are_least_in_the_way(tmp_path):
