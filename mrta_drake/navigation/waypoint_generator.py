@@ -639,7 +639,11 @@ class WaypointPolicy:
         None where it need not or finds no such spot (docs/worlds.md, "Robots without a
         task in single-file segments")."""
         xy = robots.xy
-        if not self._standing_without_stop(s, xy):
+        if s.phase == RobotMode.HOME:
+            if not s.route or _distance(xy, s.route[-1]) > \
+                    self._params.single_file.stand_distance:
+                return None
+        elif s.phase != RobotMode.IDLE:
             return None
         wanted = {k for k, hold in enumerate(queues.segments)
                   if any(robot != self._robot for robot in (*hold.waiting, *hold.holders))}
@@ -654,14 +658,6 @@ class WaypointPolicy:
             return None
         return replace(s, phase=RobotMode.HOME, stop=None, route=route, index=0, since=None)
 
-    def _standing_without_stop(self, s: _Drive, xy) -> bool:
-        """Whether the robot at ``xy`` stands with nothing to do: idle, or home (within
-        ``single_file.stand_distance`` of its way home's end)."""
-        if s.phase == RobotMode.HOME:
-            return bool(s.route) and _distance(xy, s.route[-1]) <= \
-                self._params.single_file.stand_distance
-        return s.phase == RobotMode.IDLE
-
     def _off_bare_lane(self, s: _Drive, robots: _Robots, lanes: Roadways,
                        queues: QueueState) -> _Drive | None:
         """A robot without a stop standing (idle, or back at the spot it drove to wait at)
@@ -672,7 +668,11 @@ class WaypointPolicy:
         or waits for, none by a queue slot, free): standing there it blocks every robot
         behind it. None where it need not or finds no such spot."""
         xy = robots.xy
-        if not self._standing_without_stop(s, xy):
+        if s.phase == RobotMode.HOME:
+            if not s.route or _distance(xy, s.route[-1]) > \
+                    self._params.single_file.stand_distance:
+                return None
+        elif s.phase != RobotMode.IDLE:
             return None
         bare = self._bare_lanes()
         reach = self._params.single_file.stand_distance
