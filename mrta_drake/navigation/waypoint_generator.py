@@ -41,7 +41,7 @@ from mrta_drake.payloads import (
     Visit,
     WaypointTarget,
 )
-from mrta_drake.world.segment_distances import distance_to_polyline, segment_distances
+from mrta_drake.world.segment_distances import distance_to_polyline
 
 # The phases in which a robot asks the room queues for its stop's room.
 _ASKING_PHASES = (RobotMode.QUEUE, RobotMode.ENTER, RobotMode.SERVE)
@@ -441,7 +441,6 @@ class WaypointPolicy:
         self._start_location = start_location
         self._spots_cache: dict[tuple, tuple[bool, tuple]] = {}  # ``_spots_reached``'s
         self._refuges: tuple | None = None  # ``_refuge``'s candidate spots, made when needed
-        self._bare: np.ndarray | None = None  # ``_bare_lanes``, made when needed
         # The outputs of the state last read: most updates keep the state object as it is.
         self._last_outputs: _Outputs | None = None
 
@@ -554,8 +553,6 @@ class WaypointPolicy:
         if stop is None:
             if lanes.segment_count and (away := self._make_way(s, robots, lanes, queues)):
                 return away
-            if away := self._off_bare_lane(s, robots, lanes, queues):
-                return away
             if s.phase in (RobotMode.PARK, RobotMode.HOME):
                 return self._keep_spot(s, robots, lanes)
             place = None if s.last_location is None else self._roadways.place(s.last_location)
@@ -657,79 +654,6 @@ class WaypointPolicy:
         if route is None:
             return None
         return replace(s, phase=RobotMode.HOME, stop=None, route=route, index=0, since=None)
-
-    def _off_bare_lane(self, s: _Drive, robots: _Robots, lanes: Roadways,
-                       queues: QueueState) -> _Drive | None:
-        """A robot without a stop standing (idle, or back at the spot it drove to wait at)
-        on a bare lane (``_bare_lanes``: one way, with no lane beside it, in no single-file
-        segment, as round a loop driven one way) with another robot within
-        ``parking_clearance`` of it drives on along that lane to the nearest spot off
-        every bare lane (``_refuge_spots``: in no single-file segment another robot holds
-        or waits for, none by a queue slot, free): standing there it blocks every robot
-        behind it. None where it need not or finds no such spot."""
-        xy = robots.xy
-        if s.phase == RobotMode.HOME:
-            if not s.route or _distance(xy, s.route[-1]) > \
-                    self._params.single_file.stand_distance:
-                return None
-        elif s.phase != RobotMode.IDLE:
-            return None
-        bare = self._bare_lanes()
-        reach = self._params.single_file.stand_distance
-        if not len(bare) or _on_lanes(np.array([xy]), bare)[0] > reach:
-            return None
-        others = np.delete(robots.states[:, :2], self._index, axis=0)
-        if not len(others) or np.linalg.norm(others - np.asarray(xy), axis=1).min() > \
-                self._params.parking_clearance:
-            return None
-        avoid = {k for k, hold in enumerate(queues.segments)
-                 if any(robot != self._robot for robot in (*hold.waiting, *hold.holders))}
-        spots = [(spot, node) for spot, node, segments, by_slot in self._refuge_spots()
-                 if not by_slot and avoid.isdisjoint(segments) and self._free(spot, others)
-                 and _on_lanes(np.array([spot]), bare)[0] > reach]
-        k = int(np.argmin(segment_distances(xy, bare[:, 0], bare[:, 1])))
-        ahead = lanes.node_at(bare[k, 1])
-        if not spots or ahead is None:
-            return None
-        paths = lanes.paths_from(ahead)
-        best, best_length = None, math.inf
-        for spot, node in spots:
-            if node not in paths:
-                continue
-            route = tuple(_point(lanes.node_position(n)) for n in paths[node])
-            route += () if route[-1] == spot else (spot,)
-            length = sum(_distance(a, b) for a, b in zip((xy, *route[:-1]), route,
-                                                         strict=True))
-            if length < best_length:
-                best, best_length = route, length
-        if best is None:
-            return None
-        return replace(s, phase=RobotMode.HOME, stop=None, route=best, index=0, since=None)
-
-    def _bare_lanes(self) -> np.ndarray:
-        """The lanes (m, 2, 2; world frame, m) that run one way with no lane beside them
-        the other way (none within 1 m of the lane's middle, antiparallel within 30
-        degrees) and in no single-file segment: a robot standing on one blocks every
-        robot behind it. Made once, when first needed."""
-        if self._bare is None:
-            roadways = self._roadways
-            lanes = [(np.asarray(roadways.node_position(a)), np.asarray(roadways.node_position(b)))
-                     for a, b, lift in roadways.graph.edges(data="lift") if not lift
-                     and roadways.segment_of(roadways.node_position(a),
-                                             roadways.node_position(b)) is None]
-            bare = []
-            for a, b in lanes:
-                u = b - a
-                length = float(np.linalg.norm(u))
-                if length < 1.0:
-                    continue
-                u, middle = u / length, 0.5 * (a + b)
-                if not any(float(np.dot(u, d - c)) < -0.87 * float(np.linalg.norm(d - c))
-                           and segment_distances(middle, [c], [d])[0] <= 1.0
-                           for c, d in lanes):
-                    bare.append((a, b))
-            self._bare = np.array(bare, dtype=float).reshape(-1, 2, 2)
-        return self._bare
 
     def _refuge(self, xy, here: tuple[int, ...], states: np.ndarray, lanes: Roadways,
                 queues: QueueState, wanted: set[int], askers: np.ndarray
@@ -1468,8 +1392,3 @@ class FleetWaypoints(LeafSystem):
             # changed
         state.get_mutable_abstract_state(self._state_index).set_value(self._state(new))
         return EventStatus.Succeeded()
-
-
-def _on_lanes(points: np.ndarray, lanes: np.ndarray) -> np.ndarray:
-    """Each of ``points``' (k, 2) distance to the nearest of ``lanes`` (m, 2, 2), m."""
-    return np.array([segment_distances(p, lanes[:, 0], lanes[:, 1]).min() for p in points])

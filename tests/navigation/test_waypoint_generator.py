@@ -702,38 +702,6 @@ def test_a_robot_back_home_holds_only_the_segment_it_stands_in():
     assert home.lanes == Need(((2, True),), stops=(2,), standing=(2,))  # it stands in it
 
 
-def one_way_loop_world() -> Roadways:
-    """A loop driven one way, single file: A (0, 0) -> B (10, 0) -> C (10, 6) -> D (0, 6)
-    -> A, with a spur B - P (14, 0) to a parking dead end (segment 0); location L beside
-    the loop."""
-    nodes = {"A": [0.0, 0.0], "B": [10.0, 0.0], "C": [10.0, 6.0], "D": [0.0, 6.0],
-             "P": [14.0, 0.0]}
-    edges = [["A", "B"], ["B", "C"], ["C", "D"], ["D", "A"], ["B", "P"], ["P", "B"]]
-    locations = [LocationConfig(id=0, name="L", point=[5.0, 7.5], queue=[[3.7, 7.5]],
-                                exit_node="D", approach_node="C")]
-    return Roadways(RoadwaysConfig(nodes=nodes, edges=edges, single_file=[["B", "P"]]),
-                    locations)
-
-
-def test_a_robot_without_a_stop_on_a_loop_driven_one_way_drives_on_off_it():
-    # r0 stands idle on the lane A -> B (a lane with none beside it: every robot behind it
-    # waits); with r1 right behind it, it drives on along the loop to B and into the spur's
-    # dead end P, off every bare lane. Alone there, it stays.
-    policy = WaypointPolicy(["r0", "r1"], 0, one_way_loop_world(), None, WaypointParams())
-    queues = QueueState(segments=(SegmentHold(),))
-    s = policy.initial_state()
-    crowded = policy.update(s, _Inputs(1.0, queues, [[5.0, 0.0, 0.0, 0.0],
-                                                    [4.2, 0.0, 0.0, 0.3]]))
-    assert crowded.phase == RobotMode.HOME and crowded.route == ((10.0, 0.0), (14.0, 0.0))
-    alone = policy.update(s, _Inputs(1.0, queues, [[5.0, 0.0, 0.0, 0.0],
-                                                  [0.0, 6.0, 0.0, 0.3]]))
-    assert alone.phase == RobotMode.IDLE
-    # The spur held by another robot: no spot off the bare lanes, it stays.
-    held = QueueState(segments=(SegmentHold(("r1",), True),))
-    assert policy.update(s, _Inputs(1.0, held, [[5.0, 0.0, 0.0, 0.0],
-                                                [4.2, 0.0, 0.0, 0.3]])).phase == RobotMode.IDLE
-
-
 def test_a_robot_without_a_stop_holds_the_segment_it_stands_in():
     policy = WaypointPolicy(["r0"], 0, spur_world(), None, WaypointParams())
     idle = policy.update(policy.initial_state(),
