@@ -7,9 +7,9 @@ locations with their queues, entries and parking spots.
 - **One-way lanes**: ``one_way_lanes``, the shared lane step
   (``navigation.lane_derivation``): right-hand lanes offset from the centre lines where the
   free width allows, single-file segments elsewhere and around task locations that are not
-  dead ends (their lanes then meet on the vertex, the location's point). Single-file lanes
-  that lie on a loop of the lane graph (no bridge) are then driven one way round it
-  (``one_way_round_loops``, ``circulation``): robots on them follow each other and never
+  dead ends (their lanes then meet on the vertex, the location's point). Lanes too narrow
+  for two that lie on a loop of the lane graph (no bridge) are then driven one way round
+  it (``one_way_round_loops``, ``circulation``): robots on them follow each other and never
   meet head-on; the dead ends and the stretches between loops stay single-file segments.
 - **Task locations**: the vertices with ``pickup_dispenser`` or ``dropoff_ingestor``, then
   the other named vertices (in the demos most destinations are named holding points or
@@ -92,7 +92,7 @@ class BuildingNavigationParams:
     overflow_spots: int = 5  # waiting spots beyond the tail slot that are checked: the
     # import's default fleet of 6 less the room's holder
     overflow_reach: float = 2.0  # m: a waiting spot too near an obstacle moves at most this far
-    circulation: bool = True  # single-file lanes on a loop are driven one way round it
+    circulation: bool = True  # lanes too narrow for two on a loop: one way round it
 
     def __post_init__(self):
         if self.graph < 0:
